@@ -1,0 +1,92 @@
+"""Frames, bending angles and circular-arc fits: pure functions on numpy arrays (SI, rad)."""
+
+import math
+from typing import Tuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+#: Below this tilt (rad) the bending direction is undefined and reported as 0.
+_STRAIGHT_TILT = 1e-12
+
+
+def bending_angle_and_direction(rotation: np.ndarray) -> Tuple[float, float]:
+    """Bending angle theta and bending-plane direction delta of a joint (rad).
+
+    theta is the tilt of the distal z axis from the proximal z axis, delta the azimuth
+    of that tilt about the proximal z axis, measured from x (the standard continuum-joint
+    parameterization, R = Rz(delta) Ry(theta) Rz(-delta) for a joint without twist).
+    """
+    z_axis = rotation[:, 2]
+    sideways = math.hypot(z_axis[0], z_axis[1])
+    theta = math.atan2(sideways, z_axis[2])
+    delta = math.atan2(z_axis[1], z_axis[0]) if sideways > _STRAIGHT_TILT else 0.0
+    return theta, delta
+
+
+def rotation_angle(rotation: np.ndarray) -> float:
+    """Total rotation angle of a rotation matrix (rad, in [0, pi])."""
+    skew = 0.5 * np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                           rotation[1, 0] - rotation[0, 1]])
+    return math.atan2(float(np.linalg.norm(skew)), 0.5 * (np.trace(rotation) - 1.0))
+
+
+def relative_rotation(frame_a: np.ndarray, frame_b: np.ndarray) -> np.ndarray:
+    """Rotation of 4x4 frame b relative to 4x4 frame a, R_a^T R_b."""
+    return frame_a[:3, :3].T @ frame_b[:3, :3]
+
+
+def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
+    quaternion = Rotation.from_matrix(rotation).as_quat()
+    return -quaternion if quaternion[3] < 0.0 else quaternion
+
+
+def _fit_plane(points: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid and orthonormal axes (in-plane u, v, normal) of the best-fit plane."""
+    centroid = points.mean(axis=0)
+    _, _, axes = np.linalg.svd(points - centroid)
+    return centroid, axes[:2], axes[2]
+
+
+def fit_circle(points: np.ndarray, iterations: int = 20) -> Tuple[np.ndarray, np.ndarray, float]:
+    """Least-squares circle through 3-D points: (centre, unit normal, radius).
+
+    The plane comes from an SVD, the circle in it from the algebraic (Kasa) fit refined
+    by Gauss-Newton on the geometric distances. Returns radius = inf for collinear points.
+    """
+    centroid, in_plane, normal = _fit_plane(points)
+    planar = (points - centroid) @ in_plane.T
+    design = np.column_stack([2.0 * planar, np.ones(len(planar))])
+    target = (planar ** 2).sum(axis=1)
+    solution, *_ = np.linalg.lstsq(design, target, rcond=None)
+    centre = solution[:2]
+    radius_sq = solution[2] + centre @ centre
+    chord = float(np.ptp(planar, axis=0).max())
+    if not np.all(np.isfinite(solution)) or radius_sq <= 0.0 \
+            or radius_sq > (1e6 * max(chord, 1e-300)) ** 2:
+        return centroid, normal, math.inf
+    radius = math.sqrt(radius_sq)
+    for _ in range(iterations):
+        offset = planar - centre
+        distance = np.linalg.norm(offset, axis=1)
+        jac = np.column_stack([-offset / distance[:, None], -np.ones(len(planar))])
+        step, *_ = np.linalg.lstsq(jac, -(distance - radius), rcond=None)
+        centre = centre + step[:2]
+        radius += step[2]
+        if np.abs(step).max() < 1e-15 * max(radius, 1.0):
+            break
+    return centroid + centre @ in_plane, normal, float(radius)
+
+
+def circle_deviation(points: np.ndarray) -> float:
+    """Largest distance of the points from their least-squares circle (or line) (m)."""
+    centre, normal, radius = fit_circle(points)
+    offset = points - centre
+    height = offset @ normal
+    if math.isinf(radius):
+        _, in_plane, _ = _fit_plane(points)
+        along = offset @ in_plane[0]
+        return float(np.linalg.norm(offset - np.outer(along, in_plane[0]), axis=1).max())
+    in_plane_radius = np.linalg.norm(offset - np.outer(height, normal), axis=1)
+    return float(np.hypot(in_plane_radius - radius, height).max())

@@ -1,0 +1,298 @@
+"""The translator's multi-rod boundary-value problem (paper Section III.C, Eq. 7-11).
+
+Rods: k = 0 the primary backbone, k = 1..4 the secondaries at 0/90/180/270 deg on the
+pitch circle. Everything is in the base frame {pe}. One shooting pass integrates all five
+rods disk interval by disk interval and applies the disk conditions on the way.
+
+Unknowns ``x`` (SI), for S spacer disks per joint and ``nst = 2 S + 1`` stations:
+  x[6k:6k+3], x[6k+3:6k+6]   n_k(0), m_k(0) of rod k at the base disk (30 values);
+  x[30 + 5 (i nst + t) + c]  secondary i (0..3) at station t (0..nst-1):
+        c = 0      material length of the segment that ends at station t;
+        c = 1, 2   in-plane reaction force (disk x, y) applied there;
+        c = 3, 4   in-plane reaction moment (disk x, y) applied there.
+Stations t < S are PJ spacer disks, t = S the tube's proximal face (its reaction is the
+in-plane wrench the lumen hands back at the distal face), t > S the DJ spacer disks.
+
+Residuals ``out`` (SI), as many as unknowns (30 + 20 nst):
+  out[5 (i nst + t) + c]  at station t: c = 0, 1 hole offset in the disk plane (Eq. 7),
+        c = 2 offset normal to the disk (Eq. 8), c = 3, 4 tilt of the secondary's tangent
+        in the disk frame (zero exactly when R_0^T R_i is a pure twist, as Eq. 7 asks);
+  out[20 nst + 6 i + c]   end-disk clamp of secondary i: position (3), orientation (3) (Eq. 10);
+  out[20 nst + 24 + c]    end-disk equilibrium, force (3) then moment about its centre (3)
+                          (Eq. 11).
+
+Modelling choices where the paper is silent (see ../shared/paper/NOTES.md):
+* A thin spacer disk is a rigid body in full 6-D equilibrium: whatever in-plane wrench it
+  applies to the secondaries, the primary backbone (clamped to it) supplies.
+* The tube is rigid. The primary is clamped to both faces; each secondary runs straight
+  along its lumen, free to slide and twist, so inside the lumen it carries only its axial
+  force and torsion. The lumen absorbs the in-plane wrench at the proximal face and hands
+  an unknown in-plane wrench back at the distal face; the tube's own 6-D equilibrium fixes
+  the primary's wrench leaving the distal face.
+"""
+
+import math
+
+import numpy as np
+
+from ._jit import jit
+from .rod import integrate_segment
+
+N_RODS = 5
+N_BASE_UNKNOWNS = 6 * N_RODS
+STATION_WIDTH = 5
+
+
+def station_count(spacers_per_joint: int) -> int:
+    """Stations per secondary: the spacer disks of both joints and the tube's proximal face."""
+    return 2 * spacers_per_joint + 1
+
+
+def unknown_count(spacers_per_joint: int) -> int:
+    """Size of the unknown vector (and of the residual vector)."""
+    return N_BASE_UNKNOWNS + 4 * STATION_WIDTH * station_count(spacers_per_joint)
+
+
+def grid_points_per_rod(spacers_per_joint: int, steps: int) -> int:
+    """Rows of centre-line points recorded per rod (each disk interval has steps + 1)."""
+    return 2 * (spacers_per_joint + 1) * (steps + 1)
+
+
+@jit
+def _cross_sub(a, b, out):
+    """out -= a x b."""
+    out[0] -= a[1] * b[2] - a[2] * b[1]
+    out[1] -= a[2] * b[0] - a[0] * b[2]
+    out[2] -= a[0] * b[1] - a[1] * b[0]
+
+
+@jit
+def _cross_add(a, b, out):
+    """out += a x b."""
+    out[0] += a[1] * b[2] - a[2] * b[1]
+    out[1] += a[2] * b[0] - a[0] * b[2]
+    out[2] += a[0] * b[1] - a[1] * b[0]
+
+
+@jit
+def _station_residuals(p, rot, hole, i, out, row):
+    """Write the 5 conditions of secondary i at a disk whose frame is the primary's."""
+    dx = p[i + 1, 0] - p[0, 0]
+    dy = p[i + 1, 1] - p[0, 1]
+    dz = p[i + 1, 2] - p[0, 2]
+    for c in range(3):
+        local = rot[0, 0, c] * dx + rot[0, 1, c] * dy + rot[0, 2, c] * dz
+        out[row + c] = local - hole[i, c]
+    for c in range(2):
+        out[row + 3 + c] = (rot[0, 0, c] * rot[i + 1, 0, 2] + rot[0, 1, c] * rot[i + 1, 1, 2]
+                            + rot[0, 2, c] * rot[i + 1, 2, 2])
+
+
+@jit
+def _in_plane(rot, a, b, out):
+    """out = a * (disk x axis) + b * (disk y axis) for the primary's frame ``rot``."""
+    for c in range(3):
+        out[c] = a * rot[c, 0] + b * rot[c, 1]
+
+
+@jit
+def _spacer_disk(p, rot, n, m, x, col, out, row, hole):
+    """Conditions and reactions of a thin spacer disk clamped to the primary backbone."""
+    force = np.empty(3)
+    moment = np.empty(3)
+    arm = np.empty(3)
+    for i in range(4):
+        _station_residuals(p, rot, hole, i, out, row + STATION_WIDTH * i)
+        u = col + STATION_WIDTH * i
+        _in_plane(rot[0], x[u + 1], x[u + 2], force)
+        _in_plane(rot[0], x[u + 3], x[u + 4], moment)
+        for c in range(3):
+            n[i + 1, c] += force[c]
+            m[i + 1, c] += moment[c]
+            n[0, c] -= force[c]
+            m[0, c] -= moment[c]
+            arm[c] = p[i + 1, c] - p[0, c]
+        _cross_sub(arm, force, m[0])
+
+
+@jit
+def _tube(p, rot, n, m, x, col, out, row, hole, tube_length, inv_kse, inv_kbt, used):
+    """Rigid multi-lumen tube: conditions at its proximal face and transfer to the distal."""
+    axis = rot[0, :, 2].copy()
+    proximal = p[0].copy()
+    change_force = np.zeros(3)
+    change_moment = np.zeros(3)  # of the secondaries' wrench, about the proximal centre
+    arm = np.empty(3)
+    lateral = np.empty(3)
+    for i in range(4):
+        k = i + 1
+        _station_residuals(p, rot, hole, i, out, row + STATION_WIDTH * i)
+        # the incoming wrench (about the proximal centre) counts negative
+        for c in range(3):
+            arm[c] = p[k, c] - proximal[c]
+            change_force[c] -= n[k, c]
+            change_moment[c] -= m[k, c]
+        _cross_sub(arm, n[k], change_moment)
+        axial_force = axis[0] * n[k, 0] + axis[1] * n[k, 1] + axis[2] * n[k, 2]
+        torsion = (rot[k, 0, 2] * m[k, 0] + rot[k, 1, 2] * m[k, 1]
+                   + rot[k, 2, 2] * m[k, 2])
+        inside = tube_length / (1.0 + inv_kse[2] * axial_force)  # material length in lumen
+        used[i] += inside
+        twist = inv_kbt[2] * torsion * inside
+        cos_t = math.cos(twist)
+        sin_t = math.sin(twist)
+        for c in range(3):  # R <- R Rz(twist)
+            r0 = rot[k, c, 0]
+            r1 = rot[k, c, 1]
+            rot[k, c, 0] = cos_t * r0 + sin_t * r1
+            rot[k, c, 1] = -sin_t * r0 + cos_t * r1
+        u = col + STATION_WIDTH * i
+        _in_plane(rot[0], x[u + 1], x[u + 2], lateral)
+        for c in range(3):
+            p[k, c] += tube_length * axis[c]
+            n[k, c] = axial_force * axis[c] + lateral[c]
+        _in_plane(rot[0], x[u + 3], x[u + 4], lateral)
+        for c in range(3):
+            m[k, c] = torsion * axis[c] + lateral[c]
+            arm[c] = p[k, c] - proximal[c]
+            change_force[c] += n[k, c]
+            change_moment[c] += m[k, c]
+        _cross_add(arm, n[k], change_moment)
+    # tube equilibrium gives the primary's wrench leaving the distal face
+    for c in range(3):
+        n[0, c] -= change_force[c]
+        m[0, c] -= change_moment[c]
+        arm[c] = tube_length * axis[c]
+        p[0, c] = proximal[c] + arm[c]
+    _cross_sub(arm, n[0], m[0])
+
+
+@jit
+def _end_disk(p, rot, n, m, wrench, out, row, hole):
+    """End-disk clamps of the secondaries (Eq. 10) and the disk's equilibrium (Eq. 11)."""
+    arm = np.empty(3)
+    moment = wrench[3:6].copy()
+    for c in range(3):
+        out[row + 24 + c] = wrench[c]
+    for k in range(N_RODS):
+        for c in range(3):
+            arm[c] = p[k, c] - p[0, c]
+            out[row + 24 + c] -= n[k, c]
+            moment[c] -= m[k, c]
+        _cross_sub(arm, n[k], moment)
+        if k == 0:
+            continue
+        r = row + 6 * (k - 1)
+        for c in range(3):
+            out[r + c] = (rot[0, 0, c] * arm[0] + rot[0, 1, c] * arm[1]
+                          + rot[0, 2, c] * arm[2] - hole[k - 1, c])
+        # skew part of R_0^T R_k: its vee is sin(angle) * axis, zero when clamped
+        q = np.zeros((3, 3))
+        for a in range(3):
+            for b in range(3):
+                q[a, b] = (rot[0, 0, a] * rot[k, 0, b] + rot[0, 1, a] * rot[k, 1, b]
+                           + rot[0, 2, a] * rot[k, 2, b])
+        out[r + 3] = 0.5 * (q[2, 1] - q[1, 2])
+        out[r + 4] = 0.5 * (q[0, 2] - q[2, 0])
+        out[r + 5] = 0.5 * (q[1, 0] - q[0, 1])
+    for c in range(3):
+        out[row + 27 + c] = moment[c]
+
+
+@jit
+def _store_frame(rot, p, frame):
+    frame[:3, :3] = rot
+    frame[:3, 3] = p
+    frame[3, :3] = 0.0
+    frame[3, 3] = 1.0
+
+
+@jit
+def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, out, points, frames):
+    """Shoot once through the translator and write the residual vector into ``out``.
+
+    ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
+    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    """
+    nst = 2 * spacers + 1
+    hole = np.zeros((4, 3))
+    for i in range(4):
+        angle = 0.5 * math.pi * i
+        hole[i, 0] = pitch_radius * math.cos(angle)
+        hole[i, 1] = pitch_radius * math.sin(angle)
+    p = np.zeros((N_RODS, 3))
+    rot = np.zeros((N_RODS, 3, 3))
+    n = np.empty((N_RODS, 3))
+    m = np.empty((N_RODS, 3))
+    for k in range(N_RODS):
+        for c in range(3):
+            rot[k, c, c] = 1.0
+            n[k, c] = x[6 * k + c]
+            m[k, c] = x[6 * k + 3 + c]
+        if k > 0:
+            p[k, :] = hole[k - 1]
+    _store_frame(rot[0], p[0], frames[0])
+    secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
+    used = np.zeros(4)
+    record = points.shape[1] > 0
+    segment = 0
+    for joint in range(2):
+        for station in range(spacers + 1):
+            t = joint * (spacers + 1) + station
+            first_row = segment * (steps + 1) if record else 0
+            integrate_segment(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse, inv_kbt,
+                              points[0], first_row)
+            is_end = joint == 1 and station == spacers
+            for i in range(4):
+                if is_end:
+                    length = secondary_length - used[i]
+                else:
+                    length = x[N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)]
+                used[i] += length
+                integrate_segment(p[i + 1], rot[i + 1], n[i + 1], m[i + 1], length, steps,
+                                  inv_kse, inv_kbt, points[i + 1], first_row)
+            segment += 1
+            if is_end:
+                _store_frame(rot[0], p[0], frames[3])
+                _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
+                continue
+            # the station's unknowns and residuals are laid out secondary by secondary
+            # with stride STATION_WIDTH * nst; gather them contiguously for the helpers
+            col = np.empty(4 * STATION_WIDTH)
+            res = np.empty(4 * STATION_WIDTH)
+            for i in range(4):
+                for c in range(STATION_WIDTH):
+                    col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS
+                                                   + STATION_WIDTH * (i * nst + t) + c]
+            if joint == 0 and station == spacers:
+                _store_frame(rot[0], p[0], frames[1])
+                _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
+                      used)
+                _store_frame(rot[0], p[0], frames[2])
+            else:
+                _spacer_disk(p, rot, n, m, col, 0, res, 0, hole)
+            for i in range(4):
+                for c in range(STATION_WIDTH):
+                    out[STATION_WIDTH * (i * nst + t) + c] = res[STATION_WIDTH * i + c]
+
+
+@jit
+def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                      inv_kse, inv_kbt, base, jac):
+    """Forward-difference Jacobian d(residual)/dx into ``jac``; ``base`` = residual at x.
+
+    ``step`` holds the perturbation of every unknown.
+    """
+    size = x.shape[0]
+    column = np.empty(size)
+    probe = x.copy()
+    points = np.empty((N_RODS, 0, 3))
+    frames = np.empty((4, 4, 4))
+    for j in range(size):
+        probe[j] = x[j] + step[j]
+        translator_residual(probe, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                            inv_kse, inv_kbt, column, points, frames)
+        probe[j] = x[j]
+        for r in range(size):
+            jac[r, j] = (column[r] - base[r]) / step[j]

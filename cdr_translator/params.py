@@ -1,0 +1,148 @@
+"""Geometry and material parameters of the translator, read from the one YAML file."""
+
+from dataclasses import asdict, dataclass, fields, replace
+import math
+from pathlib import Path
+from typing import Any, Mapping, Union
+
+import yaml
+
+#: The node name under which the parameters sit in the ROS 2 params file.
+NODE_NAME = 'translator_node'
+
+#: The parameter file shipped with the package (source tree or editable install).
+DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / 'config' / 'translator.yaml'
+
+#: Secondary backbones sit at these angles on the pitch circle (secondary 1 on +x).
+SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
+
+#: Keys of the same params file that belong to the ROS node, not to the model.
+NODE_ONLY_KEYS: frozenset = frozenset()
+
+
+class ParameterError(ValueError):
+    """A parameter is missing, unknown or has an impossible value."""
+
+
+@dataclass(frozen=True)
+class TranslatorParams:
+    """Geometry, material and discretization of one dual-continuum-joint translator (SI).
+
+    The stack is: PJ end disk (the base, frame {pe}), ``spacers_per_joint`` spacer
+    disks, the multi-lumen tube of length ``tube_length``, again ``spacers_per_joint``
+    spacer disks and the DJ end disk; adjacent disks are ``disk_spacing`` apart.
+    """
+
+    pitch_radius: float = 0.010
+    backbone_diameter: float = 0.0012
+    disk_spacing: float = 0.010
+    tube_length: float = 0.060
+    youngs_modulus: float = 6.0e10
+    poisson_ratio: float = 0.33
+    spacers_per_joint: int = 1
+    steps_per_segment: int = 8
+
+    def __post_init__(self) -> None:
+        """Validate every field; raise ParameterError naming the offending key."""
+        for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
+                     'youngs_modulus', 'poisson_ratio'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ParameterError(f'{name} must be a number, got {value!r}')
+            if not math.isfinite(value):
+                raise ParameterError(f'{name} must be finite, got {value!r}')
+        for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
+                     'youngs_modulus'):
+            if getattr(self, name) <= 0.0:
+                raise ParameterError(f'{name} must be positive, got {getattr(self, name)!r}')
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise ParameterError(
+                f'poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio!r}')
+        for name, lowest in (('spacers_per_joint', 0), ('steps_per_segment', 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
+                raise ParameterError(f'{name} must be an integer >= {lowest}, got {value!r}')
+        if self.pitch_radius < self.backbone_diameter:
+            # Secondary holes would overlap the central primary backbone.
+            raise ParameterError(
+                f'pitch_radius ({self.pitch_radius!r}) must be at least backbone_diameter '
+                f'({self.backbone_diameter!r}): the secondary backbones would overlap the '
+                'primary one')
+        if self.backbone_diameter >= self.disk_spacing:
+            raise ParameterError(
+                f'backbone_diameter ({self.backbone_diameter!r}) must be smaller than '
+                f'disk_spacing ({self.disk_spacing!r}): a rod is not slender at that size')
+
+    # Derived quantities -------------------------------------------------------------------
+    @property
+    def shear_modulus(self) -> float:
+        """Shear modulus G = E / (2 (1 + nu)) of an isotropic material (Pa)."""
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def area(self) -> float:
+        """Cross-section area of one backbone (m^2)."""
+        return math.pi * self.backbone_diameter ** 2 / 4.0
+
+    @property
+    def second_moment(self) -> float:
+        """Second moment of area I about a cross-section diameter (m^4)."""
+        return math.pi * self.backbone_diameter ** 4 / 64.0
+
+    @property
+    def bending_stiffness(self) -> float:
+        """E I of one backbone (N m^2)."""
+        return self.youngs_modulus * self.second_moment
+
+    @property
+    def joint_length(self) -> float:
+        """Length of one continuum joint from end disk to tube face (m)."""
+        return (self.spacers_per_joint + 1) * self.disk_spacing
+
+    @property
+    def stack_height(self) -> float:
+        """Unloaded height of the DJ end disk above the base: two joints plus the tube (m)."""
+        return 2.0 * self.joint_length + self.tube_length
+
+    # Construction ---------------------------------------------------------------------------
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> 'TranslatorParams':
+        """Build from a flat mapping; unknown keys raise ParameterError naming them."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known - NODE_ONLY_KEYS)
+        if unknown:
+            raise ParameterError(
+                f'unknown parameter(s) {", ".join(unknown)}; known: {", ".join(sorted(known))}')
+        picked = {key: value for key, value in values.items() if key in known}
+        for key in ('spacers_per_joint', 'steps_per_segment'):
+            value = picked.get(key)
+            if isinstance(value, float) and value.is_integer():
+                picked[key] = int(value)
+        return cls(**picked)
+
+    @classmethod
+    def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'TranslatorParams':
+        """Read a ROS 2 params file (``translator_node: ros__parameters: {...}``)."""
+        path = Path(path)
+        try:
+            document = yaml.safe_load(path.read_text())
+        except OSError as error:
+            raise ParameterError(f'cannot read parameter file {path}: {error}') from error
+        except yaml.YAMLError as error:
+            raise ParameterError(f'{path} is not valid YAML: {error}') from error
+        try:
+            values = document[NODE_NAME]['ros__parameters']
+        except (TypeError, KeyError):
+            raise ParameterError(
+                f'{path} has no {NODE_NAME}: ros__parameters: section') from None
+        if not isinstance(values, Mapping):
+            raise ParameterError(f'{path}: {NODE_NAME}.ros__parameters must be a mapping')
+        return cls.from_mapping(values)
+
+    def with_changes(self, **changes: Any) -> 'TranslatorParams':
+        """Return a validated copy with some fields changed."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """Plain dict of the fields, as written in the YAML file."""
+        return asdict(self)

@@ -1,0 +1,113 @@
+"""The translator kernel bound to one parameter set, in nondimensional coordinates.
+
+Unknowns are divided by natural scales (disk spacing D for lengths, EI/D^2 for forces,
+EI/D for moments) and residuals likewise (D for positions, 1 for angles), so that one
+tolerance and one finite-difference step suit every component.
+"""
+
+from types import ModuleType
+from typing import Tuple
+
+import numpy as np
+
+from . import model
+from .params import TranslatorParams
+from .rod import inverse_stiffness
+
+#: Residual kinds, in the order of ``Problem.residual_kind`` codes.
+RESIDUAL_KINDS = ('position_m', 'orientation_rad', 'force_n', 'moment_nm')
+
+#: Forward-difference step in nondimensional unknowns (about sqrt of machine epsilon).
+FD_STEP = 1e-7
+
+
+class Problem:
+    """Residual, Jacobian and shape of the translator for fixed parameters."""
+
+    def __init__(self, params: TranslatorParams, kernel: ModuleType = model) -> None:
+        """Bind ``kernel`` (the compiled model module, or an interpreted copy) to params."""
+        self.params = params
+        self.kernel = kernel
+        spacers = params.spacers_per_joint
+        self.size = model.unknown_count(spacers)
+        self.stations = model.station_count(spacers)
+        inv_kse, inv_kbt = inverse_stiffness(params.youngs_modulus, params.shear_modulus,
+                                             params.backbone_diameter)
+        self._args = (float(params.pitch_radius), float(params.disk_spacing),
+                      float(params.tube_length), spacers, params.steps_per_segment,
+                      inv_kse, inv_kbt)
+        length = params.disk_spacing
+        force = params.bending_stiffness / length ** 2
+        moment = params.bending_stiffness / length
+        x_scale = np.empty(self.size)
+        kind = np.empty(self.size, dtype=np.int64)
+        for rod in range(model.N_RODS):
+            x_scale[6 * rod:6 * rod + 3] = force
+            x_scale[6 * rod + 3:6 * rod + 6] = moment
+        station_x = np.array([length, force, force, moment, moment])
+        station_kind = np.array([0, 0, 0, 1, 1])
+        width = model.STATION_WIDTH
+        n_station_values = 4 * width * self.stations
+        x_scale[model.N_BASE_UNKNOWNS:] = np.tile(station_x, 4 * self.stations)
+        kind[:n_station_values] = np.tile(station_kind, 4 * self.stations)
+        kind[n_station_values:n_station_values + 24] = np.tile([0, 0, 0, 1, 1, 1], 4)
+        kind[n_station_values + 24:] = [2, 2, 2, 3, 3, 3]
+        self.x_scale = x_scale
+        self.residual_kind = kind
+        self.residual_scale = np.array([length, 1.0, force, moment])[kind]
+        self.wrench_scale = np.repeat([force, moment], 3)
+        #: rows of the end-disk equilibrium, the only residuals the applied wrench enters
+        self.wrench_rows = np.arange(self.size - 6, self.size)
+        self._no_points = np.empty((model.N_RODS, 0, 3))
+        self._frames = np.empty((4, 4, 4))
+        self._jacobian = np.empty((self.size, self.size))
+        self._step = FD_STEP * x_scale
+
+    def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+        """Nondimensional residual at nondimensional unknowns ``xs``."""
+        out = np.empty(self.size)
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                        self._no_points, self._frames)
+        return out / self.residual_scale
+
+    def jacobian(self, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarray) -> np.ndarray:
+        """Nondimensional forward-difference Jacobian at ``xs`` (``rs`` = residual there)."""
+        self.kernel.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,
+                                      rs * self.residual_scale, self._jacobian)
+        return self._jacobian * (self.x_scale / self.residual_scale[:, None])
+
+    def shape(self, xs: np.ndarray, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Centre-line points (5, rows, 3) and frames (4, 4, 4) at ``xs``."""
+        rows = model.grid_points_per_rod(self.params.spacers_per_joint,
+                                         self.params.steps_per_segment)
+        points = np.empty((model.N_RODS, rows, 3))
+        frames = np.empty((4, 4, 4))
+        out = np.empty(self.size)
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out, points,
+                                        frames)
+        return points, frames
+
+    def residual_by_kind(self, rs: np.ndarray) -> dict:
+        """Largest absolute residual of each kind, in SI units."""
+        si = np.abs(rs * self.residual_scale)
+        return {name: float(si[self.residual_kind == code].max(initial=0.0))
+                for code, name in enumerate(RESIDUAL_KINDS)}
+
+    def straight_guess(self, wrench: np.ndarray) -> np.ndarray:
+        """Unloaded shape with the whole wrench carried by the primary backbone."""
+        x = np.zeros(self.size)
+        for i in range(4):
+            for t in range(self.stations):
+                x[model.N_BASE_UNKNOWNS + model.STATION_WIDTH * (i * self.stations + t)] = \
+                    self.params.disk_spacing
+        height = self.params.stack_height
+        force = wrench[:3]
+        x[0:3] = force
+        x[3:6] = wrench[3:] + np.cross([0.0, 0.0, height], force)
+        return x / self.x_scale
+
+    def wrench_sensitivity(self) -> np.ndarray:
+        """d(residual)/d(wrench), nondimensional: the wrench enters Eq. 11 linearly."""
+        sensitivity = np.zeros((self.size, 6))
+        sensitivity[self.wrench_rows, np.arange(6)] = 1.0 / self.residual_scale[self.wrench_rows]
+        return sensitivity

@@ -1,0 +1,104 @@
+"""SolveResult: everything one solve produces, and the one place its JSON keys are defined."""
+
+from dataclasses import dataclass, field
+from functools import cached_property
+import math
+from typing import Dict
+
+import numpy as np
+
+from . import geometry
+
+#: Frame names, in the order the kernel writes them: base, tube ends, end disk.
+FRAME_NAMES = ('pe', 'pm', 'dm', 'de')
+
+#: The paper's convergence tolerances (Section III.D), SI.
+PAPER_TOLERANCES = {'position_m': 2e-4, 'orientation_rad': 1e-4, 'force_n': 1e-4,
+                    'moment_nm': 1e-4}
+
+
+@dataclass
+class SolveResult:
+    """Outcome of one translator solve. SI units and radians; frames are 4x4 in {pe}.
+
+    ``backbones`` holds the centre-line points of the five rods, shape (5, rows, 3), rod 0
+    the primary; the first half of the rows of each rod belong to the PJ, the second half
+    to the DJ (the straight run inside the tube joins them). Failure to converge is a result
+    (``converged`` False, ``message`` says why) holding the best iterate found.
+    """
+
+    converged: bool
+    message: str
+    iterations: int
+    residual_norm: float
+    residual_by_type: Dict[str, float]
+    force: np.ndarray
+    moment: np.ndarray
+    frames: Dict[str, np.ndarray]
+    backbones: np.ndarray
+    solve_time_s: float
+    method: str
+    unknowns: np.ndarray = field(repr=False)
+
+    @property
+    def end_disk_position(self) -> np.ndarray:
+        """Position of the DJ end-disk centre in {pe} (m)."""
+        return self.frames['de'][:3, 3].copy()
+
+    @property
+    def end_disk_quaternion_xyzw(self) -> np.ndarray:
+        """Orientation of the DJ end disk in {pe} as a unit quaternion (x, y, z, w)."""
+        return geometry.quaternion_xyzw(self.frames['de'][:3, :3])
+
+    @cached_property
+    def pj_bending(self) -> tuple:
+        """(bending angle, bending-plane direction) of the PJ: {pm} relative to {pe} (rad)."""
+        return geometry.bending_angle_and_direction(
+            geometry.relative_rotation(self.frames['pe'], self.frames['pm']))
+
+    @cached_property
+    def dj_bending(self) -> tuple:
+        """(bending angle, bending-plane direction) of the DJ: {de} relative to {dm} (rad)."""
+        return geometry.bending_angle_and_direction(
+            geometry.relative_rotation(self.frames['dm'], self.frames['de']))
+
+    @property
+    def end_disk_rotation(self) -> float:
+        """Total rotation angle of the end disk {de} relative to the base {pe} (rad)."""
+        return geometry.rotation_angle(self.frames['de'][:3, :3])
+
+    @cached_property
+    def max_arc_deviation(self) -> Dict[str, float]:
+        """Largest distance of any backbone of each joint from its fitted circle (m).
+
+        Computed on first use only: the circle fits cost more than a warm solve.
+        """
+        half = self.backbones.shape[1] // 2
+        return {joint: max(geometry.circle_deviation(rod[rows]) for rod in self.backbones)
+                for joint, rows in (('pj', slice(0, half)), ('dj', slice(half, None)))}
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary; degrees and millimetres only here, at the edge."""
+        pj_theta, pj_delta = self.pj_bending
+        dj_theta, dj_delta = self.dj_bending
+        return {
+            'converged': bool(self.converged),
+            'message': self.message,
+            'iterations': int(self.iterations),
+            'residual_norm': float(self.residual_norm),
+            'residual_by_type': {key: float(value)
+                                 for key, value in self.residual_by_type.items()},
+            'pj_bending_deg': math.degrees(pj_theta),
+            'pj_direction_deg': math.degrees(pj_delta),
+            'dj_bending_deg': math.degrees(dj_theta),
+            'dj_direction_deg': math.degrees(dj_delta),
+            'end_disk_rotation_deg': math.degrees(self.end_disk_rotation),
+            'end_disk_position_m': self.end_disk_position.tolist(),
+            'end_disk_quaternion_xyzw': self.end_disk_quaternion_xyzw.tolist(),
+            'max_arc_deviation_mm': {joint: 1e3 * value
+                                     for joint, value in self.max_arc_deviation.items()},
+            'solve_time_s': float(self.solve_time_s),
+            'force_n': self.force.tolist(),
+            'moment_nm': self.moment.tolist(),
+            'method': self.method,
+        }

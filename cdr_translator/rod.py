@@ -1,0 +1,96 @@
+"""Cosserat rod kernel: the state derivative of Eq. (6) and its RK4 integration.
+
+A rod segment carries no distributed load, so its internal force n is constant and its
+internal moment follows algebraically from the position, m(s) = m(a) - (p(s) - p(a)) x n
+(integral of Eq. 3). Only the pose (p, R) is integrated; that halves the work per step.
+
+Constitutive law (Eq. 4-5), with straight, unstressed reference rods:
+    v = e3 + K_se^-1 R^T n,  u = K_bt^-1 R^T m,  K_se = diag(GA, GA, EA), K_bt = diag(EI, EI, GJ).
+Inverse stiffnesses are passed as 3-vectors ``inv_kse`` and ``inv_kbt``. SI units.
+"""
+
+import numpy as np
+
+from ._jit import jit
+
+
+@jit
+def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
+    """Write dp/ds and dR/ds of Eq. (6) for pose (p, rot) into ``dp`` and ``drot``."""
+    # m(s) = m_start - (p - p_start) x n
+    dx = p[0] - p_start[0]
+    dy = p[1] - p_start[1]
+    dz = p[2] - p_start[2]
+    mx = m_start[0] - (dy * n[2] - dz * n[1])
+    my = m_start[1] - (dz * n[0] - dx * n[2])
+    mz = m_start[2] - (dx * n[1] - dy * n[0])
+    # local strains v = e3 + Kse^-1 R^T n, u = Kbt^-1 R^T m
+    v0 = inv_kse[0] * (rot[0, 0] * n[0] + rot[1, 0] * n[1] + rot[2, 0] * n[2])
+    v1 = inv_kse[1] * (rot[0, 1] * n[0] + rot[1, 1] * n[1] + rot[2, 1] * n[2])
+    v2 = 1.0 + inv_kse[2] * (rot[0, 2] * n[0] + rot[1, 2] * n[1] + rot[2, 2] * n[2])
+    u0 = inv_kbt[0] * (rot[0, 0] * mx + rot[1, 0] * my + rot[2, 0] * mz)
+    u1 = inv_kbt[1] * (rot[0, 1] * mx + rot[1, 1] * my + rot[2, 1] * mz)
+    u2 = inv_kbt[2] * (rot[0, 2] * mx + rot[1, 2] * my + rot[2, 2] * mz)
+    for i in range(3):
+        r0 = rot[i, 0]
+        r1 = rot[i, 1]
+        r2 = rot[i, 2]
+        dp[i] = r0 * v0 + r1 * v1 + r2 * v2
+        # row i of R [u x]
+        drot[i, 0] = r1 * u2 - r2 * u1
+        drot[i, 1] = r2 * u0 - r0 * u2
+        drot[i, 2] = r0 * u1 - r1 * u0
+
+
+@jit
+def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row):
+    """Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
+
+    On entry (p, rot, n, m) is the state at the segment start; on exit p, rot and m hold
+    the state at its end (n is unchanged). When ``points`` has rows, the positions at the
+    ``steps + 1`` grid points are written to ``points[first_row:first_row + steps + 1]``.
+    """
+    h = length / steps
+    p_start = p.copy()
+    m_start = m.copy()
+    k_p = np.empty((4, 3))
+    k_rot = np.empty((4, 3, 3))
+    p_stage = np.empty(3)
+    rot_stage = np.empty((3, 3))
+    record = points.shape[0] > 0
+    if record:
+        points[first_row, :] = p
+    for step in range(steps):
+        pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, k_p[0], k_rot[0])
+        for stage, weight in ((1, 0.5), (2, 0.5), (3, 1.0)):
+            for i in range(3):
+                p_stage[i] = p[i] + weight * h * k_p[stage - 1, i]
+                for j in range(3):
+                    rot_stage[i, j] = rot[i, j] + weight * h * k_rot[stage - 1, i, j]
+            pose_derivative(p_stage, rot_stage, n, m_start, p_start, inv_kse, inv_kbt,
+                            k_p[stage], k_rot[stage])
+        for i in range(3):
+            p[i] += h / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
+            for j in range(3):
+                rot[i, j] += h / 6.0 * (k_rot[0, i, j] + 2.0 * k_rot[1, i, j]
+                                        + 2.0 * k_rot[2, i, j] + k_rot[3, i, j])
+        if record:
+            points[first_row + step + 1, :] = p
+    dx = p[0] - p_start[0]
+    dy = p[1] - p_start[1]
+    dz = p[2] - p_start[2]
+    m[0] = m_start[0] - (dy * n[2] - dz * n[1])
+    m[1] = m_start[1] - (dz * n[0] - dx * n[2])
+    m[2] = m_start[2] - (dx * n[1] - dy * n[0])
+
+
+def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: float):
+    """Return (inv_kse, inv_kbt) of a solid round rod as 3-vectors (Eq. 5)."""
+    area = np.pi * diameter ** 2 / 4.0
+    second_moment = np.pi * diameter ** 4 / 64.0
+    polar_moment = 2.0 * second_moment
+    inv_kse = 1.0 / np.array([shear_modulus * area, shear_modulus * area,
+                              youngs_modulus * area])
+    inv_kbt = 1.0 / np.array([youngs_modulus * second_moment, youngs_modulus * second_moment,
+                              shear_modulus * polar_moment])
+    return inv_kse, inv_kbt

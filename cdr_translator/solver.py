@@ -1,0 +1,251 @@
+"""TranslatorSolver: Newton on the shooting residual, warm starts, continuation, baseline.
+
+``method='fast'`` (default): compiled kernel; Newton with a forward-difference Jacobian,
+backtracking line search, and for warm starts a first-order predictor plus chord steps
+that reuse the previous LU factorization, refreshed only when convergence slows.
+``method='paper'``: the paper's numerics as published (Section III.D) — the same model
+source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
+of one residual per column, stopping at the paper's tolerances. It is the baseline that
+benchmarks divide by.
+"""
+
+from dataclasses import dataclass
+import math
+import time
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve
+
+from ._jit import interpreted_kernels
+from .params import TranslatorParams
+from .problem import Problem, RESIDUAL_KINDS
+from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
+
+METHODS = ('fast', 'paper')
+
+#: Smallest fraction of the remaining wrench change a continuation step may take.
+MIN_CONTINUATION_STEP = 1e-3
+
+
+@dataclass
+class _Outcome:
+    """Where an iteration ended: nondimensional unknowns and residual, and why."""
+
+    xs: np.ndarray
+    rs: np.ndarray
+    iterations: int
+    converged: bool
+    message: str
+    lu: Optional[tuple] = None
+
+
+def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
+    """Return the 6-vector [force; moment]; ValueError naming a non-finite component."""
+    wrench = np.empty(6)
+    for name, values, offset in (('force', force, 0), ('moment', moment, 3)):
+        array = np.asarray(values, dtype=float)
+        if array.shape != (3,):
+            raise ValueError(f'{name} must have 3 components, got shape {array.shape}')
+        for axis, value in zip('xyz', array):
+            if not math.isfinite(value):
+                raise ValueError(f'{name} {axis} component is {value}: a wrench must be finite')
+        wrench[offset:offset + 3] = array
+    return wrench
+
+
+class TranslatorSolver:
+    """Solve the loaded shape of one translator; successive solves warm-start.
+
+    >>> solver = TranslatorSolver(TranslatorParams.from_yaml())
+    >>> result = solver.solve([12.0, 0.0, 0.0])      # N, in {pe}, at the end-disk centre
+    """
+
+    def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
+                 tolerance: float = 1e-10, max_iterations: int = 40,
+                 time_limit_s: float = 10.0) -> None:
+        """Set up for ``params`` (default: config/translator.yaml).
+
+        ``tolerance`` bounds the largest nondimensional residual (lengths in units of the
+        disk spacing, forces in EI/D^2, moments in EI/D); ``max_iterations`` caps each
+        Newton run and ``time_limit_s`` a whole solve.
+        """
+        if method not in METHODS:
+            raise ValueError(f'method must be one of {METHODS}, got {method!r}')
+        self.params = params if params is not None else TranslatorParams.from_yaml()
+        self.method = method
+        self.tolerance = tolerance
+        self.max_iterations = max_iterations
+        self.time_limit_s = time_limit_s
+        kernel = interpreted_kernels()['model'] if method == 'paper' else None
+        self.problem = Problem(self.params) if kernel is None else Problem(self.params, kernel)
+        self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
+        self._lu = None
+        self._unloaded_lu = None
+
+    def reset(self) -> None:
+        """Forget the previous solution: the next solve starts cold."""
+        self._previous = None
+        self._lu = None
+
+    def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
+              warm_start: bool = True) -> SolveResult:
+        """Solve for an end-disk wrench (N, N m) in {pe} applied at the end-disk centre."""
+        wrench = check_wrench(force, moment)
+        started = time.perf_counter()
+        deadline = started + self.time_limit_s
+        if self.method == 'paper':
+            outcome = self._levenberg_marquardt(self.problem.straight_guess(wrench), wrench,
+                                                deadline)
+        else:
+            outcome = self._solve_fast(wrench, warm_start, deadline)
+        if outcome.converged:
+            self._previous = (outcome.xs, wrench)
+        elapsed = time.perf_counter() - started
+        return self._result(outcome, wrench, elapsed)
+
+    # fast method -----------------------------------------------------------------------------
+    def _solve_fast(self, wrench: np.ndarray, warm_start: bool, deadline: float) -> _Outcome:
+        """Predictor-corrector continuation from the previous solution (or the unloaded one).
+
+        Each step predicts the solution at a larger wrench to first order, using the stored
+        LU factorization, dx = -J^-1 (dr/dw) dw, and corrects it by Newton. A failed step is
+        halved, a good one doubled; a warm start is the same walk in (usually) one step.
+        """
+        if not (warm_start and self._previous is not None and self._lu is not None):
+            self._previous, self._lu = self._unloaded()
+        xs, start = self._previous
+        lu = self._lu
+        sensitivity = self.problem.wrench_sensitivity()
+        done, step, iterations = 0.0, 1.0, 0
+        current = start
+        outcome = None
+        while done < 1.0:
+            target = min(1.0, done + step)
+            goal = start + target * (wrench - start)
+            guess = xs - lu_solve(lu, sensitivity @ (goal - current), check_finite=False)
+            outcome = self._newton(guess, goal, deadline, lu)
+            iterations += outcome.iterations
+            if outcome.converged:
+                done, xs, current, lu = target, outcome.xs, goal, outcome.lu
+                step *= 2.0
+                continue
+            if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
+                outcome.iterations = iterations
+                outcome.message = (f'continuation stalled at {done:.1%} of the way to the '
+                                   f'wrench: {outcome.message}')
+                return outcome
+            step *= 0.5
+        self._lu = lu
+        outcome.iterations = iterations
+        return outcome
+
+    def _unloaded(self) -> Tuple[Tuple[np.ndarray, np.ndarray], tuple]:
+        """The straight unloaded solution and its LU factorization (computed once)."""
+        if self._unloaded_lu is None:
+            zero = np.zeros(6)
+            xs = self.problem.straight_guess(zero)
+            self._unloaded_lu = lu_factor(
+                self.problem.jacobian(xs, zero, self.problem.residual(xs, zero)))
+        return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
+
+    def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
+                lu: Optional[tuple] = None) -> _Outcome:
+        """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
+        problem = self.problem
+        rs = problem.residual(xs, wrench)
+        norm = _norm(rs)
+        fresh = False
+        for iteration in range(1, self.max_iterations + 1):
+            if not math.isfinite(norm):
+                return _Outcome(xs, rs, iteration - 1, False,
+                                'residual became non-finite during the iteration', lu)
+            if np.abs(rs).max() <= self.tolerance:
+                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu)
+            if time.perf_counter() > deadline:
+                return _Outcome(xs, rs, iteration - 1, False,
+                                f'time limit of {self.time_limit_s} s reached', lu)
+            if lu is None:
+                lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
+                fresh = True
+            step = -lu_solve(lu, rs, check_finite=False)
+            trial = _line_search(problem, xs, step, wrench, norm)
+            if trial is None:
+                if fresh:
+                    return _Outcome(xs, rs, iteration, False,
+                                    'line search found no decrease of the residual', lu)
+                lu = None  # a stale Jacobian pointed the wrong way; rebuild it
+                continue
+            xs, rs, new_norm = trial
+            if not fresh and new_norm > 0.25 * norm:
+                lu = None  # chord steps converge too slowly; rebuild the Jacobian
+            norm = new_norm
+            fresh = False
+        converged = bool(np.abs(rs).max() <= self.tolerance)
+        return _Outcome(xs, rs, self.max_iterations, converged,
+                        'converged' if converged
+                        else f'no convergence in {self.max_iterations} iterations', lu)
+
+    # paper method ----------------------------------------------------------------------------
+    def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray,
+                             deadline: float) -> _Outcome:
+        """Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances."""
+        problem = self.problem
+        tolerances = np.array([PAPER_TOLERANCES[kind] for kind in RESIDUAL_KINDS])
+        rs = problem.residual(xs, wrench)
+        damping = 1e-3
+        for iteration in range(1, self.max_iterations + 1):
+            if np.all(np.array(list(problem.residual_by_kind(rs).values())) <= tolerances):
+                return _Outcome(xs, rs, iteration - 1, True,
+                                "converged to the paper's tolerances")
+            if time.perf_counter() > deadline:
+                return _Outcome(xs, rs, iteration - 1, False,
+                                f'time limit of {self.time_limit_s} s reached')
+            jac = problem.jacobian(xs, wrench, rs)
+            normal = jac.T @ jac
+            gradient = jac.T @ rs
+            while True:
+                step = -np.linalg.solve(normal + damping * np.eye(problem.size), gradient)
+                trial_rs = problem.residual(xs + step, wrench)
+                if _norm(trial_rs) < _norm(rs):
+                    xs, rs = xs + step, trial_rs
+                    damping = max(damping / 10.0, 1e-12)
+                    break
+                damping *= 10.0
+                if damping > 1e12:
+                    return _Outcome(xs, rs, iteration, False,
+                                    'Levenberg-Marquardt damping diverged')
+        return _Outcome(xs, rs, self.max_iterations, False,
+                        f'no convergence in {self.max_iterations} iterations')
+
+    # result ----------------------------------------------------------------------------------
+    def _result(self, outcome: _Outcome, wrench: np.ndarray, elapsed: float) -> SolveResult:
+        problem = self.problem
+        points, frames = problem.shape(outcome.xs, wrench)
+        return SolveResult(
+            converged=outcome.converged, message=outcome.message,
+            iterations=outcome.iterations, residual_norm=_norm(outcome.rs),
+            residual_by_type=problem.residual_by_kind(outcome.rs),
+            force=wrench[:3].copy(), moment=wrench[3:].copy(),
+            frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
+            backbones=points, solve_time_s=elapsed, method=self.method,
+            unknowns=outcome.xs * problem.x_scale)
+
+
+def _norm(values: np.ndarray) -> float:
+    with np.errstate(over='ignore', invalid='ignore'):
+        return float(np.sqrt(values @ values))
+
+
+def _line_search(problem: Problem, xs: np.ndarray, step: np.ndarray, wrench: np.ndarray,
+                 norm: float) -> Optional[Tuple[np.ndarray, np.ndarray, float]]:
+    """Backtrack along ``step`` until the residual norm decreases; None if it never does."""
+    scale = 1.0
+    for _ in range(12):
+        trial = xs + scale * step
+        rs = problem.residual(trial, wrench)
+        trial_norm = _norm(rs)
+        if trial_norm < (1.0 - 1e-4 * scale) * norm:
+            return trial, rs, trial_norm
+        scale *= 0.5
+    return None

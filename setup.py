@@ -1,0 +1,33 @@
+"""Packaging for cdr_translator (ament_python; also pip-installable)."""
+
+from glob import glob
+import os
+
+from setuptools import find_packages
+from setuptools import setup
+
+package_name = 'cdr_translator'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['tests', 'tests.*', 'test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        (os.path.join('share', package_name), ['package.xml']),
+        (os.path.join('share', package_name, 'config'), sorted(glob('config/*.yaml'))),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml'],
+    zip_safe=True,
+    maintainer='cdr_translator maintainers',
+    maintainer_email='maintainers@example.com',
+    description=(
+        'Cosserat-rod kinestatic solver and ROS 2 node for the dual-continuum-joint '
+        'translator leg of a Continuum Delta Robot.'
+    ),
+    license='Apache-2.0',
+    extras_require={'test': ['pytest']},
+    entry_points={
+        'console_scripts': [],
+    },
+)
