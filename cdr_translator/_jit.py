@@ -1,4 +1,5 @@
-"""Compilation switch for the numerical kernels (rod.py, model.py).
+"""
+Compilation switch for the numerical kernels (rod.py, model.py).
 
 The kernels are written once. Normally they are compiled with numba; the paper's
 baseline method runs the very same source interpreted (``interpreted_kernels``), so
@@ -25,7 +26,8 @@ def jit(func: Callable) -> Callable:
 
 
 def interpreted_kernels() -> Dict[str, ModuleType]:
-    """Return fresh, uncompiled copies of the kernel modules, keyed by short name.
+    """
+    Return fresh, uncompiled copies of the kernel modules, keyed by short name.
 
     The copies are imported with the switch off and then taken out of ``sys.modules``
     again, so the compiled modules that the rest of the package uses stay untouched.

@@ -11,7 +11,8 @@ _STRAIGHT_TILT = 1e-12
 
 
 def bending_angle_and_direction(rotation: np.ndarray) -> Tuple[float, float]:
-    """Bending angle theta and bending-plane direction delta of a joint (rad).
+    """
+    Bending angle theta and bending-plane direction delta of a joint (rad).
 
     theta is the tilt of the distal z axis from the proximal z axis, delta the azimuth
     of that tilt about the proximal z axis, measured from x (the standard continuum-joint
@@ -37,7 +38,7 @@ def relative_rotation(frame_a: np.ndarray, frame_b: np.ndarray) -> np.ndarray:
 
 
 def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
+    """Return the unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
     quaternion = Rotation.from_matrix(rotation).as_quat()
     return -quaternion if quaternion[3] < 0.0 else quaternion
 
@@ -50,7 +51,8 @@ def _fit_plane(points: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def fit_circle(points: np.ndarray, iterations: int = 20) -> Tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares circle through 3-D points: (centre, unit normal, radius).
+    """
+    Least-squares circle through 3-D points: (centre, unit normal, radius).
 
     The plane comes from an SVD, the circle in it from the algebraic (Kasa) fit refined
     by Gauss-Newton on the geometric distances. Returns radius = inf for collinear points.

@@ -1,4 +1,5 @@
-"""The translator's multi-rod boundary-value problem (paper Section III.C, Eq. 7-11).
+"""
+The translator's multi-rod boundary-value problem (paper Section III.C, Eq. 7-11).
 
 Rods: k = 0 the primary backbone, k = 1..4 the secondaries at 0/90/180/270 deg on the
 pitch circle. Everything is in the base frame {pe}. One shooting pass integrates all five
@@ -60,7 +61,7 @@ def grid_points_per_rod(spacers_per_joint: int, steps: int) -> int:
 
 @jit
 def _cross_sub(a, b, out):
-    """out -= a x b."""
+    """Subtract a x b from out in place."""
     out[0] -= a[1] * b[2] - a[2] * b[1]
     out[1] -= a[2] * b[0] - a[0] * b[2]
     out[2] -= a[0] * b[1] - a[1] * b[0]
@@ -68,7 +69,7 @@ def _cross_sub(a, b, out):
 
 @jit
 def _cross_add(a, b, out):
-    """out += a x b."""
+    """Add a x b to out in place."""
     out[0] += a[1] * b[2] - a[2] * b[1]
     out[1] += a[2] * b[0] - a[0] * b[2]
     out[2] += a[0] * b[1] - a[1] * b[0]
@@ -90,7 +91,7 @@ def _station_residuals(p, rot, hole, i, out, row):
 
 @jit
 def _in_plane(rot, a, b, out):
-    """out = a * (disk x axis) + b * (disk y axis) for the primary's frame ``rot``."""
+    """Set out = a * (disk x axis) + b * (disk y axis) for the primary's frame ``rot``."""
     for c in range(3):
         out[c] = a * rot[c, 0] + b * rot[c, 1]
 
@@ -210,7 +211,8 @@ def _store_frame(rot, p, frame):
 @jit
 def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
                         inv_kse, inv_kbt, out, points, frames):
-    """Shoot once through the translator and write the residual vector into ``out``.
+    """
+    Shoot once through the translator and write the residual vector into ``out``.
 
     ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
     centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
@@ -280,7 +282,8 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
 @jit
 def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, spacers, steps,
                       inv_kse, inv_kbt, base, jac):
-    """Forward-difference Jacobian d(residual)/dx into ``jac``; ``base`` = residual at x.
+    """
+    Forward-difference Jacobian d(residual)/dx into ``jac``; ``base`` = residual at x.
 
     ``step`` holds the perturbation of every unknown.
     """

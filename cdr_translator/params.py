@@ -10,8 +10,25 @@ import yaml
 #: The node name under which the parameters sit in the ROS 2 params file.
 NODE_NAME = 'translator_node'
 
-#: The parameter file shipped with the package (source tree or editable install).
-DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / 'config' / 'translator.yaml'
+
+def _shipped_params_path() -> Path:
+    """
+    Locate config/translator.yaml without the ament index (AMENT_PREFIX_PATH may be unset).
+
+    Source tree and editable installs have it beside the package; colcon and pip installs
+    put it in <prefix>/share/cdr_translator/config, the package being in
+    <prefix>/lib/pythonX.Y/site-packages/cdr_translator.
+    """
+    package = Path(__file__).resolve().parent
+    candidates = [package.parent / 'config' / 'translator.yaml']
+    if len(package.parents) > 3:
+        candidates.append(
+            package.parents[3] / 'share' / 'cdr_translator' / 'config' / 'translator.yaml')
+    return next((path for path in candidates if path.is_file()), candidates[0])
+
+
+#: The parameter file shipped with the package: the one source of default values.
+DEFAULT_PARAMS_PATH = _shipped_params_path()
 
 #: Secondary backbones sit at these angles on the pitch circle (secondary 1 on +x).
 SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
@@ -26,21 +43,23 @@ class ParameterError(ValueError):
 
 @dataclass(frozen=True)
 class TranslatorParams:
-    """Geometry, material and discretization of one dual-continuum-joint translator (SI).
+    """
+    Geometry, material and discretization of one dual-continuum-joint translator (SI).
 
     The stack is: PJ end disk (the base, frame {pe}), ``spacers_per_joint`` spacer
     disks, the multi-lumen tube of length ``tube_length``, again ``spacers_per_joint``
     spacer disks and the DJ end disk; adjacent disks are ``disk_spacing`` apart.
+    There are no defaults here: they live in config/translator.yaml (``from_yaml()``).
     """
 
-    pitch_radius: float = 0.010
-    backbone_diameter: float = 0.0012
-    disk_spacing: float = 0.010
-    tube_length: float = 0.060
-    youngs_modulus: float = 6.0e10
-    poisson_ratio: float = 0.33
-    spacers_per_joint: int = 1
-    steps_per_segment: int = 8
+    pitch_radius: float
+    backbone_diameter: float
+    disk_spacing: float
+    tube_length: float
+    youngs_modulus: float
+    poisson_ratio: float
+    spacers_per_joint: int
+    steps_per_segment: int
 
     def __post_init__(self) -> None:
         """Validate every field; raise ParameterError naming the offending key."""
@@ -107,12 +126,15 @@ class TranslatorParams:
     # Construction ---------------------------------------------------------------------------
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> 'TranslatorParams':
-        """Build from a flat mapping; unknown keys raise ParameterError naming them."""
+        """Build from a flat mapping; unknown or missing keys raise ParameterError naming them."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known - NODE_ONLY_KEYS)
         if unknown:
             raise ParameterError(
                 f'unknown parameter(s) {", ".join(unknown)}; known: {", ".join(sorted(known))}')
+        missing = sorted(known - set(values))
+        if missing:
+            raise ParameterError(f'missing parameter(s) {", ".join(missing)}')
         picked = {key: value for key, value in values.items() if key in known}
         for key in ('spacers_per_joint', 'steps_per_segment'):
             value = picked.get(key)

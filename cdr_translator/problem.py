@@ -1,4 +1,5 @@
-"""The translator kernel bound to one parameter set, in nondimensional coordinates.
+"""
+The translator kernel bound to one parameter set, in nondimensional coordinates.
 
 Unknowns are divided by natural scales (disk spacing D for lengths, EI/D^2 for forces,
 EI/D for moments) and residuals likewise (D for positions, 1 for angles), so that one

@@ -19,7 +19,8 @@ PAPER_TOLERANCES = {'position_m': 2e-4, 'orientation_rad': 1e-4, 'force_n': 1e-4
 
 @dataclass
 class SolveResult:
-    """Outcome of one translator solve. SI units and radians; frames are 4x4 in {pe}.
+    """
+    Outcome of one translator solve. SI units and radians; frames are 4x4 in {pe}.
 
     ``backbones`` holds the centre-line points of the five rods, shape (5, rows, 3), rod 0
     the primary; the first half of the rows of each rod belong to the PJ, the second half
@@ -69,7 +70,8 @@ class SolveResult:
 
     @cached_property
     def max_arc_deviation(self) -> Dict[str, float]:
-        """Largest distance of any backbone of each joint from its fitted circle (m).
+        """
+        Largest distance of any backbone of each joint from its fitted circle (m).
 
         Computed on first use only: the circle fits cost more than a warm solve.
         """

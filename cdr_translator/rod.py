@@ -1,4 +1,5 @@
-"""Cosserat rod kernel: the state derivative of Eq. (6) and its RK4 integration.
+"""
+Cosserat rod kernel: the state derivative of Eq. (6) and its RK4 integration.
 
 A rod segment carries no distributed load, so its internal force n is constant and its
 internal moment follows algebraically from the position, m(s) = m(a) - (p(s) - p(a)) x n
@@ -44,7 +45,8 @@ def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
 
 @jit
 def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row):
-    """Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
+    """
+    Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
 
     On entry (p, rot, n, m) is the state at the segment start; on exit p, rot and m hold
     the state at its end (n is unchanged). When ``points`` has rows, the positions at the
@@ -94,3 +96,40 @@ def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: flo
     inv_kbt = 1.0 / np.array([youngs_modulus * second_moment, youngs_modulus * second_moment,
                               shear_modulus * polar_moment])
     return inv_kse, inv_kbt
+
+
+def solve_cantilever(length: float, tip_force, tip_moment, youngs_modulus: float,
+                     shear_modulus: float, diameter: float, steps: int = 64,
+                     tolerance: float = 1e-13, max_iterations: int = 50):
+    """
+    Solve a single straight rod clamped at the origin (z along the rod) with a tip wrench.
+
+    With no distributed load n(s) = tip_force everywhere, so the only unknown is the base
+    moment m(0); Newton drives m(L) - tip_moment to zero. Returns (points (steps+1, 3),
+    tip rotation matrix). Tip wrench in the base frame, SI units.
+    """
+    inv_kse, inv_kbt = inverse_stiffness(youngs_modulus, shear_modulus, diameter)
+    force = np.asarray(tip_force, dtype=float)
+    moment = np.asarray(tip_moment, dtype=float)
+    moment_scale = youngs_modulus * np.pi * diameter ** 4 / 64.0 / length
+    points = np.empty((steps + 1, 3))
+
+    def shoot(base_moment):
+        p = np.zeros(3)
+        rot = np.eye(3)
+        m = base_moment.copy()
+        integrate_segment(p, rot, force.copy(), m, length, steps, inv_kse, inv_kbt, points, 0)
+        return (m - moment) / moment_scale, rot
+
+    base = moment + np.cross([0.0, 0.0, length], force)  # rigid-rod guess
+    for _ in range(max_iterations):
+        error, rot = shoot(base)
+        if np.abs(error).max() <= tolerance:
+            return points.copy(), rot
+        jac = np.empty((3, 3))
+        for column in range(3):
+            probe = base.copy()
+            probe[column] += 1e-7 * moment_scale
+            jac[:, column] = (shoot(probe)[0] - error) / 1e-7
+        base = base - moment_scale * np.linalg.solve(jac, error)
+    raise RuntimeError(f'cantilever shooting did not converge in {max_iterations} iterations')

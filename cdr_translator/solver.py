@@ -1,4 +1,5 @@
-"""TranslatorSolver: Newton on the shooting residual, warm starts, continuation, baseline.
+"""
+TranslatorSolver: Newton on the shooting residual, warm starts, continuation, baseline.
 
 ``method='fast'`` (default): compiled kernel; Newton with a forward-difference Jacobian,
 backtracking line search, and for warm starts a first-order predictor plus chord steps
@@ -55,26 +56,34 @@ def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
 
 
 class TranslatorSolver:
-    """Solve the loaded shape of one translator; successive solves warm-start.
+    """
+    Solve the loaded shape of one translator; successive solves warm-start.
 
     >>> solver = TranslatorSolver(TranslatorParams.from_yaml())
     >>> result = solver.solve([12.0, 0.0, 0.0])      # N, in {pe}, at the end-disk centre
     """
 
     def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
-                 tolerance: float = 1e-10, max_iterations: int = 40,
+                 tolerance: float = 1e-10, max_iterations: Optional[int] = None,
                  time_limit_s: float = 10.0) -> None:
-        """Set up for ``params`` (default: config/translator.yaml).
+        """
+        Set up for ``params`` (default: config/translator.yaml).
 
         ``tolerance`` bounds the largest nondimensional residual (lengths in units of the
-        disk spacing, forces in EI/D^2, moments in EI/D); ``max_iterations`` caps each
-        Newton run and ``time_limit_s`` a whole solve.
+        disk spacing, forces in EI/D^2, moments in EI/D). ``max_iterations`` caps the
+        Newton iterations of one continuation step (default 12: a step that needs more is
+        halved instead) or, for ``method='paper'``, the Levenberg-Marquardt iterations
+        (default 100); ``time_limit_s`` caps a whole solve.
         """
         if method not in METHODS:
             raise ValueError(f'method must be one of {METHODS}, got {method!r}')
         self.params = params if params is not None else TranslatorParams.from_yaml()
         self.method = method
         self.tolerance = tolerance
+        if max_iterations is None:
+            max_iterations = 100 if method == 'paper' else 12
+        if max_iterations < 1:
+            raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
         self.max_iterations = max_iterations
         self.time_limit_s = time_limit_s
         kernel = interpreted_kernels()['model'] if method == 'paper' else None
@@ -82,6 +91,8 @@ class TranslatorSolver:
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         self._lu = None
         self._unloaded_lu = None
+        if method == 'fast':
+            self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
     def reset(self) -> None:
         """Forget the previous solution: the next solve starts cold."""
@@ -95,8 +106,10 @@ class TranslatorSolver:
         started = time.perf_counter()
         deadline = started + self.time_limit_s
         if self.method == 'paper':
-            outcome = self._levenberg_marquardt(self.problem.straight_guess(wrench), wrench,
-                                                deadline)
+            (unloaded, _), lu = self._unloaded()
+            guess = unloaded - lu_solve(lu, self.problem.wrench_sensitivity() @ wrench)
+            with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps
+                outcome = self._levenberg_marquardt(guess, wrench, deadline)
         else:
             outcome = self._solve_fast(wrench, warm_start, deadline)
         if outcome.converged:
@@ -106,7 +119,8 @@ class TranslatorSolver:
 
     # fast method -----------------------------------------------------------------------------
     def _solve_fast(self, wrench: np.ndarray, warm_start: bool, deadline: float) -> _Outcome:
-        """Predictor-corrector continuation from the previous solution (or the unloaded one).
+        """
+        Predictor-corrector continuation from the previous solution (or the unloaded one).
 
         Each step predicts the solution at a larger wrench to first order, using the stored
         LU factorization, dx = -J^-1 (dr/dw) dw, and corrects it by Newton. A failed step is
@@ -124,24 +138,24 @@ class TranslatorSolver:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
             guess = xs - lu_solve(lu, sensitivity @ (goal - current), check_finite=False)
-            outcome = self._newton(guess, goal, deadline, lu)
+            outcome = self._newton(guess, goal, deadline, lu, self.max_iterations)
             iterations += outcome.iterations
             if outcome.converged:
                 done, xs, current, lu = target, outcome.xs, goal, outcome.lu
                 step *= 2.0
                 continue
+            step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
                 outcome.iterations = iterations
                 outcome.message = (f'continuation stalled at {done:.1%} of the way to the '
                                    f'wrench: {outcome.message}')
                 return outcome
-            step *= 0.5
         self._lu = lu
         outcome.iterations = iterations
         return outcome
 
     def _unloaded(self) -> Tuple[Tuple[np.ndarray, np.ndarray], tuple]:
-        """The straight unloaded solution and its LU factorization (computed once)."""
+        """Return the straight unloaded solution and its LU factorization (computed once)."""
         if self._unloaded_lu is None:
             zero = np.zeros(6)
             xs = self.problem.straight_guess(zero)
@@ -150,13 +164,13 @@ class TranslatorSolver:
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                lu: Optional[tuple] = None) -> _Outcome:
+                lu: Optional[tuple], max_iterations: int) -> _Outcome:
         """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
         problem = self.problem
         rs = problem.residual(xs, wrench)
         norm = _norm(rs)
         fresh = False
-        for iteration in range(1, self.max_iterations + 1):
+        for iteration in range(1, max_iterations + 1):
             if not math.isfinite(norm):
                 return _Outcome(xs, rs, iteration - 1, False,
                                 'residual became non-finite during the iteration', lu)
@@ -182,9 +196,9 @@ class TranslatorSolver:
             norm = new_norm
             fresh = False
         converged = bool(np.abs(rs).max() <= self.tolerance)
-        return _Outcome(xs, rs, self.max_iterations, converged,
+        return _Outcome(xs, rs, max_iterations, converged,
                         'converged' if converged
-                        else f'no convergence in {self.max_iterations} iterations', lu)
+                        else f'no convergence in {max_iterations} iterations', lu)
 
     # paper method ----------------------------------------------------------------------------
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray,

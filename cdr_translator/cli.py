@@ -1,0 +1,125 @@
+"""
+Command line: argument parsing and printing only; the physics lives in the solver.
+
+    python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--params FILE] [--json]
+    python -m cdr_translator paper [--params FILE]
+
+Exit codes: 0 converged, 3 not converged (the result is still printed), 2 bad input.
+"""
+
+import argparse
+import json
+import math
+import sys
+from typing import List, Optional
+
+from .paper import TABLE_II
+from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
+from .result import SolveResult
+from .solver import METHODS, TranslatorSolver
+
+EXIT_CONVERGED = 0
+EXIT_BAD_INPUT = 2
+EXIT_NOT_CONVERGED = 3
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='python -m cdr_translator',
+        description='Cosserat-rod kinestatics of the dual-continuum-joint translator.')
+    commands = parser.add_subparsers(dest='command', required=True)
+    solve = commands.add_parser('solve', help='solve one end-disk wrench')
+    solve.add_argument('--force', nargs=3, type=float, required=True,
+                       metavar=('FX', 'FY', 'FZ'), help='force on the end disk, N, in {pe}')
+    solve.add_argument('--moment', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                       metavar=('MX', 'MY', 'MZ'), help='moment on the end disk, N m, in {pe}')
+    solve.add_argument('--method', choices=METHODS, default='fast',
+                       help="'paper' runs the published numerics (slow baseline)")
+    solve.add_argument('--max-iterations', type=int, default=None,
+                       help='Newton iterations per continuation step (LM iterations for '
+                            '--method paper)')
+    solve.add_argument('--time-limit', type=float, default=10.0,
+                       help='give up after this many seconds (default: %(default)s)')
+    solve.add_argument('--json', action='store_true', help='print one JSON object')
+    paper = commands.add_parser('paper', help="solve the paper's Table II cases and compare")
+    for command in (solve, paper):
+        command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
+                             help='ROS 2 params YAML (default: %(default)s)')
+    return parser
+
+
+def _table(result: SolveResult) -> str:
+    data = result.to_dict()
+    rows = [
+        ('converged', f"{data['converged']} ({data['message']})"),
+        ('iterations', data['iterations']),
+        ('residual norm', f"{data['residual_norm']:.3e}"),
+        ('PJ bending / direction', f"{data['pj_bending_deg']:.3f} deg / "
+                                   f"{data['pj_direction_deg']:.3f} deg"),
+        ('DJ bending / direction', f"{data['dj_bending_deg']:.3f} deg / "
+                                   f"{data['dj_direction_deg']:.3f} deg"),
+        ('end-disk rotation', f"{data['end_disk_rotation_deg']:.4f} deg"),
+        ('end-disk position', '[' + ', '.join(
+            f'{1e3 * v:.4f}' for v in data['end_disk_position_m']) + '] mm'),
+        ('end-disk quaternion xyzw', '[' + ', '.join(
+            f'{v:.6f}' for v in data['end_disk_quaternion_xyzw']) + ']'),
+        ('max arc deviation PJ / DJ', f"{data['max_arc_deviation_mm']['pj']:.4f} mm / "
+                                      f"{data['max_arc_deviation_mm']['dj']:.4f} mm"),
+        ('solve time', f"{1e3 * data['solve_time_s']:.2f} ms"),
+    ]
+    width = max(len(name) for name, _ in rows)
+    return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
+
+
+def _paper_comparison(params: TranslatorParams) -> str:
+    solver = TranslatorSolver(params)
+    lines = ["Table II of the paper vs this solver (cold solves; 'ours - paper' in brackets)",
+             f"{'':36}" + ''.join(f'{f"F = [{case.force[0]:g}, 0, 0] N":>30}'
+                                  for case in TABLE_II)]
+    results = []
+    for case in TABLE_II:
+        solver.reset()
+        results.append(solver.solve(case.force))
+    quantities = (
+        ('Bending angle of PJ (deg)', lambda r: math.degrees(r.pj_bending[0]),
+         lambda c: c.pj_bending_deg, '.3f'),
+        ('Bending angle of DJ (deg)', lambda r: math.degrees(r.dj_bending[0]),
+         lambda c: c.dj_bending_deg, '.3f'),
+        ('Rotation angle of end disk (deg)', lambda r: math.degrees(r.end_disk_rotation),
+         lambda c: c.end_disk_rotation_deg, '.3f'),
+        ('Max deviation from arcs (mm)', lambda r: 1e3 * max(r.max_arc_deviation.values()),
+         lambda c: c.max_arc_deviation_mm, '.4f'),
+    )
+    for name, ours, theirs, spec in quantities:
+        cells = ''.join(
+            f'{f"{theirs(case):{spec}} | {ours(result):{spec}} ({ours(result) - theirs(case):+{spec}})":>30}'  # noqa: E501
+            for case, result in zip(TABLE_II, results))
+        lines.append(f'{name:36}{cells}')
+    lines.append(f"{'':36}" + ''.join(f'{"paper | ours (diff)":>30}' for _ in TABLE_II))
+    lines.append(f'Parameters: tube_length {1e3 * params.tube_length:g} mm, youngs_modulus '
+                 f'{params.youngs_modulus / 1e9:g} GPa, poisson_ratio {params.poisson_ratio:g}, '
+                 f'spacers_per_joint {params.spacers_per_joint}, steps_per_segment '
+                 f'{params.steps_per_segment}')
+    lines.append('Converged: ' + ', '.join(
+        f'{r.converged} in {r.iterations} iterations, {1e3 * r.solve_time_s:.1f} ms'
+        for r in results))
+    return '\n'.join(lines)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Run the command line; return the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        params = TranslatorParams.from_yaml(args.params)
+        if args.command == 'paper':
+            print(_paper_comparison(params))
+            return EXIT_CONVERGED
+        solver = TranslatorSolver(params, method=args.method,
+                                  max_iterations=args.max_iterations,
+                                  time_limit_s=args.time_limit)
+        result = solver.solve(args.force, args.moment)
+    except (ParameterError, ValueError) as error:
+        print(f'error: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(json.dumps(result.to_dict()) if args.json else _table(result))
+    return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
