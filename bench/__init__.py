@@ -1,0 +1,1 @@
+"""Benchmarks of cdr_translator: they print figures, they never assert timings."""
