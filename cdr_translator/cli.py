@@ -36,8 +36,8 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument('--method', choices=METHODS, default='fast',
                        help="'paper' runs the published numerics (slow baseline)")
     solve.add_argument('--max-iterations', type=int, default=None,
-                       help='Newton iterations per continuation step (LM iterations for '
-                            '--method paper)')
+                       help='iterations per continuation step (Newton, or Levenberg-'
+                            'Marquardt for --method paper)')
     solve.add_argument('--time-limit', type=float, default=10.0,
                        help='give up after this many seconds (default: %(default)s)')
     solve.add_argument('--json', action='store_true', help='print one JSON object')

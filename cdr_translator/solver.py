@@ -13,7 +13,7 @@ benchmarks divide by.
 from dataclasses import dataclass
 import math
 import time
-from typing import Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
@@ -73,7 +73,7 @@ class TranslatorSolver:
         disk spacing, forces in EI/D^2, moments in EI/D). ``max_iterations`` caps the
         Newton iterations of one continuation step (default 12: a step that needs more is
         halved instead) or, for ``method='paper'``, the Levenberg-Marquardt iterations
-        (default 100); ``time_limit_s`` caps a whole solve.
+        (default 30); ``time_limit_s`` caps a whole solve.
         """
         if method not in METHODS:
             raise ValueError(f'method must be one of {METHODS}, got {method!r}')
@@ -81,7 +81,7 @@ class TranslatorSolver:
         self.method = method
         self.tolerance = tolerance
         if max_iterations is None:
-            max_iterations = 100 if method == 'paper' else 12
+            max_iterations = 30 if method == 'paper' else 12
         if max_iterations < 1:
             raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
         self.max_iterations = max_iterations
@@ -105,28 +105,26 @@ class TranslatorSolver:
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
         deadline = started + self.time_limit_s
-        if self.method == 'paper':
-            (unloaded, _), lu = self._unloaded()
-            guess = unloaded - lu_solve(lu, self.problem.wrench_sensitivity() @ wrench)
-            with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps
-                outcome = self._levenberg_marquardt(guess, wrench, deadline)
-        else:
-            outcome = self._solve_fast(wrench, warm_start, deadline)
+        corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
+        with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
+            outcome = self._continuation(wrench, warm_start, deadline, corrector)
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
         elapsed = time.perf_counter() - started
         return self._result(outcome, wrench, elapsed)
 
-    # fast method -----------------------------------------------------------------------------
-    def _solve_fast(self, wrench: np.ndarray, warm_start: bool, deadline: float) -> _Outcome:
+    # continuation ----------------------------------------------------------------------------
+    def _continuation(self, wrench: np.ndarray, warm_start: bool, deadline: float,
+                      corrector: Callable[..., _Outcome]) -> _Outcome:
         """
         Predictor-corrector continuation from the previous solution (or the unloaded one).
 
-        Each step predicts the solution at a larger wrench to first order, using the stored
-        LU factorization, dx = -J^-1 (dr/dw) dw, and corrects it by Newton. A failed step is
-        halved, a good one doubled; a warm start is the same walk in (usually) one step.
+        Each step predicts the solution at a larger wrench to first order with the stored LU
+        factorization, dx = -J^-1 (dr/dw) dw (without one, the last solution is the guess),
+        and the corrector (Newton, or the paper's Levenberg-Marquardt) refines it. A failed
+        step is halved, a good one doubled; a warm start is the same walk, usually one step.
         """
-        if not (warm_start and self._previous is not None and self._lu is not None):
+        if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
         xs, start = self._previous
         lu = self._lu
@@ -137,8 +135,9 @@ class TranslatorSolver:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            guess = xs - lu_solve(lu, sensitivity @ (goal - current), check_finite=False)
-            outcome = self._newton(guess, goal, deadline, lu, self.max_iterations)
+            guess = xs if lu is None else xs - lu_solve(lu, sensitivity @ (goal - current),
+                                                        check_finite=False)
+            outcome = corrector(guess, goal, deadline, lu, self.max_iterations)
             iterations += outcome.iterations
             if outcome.converged:
                 done, xs, current, lu = target, outcome.xs, goal, outcome.lu
@@ -163,6 +162,7 @@ class TranslatorSolver:
                 self.problem.jacobian(xs, zero, self.problem.residual(xs, zero)))
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
+    # correctors ------------------------------------------------------------------------------
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int) -> _Outcome:
         """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
@@ -200,15 +200,18 @@ class TranslatorSolver:
                         'converged' if converged
                         else f'no convergence in {max_iterations} iterations', lu)
 
-    # paper method ----------------------------------------------------------------------------
-    def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray,
-                             deadline: float) -> _Outcome:
-        """Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances."""
+    def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
+                             lu: Optional[tuple], max_iterations: int) -> _Outcome:
+        """
+        Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances.
+
+        ``lu`` is ignored: the paper's method keeps no factorization between solves.
+        """
         problem = self.problem
         tolerances = np.array([PAPER_TOLERANCES[kind] for kind in RESIDUAL_KINDS])
         rs = problem.residual(xs, wrench)
         damping = 1e-3
-        for iteration in range(1, self.max_iterations + 1):
+        for iteration in range(1, max_iterations + 1):
             if np.all(np.array(list(problem.residual_by_kind(rs).values())) <= tolerances):
                 return _Outcome(xs, rs, iteration - 1, True,
                                 "converged to the paper's tolerances")
@@ -229,8 +232,8 @@ class TranslatorSolver:
                 if damping > 1e12:
                     return _Outcome(xs, rs, iteration, False,
                                     'Levenberg-Marquardt damping diverged')
-        return _Outcome(xs, rs, self.max_iterations, False,
-                        f'no convergence in {self.max_iterations} iterations')
+        return _Outcome(xs, rs, max_iterations, False,
+                        f'no convergence in {max_iterations} iterations')
 
     # result ----------------------------------------------------------------------------------
     def _result(self, outcome: _Outcome, wrench: np.ndarray, elapsed: float) -> SolveResult:
