@@ -71,6 +71,11 @@ def _table(result: SolveResult) -> str:
     return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
 
 
+def _comparison_cell(paper: float, ours: float, spec: str) -> str:
+    text = f'{paper:{spec}} | {ours:{spec}} ({ours - paper:+{spec}})'
+    return f'{text:>30}'
+
+
 def _paper_comparison(params: TranslatorParams) -> str:
     solver = TranslatorSolver(params)
     lines = ["Table II of the paper vs this solver (cold solves; 'ours - paper' in brackets)",
@@ -91,9 +96,8 @@ def _paper_comparison(params: TranslatorParams) -> str:
          lambda c: c.max_arc_deviation_mm, '.4f'),
     )
     for name, ours, theirs, spec in quantities:
-        cells = ''.join(
-            f'{f"{theirs(case):{spec}} | {ours(result):{spec}} ({ours(result) - theirs(case):+{spec}})":>30}'  # noqa: E501
-            for case, result in zip(TABLE_II, results))
+        cells = ''.join(_comparison_cell(theirs(case), ours(result), spec)
+                        for case, result in zip(TABLE_II, results))
         lines.append(f'{name:36}{cells}')
     lines.append(f"{'':36}" + ''.join(f'{"paper | ours (diff)":>30}' for _ in TABLE_II))
     lines.append(f'Parameters: tube_length {1e3 * params.tube_length:g} mm, youngs_modulus '
