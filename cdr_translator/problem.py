@@ -59,6 +59,10 @@ class Problem:
         self.wrench_scale = np.repeat([force, moment], 3)
         #: rows of the end-disk equilibrium, the only residuals the applied wrench enters
         self.wrench_rows = np.arange(self.size - 6, self.size)
+        #: d(residual)/d(wrench), nondimensional: the wrench enters Eq. 11 linearly
+        self.wrench_sensitivity = np.zeros((self.size, 6))
+        self.wrench_sensitivity[self.wrench_rows, np.arange(6)] = \
+            1.0 / self.residual_scale[self.wrench_rows]
         self._no_points = np.empty((model.N_RODS, 0, 3))
         self._frames = np.empty((4, 4, 4))
         self._jacobian = np.empty((self.size, self.size))
@@ -106,9 +110,3 @@ class Problem:
         x[0:3] = force
         x[3:6] = wrench[3:] + np.cross([0.0, 0.0, height], force)
         return x / self.x_scale
-
-    def wrench_sensitivity(self) -> np.ndarray:
-        """d(residual)/d(wrench), nondimensional: the wrench enters Eq. 11 linearly."""
-        sensitivity = np.zeros((self.size, 6))
-        sensitivity[self.wrench_rows, np.arange(6)] = 1.0 / self.residual_scale[self.wrench_rows]
-        return sensitivity

@@ -128,7 +128,7 @@ class TranslatorSolver:
             self._previous, self._lu = self._unloaded()
         xs, start = self._previous
         lu = self._lu
-        sensitivity = self.problem.wrench_sensitivity()
+        sensitivity = self.problem.wrench_sensitivity
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome = None
