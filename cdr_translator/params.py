@@ -34,11 +34,37 @@ DEFAULT_PARAMS_PATH = _shipped_params_path()
 SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 
 #: Keys of the same params file that belong to the ROS node, not to the model.
-NODE_ONLY_KEYS: frozenset = frozenset()
+NODE_ONLY_KEYS: frozenset = frozenset((
+    'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
+    'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
+    'mcap_flush_messages', 'mcap_flush_s'))
 
 
 class ParameterError(ValueError):
     """A parameter is missing, unknown or has an impossible value."""
+
+
+def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:
+    """
+    Return the ``translator_node: ros__parameters:`` mapping of a ROS 2 params file.
+
+    Model and node-only keys alike, unvalidated; ParameterError if the file cannot be read.
+    """
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise ParameterError(f'cannot read parameter file {path}: {error}') from error
+    except yaml.YAMLError as error:
+        raise ParameterError(f'{path} is not valid YAML: {error}') from error
+    try:
+        values = document[NODE_NAME]['ros__parameters']
+    except (TypeError, KeyError):
+        raise ParameterError(
+            f'{path} has no {NODE_NAME}: ros__parameters: section') from None
+    if not isinstance(values, Mapping):
+        raise ParameterError(f'{path}: {NODE_NAME}.ros__parameters must be a mapping')
+    return dict(values)
 
 
 @dataclass(frozen=True)
@@ -145,21 +171,7 @@ class TranslatorParams:
     @classmethod
     def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'TranslatorParams':
         """Read a ROS 2 params file (``translator_node: ros__parameters: {...}``)."""
-        path = Path(path)
-        try:
-            document = yaml.safe_load(path.read_text())
-        except OSError as error:
-            raise ParameterError(f'cannot read parameter file {path}: {error}') from error
-        except yaml.YAMLError as error:
-            raise ParameterError(f'{path} is not valid YAML: {error}') from error
-        try:
-            values = document[NODE_NAME]['ros__parameters']
-        except (TypeError, KeyError):
-            raise ParameterError(
-                f'{path} has no {NODE_NAME}: ros__parameters: section') from None
-        if not isinstance(values, Mapping):
-            raise ParameterError(f'{path}: {NODE_NAME}.ros__parameters must be a mapping')
-        return cls.from_mapping(values)
+        return cls.from_mapping(read_params_file(path))
 
     def with_changes(self, **changes: Any) -> 'TranslatorParams':
         """Return a validated copy with some fields changed."""
