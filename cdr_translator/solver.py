@@ -85,6 +85,10 @@ class TranslatorSolver:
         if max_iterations < 1:
             raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
         self.max_iterations = max_iterations
+        if not (math.isfinite(time_limit_s) and time_limit_s >= 0.0):
+            raise ValueError(f'time_limit_s must be finite and >= 0, got {time_limit_s}')
+        if not (math.isfinite(tolerance) and tolerance > 0.0):
+            raise ValueError(f'tolerance must be positive and finite, got {tolerance}')
         self.time_limit_s = time_limit_s
         kernel = interpreted_kernels()['model'] if method == 'paper' else None
         self.problem = Problem(self.params) if kernel is None else Problem(self.params, kernel)
@@ -106,8 +110,16 @@ class TranslatorSolver:
         started = time.perf_counter()
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
+        warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
         with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
             outcome = self._continuation(wrench, warm_start, deadline, corrector)
+            if warm and not outcome.converged and time.perf_counter() < deadline:
+                # the warm start may sit on another branch or too far away: restart cold
+                restart = self._continuation(wrench, False, deadline, corrector)
+                restart.iterations += outcome.iterations
+                restart.message += ' (after a restart from the unloaded state)'
+                if restart.converged or _norm(restart.rs) < _norm(outcome.rs):
+                    outcome = restart
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
         elapsed = time.perf_counter() - started
@@ -122,7 +134,11 @@ class TranslatorSolver:
         Each step predicts the solution at a larger wrench to first order with the stored LU
         factorization, dx = -J^-1 (dr/dw) dw (without one, the last solution is the guess),
         and the corrector (Newton, or the paper's Levenberg-Marquardt) refines it. A failed
-        step is halved, a good one doubled; a warm start is the same walk, usually one step.
+        step is halved; a step is doubled after one that converged in at most half the
+        allowed iterations, but never right after a failure (halving then doubling again
+        would retry the step that just failed). A warm start is the same walk, usually one
+        step. If it stalls, the outcome is the best state found, its residual taken at the
+        requested wrench.
         """
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
@@ -132,6 +148,7 @@ class TranslatorSolver:
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome = None
+        grow = 2.0
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
@@ -141,17 +158,28 @@ class TranslatorSolver:
             iterations += outcome.iterations
             if outcome.converged:
                 done, xs, current, lu = target, outcome.xs, goal, outcome.lu
-                step *= 2.0
+                if outcome.iterations <= self.max_iterations // 2:
+                    step *= grow
+                grow = 2.0
                 continue
+            grow = 1.0
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
-                outcome.iterations = iterations
-                outcome.message = (f'continuation stalled at {done:.1%} of the way to the '
-                                   f'wrench: {outcome.message}')
-                return outcome
+                return self._stalled(xs, outcome, wrench, done, iterations)
         self._lu = lu
         outcome.iterations = iterations
         return outcome
+
+    def _stalled(self, xs: np.ndarray, failed: _Outcome, wrench: np.ndarray, done: float,
+                 iterations: int) -> _Outcome:
+        """Best of the last converged state and the failed iterate, judged at ``wrench``."""
+        candidates = [(candidate, self.problem.residual(candidate, wrench))
+                      for candidate in (xs, failed.xs)]
+        best, rs = min(candidates, key=lambda pair: _norm(pair[1])
+                       if math.isfinite(_norm(pair[1])) else math.inf)
+        return _Outcome(best, rs, iterations, False,
+                        f'continuation stalled at {done:.1%} of the way to the wrench: '
+                        f'{failed.message}')
 
     def _unloaded(self) -> Tuple[Tuple[np.ndarray, np.ndarray], tuple]:
         """Return the straight unloaded solution and its LU factorization (computed once)."""
@@ -183,11 +211,14 @@ class TranslatorSolver:
                 lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
                 fresh = True
             step = -lu_solve(lu, rs, check_finite=False)
-            trial = _line_search(problem, xs, step, wrench, norm)
+            finite = bool(np.isfinite(step).all())
+            trial = _line_search(problem, xs, step, wrench, norm) if finite else None
             if trial is None:
                 if fresh:
                     return _Outcome(xs, rs, iteration, False,
-                                    'line search found no decrease of the residual', lu)
+                                    'line search found no decrease of the residual' if finite
+                                    else 'Newton step is not finite (singular or non-finite '
+                                    'Jacobian)', lu)
                 lu = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             xs, rs, new_norm = trial

@@ -88,7 +88,8 @@ def test_mirror_symmetry(solver):
     minus = cold(solver, (-9.0, 0.0, 2.0))
     assert np.allclose(minus.end_disk_position, MIRROR_X @ plus.end_disk_position, atol=1e-12)
     assert math.isclose(plus.pj_bending[0], minus.pj_bending[0], abs_tol=1e-12)
-    assert math.isclose(plus.end_disk_rotation, minus.end_disk_rotation, abs_tol=1e-12)
+    # the solves stop at residuals <= 1e-10 rad, so agreement to 1e-12 would be luck
+    assert math.isclose(plus.end_disk_rotation, minus.end_disk_rotation, abs_tol=1e-10)
 
 
 def test_quarter_turn_symmetry(solver):
