@@ -12,6 +12,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['tests', 'tests.*', 'test', 'test.*']),
+    # the ROS 2 .msg texts msg_tools ships (it needs no ROS message packages)
+    package_data={'msg_tools': ['msg/*/*.msg']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         (os.path.join('share', package_name), ['package.xml']),
