@@ -44,11 +44,14 @@ class ParameterError(ValueError):
     """A parameter is missing, unknown or has an impossible value."""
 
 
-def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:
+def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH,
+                     section: str = NODE_NAME) -> dict:
     """
-    Return the ``translator_node: ros__parameters:`` mapping of a ROS 2 params file.
+    Return the ``<section>: ros__parameters:`` mapping of a ROS 2 params file.
 
-    Model and node-only keys alike, unvalidated; ParameterError if the file cannot be read.
+    ``section`` is a node name: ``translator_node`` (default) or ``cdr_node`` (the delta
+    robot's geometry). Model and node-only keys alike, unvalidated; ParameterError if the
+    file cannot be read.
     """
     path = Path(path)
     try:
@@ -58,12 +61,12 @@ def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:
     except yaml.YAMLError as error:
         raise ParameterError(f'{path} is not valid YAML: {error}') from error
     try:
-        values = document[NODE_NAME]['ros__parameters']
+        values = document[section]['ros__parameters']
     except (TypeError, KeyError):
         raise ParameterError(
-            f'{path} has no {NODE_NAME}: ros__parameters: section') from None
+            f'{path} has no {section}: ros__parameters: section') from None
     if not isinstance(values, Mapping):
-        raise ParameterError(f'{path}: {NODE_NAME}.ros__parameters must be a mapping')
+        raise ParameterError(f'{path}: {section}.ros__parameters must be a mapping')
     return dict(values)
 
 
