@@ -1,0 +1,291 @@
+"""
+translator_node: wrenches in, the translator's loaded shape out, every run logged to MCAP.
+
+Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
+with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
+``compliance``, ``backbones`` and ``/diagnostics`` (see msg_tools.messages for their
+content). Wrenches are checked in the subscription callback and handed to a solver thread
+through a one-slot mailbox: when they arrive faster than the solver, the newest wins and
+the others are counted as skipped. Every received wrench and every published message goes
+to an MCAP file through a log thread. This and node_params / node_io are the only modules
+that import rclpy or ROS message classes.
+"""
+
+import datetime
+import os
+from pathlib import Path
+import signal
+import sys
+import threading
+import time
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from msg_tools import messages
+from msg_tools.mcap_log import McapLog
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
+
+from .node_io import check_magnitude, fill_message, in_end_disk_frame, LatestMailbox
+from .node_io import LogThread, type_name
+from .node_params import check_value, default_values, model_params, NodeSettings, SPECS
+from .params import DEFAULT_PARAMS_PATH, NODE_NAME, ParameterError
+from .result import SolveResult
+from .solver import check_wrench, TranslatorSolver
+
+#: Output topics and their message classes (relative names except /diagnostics).
+OUTPUTS = {
+    messages.END_DISK_POSE_TOPIC: PoseStamped,
+    messages.BENDING_ANGLES_TOPIC: JointState,
+    messages.COMPLIANCE_EIGENVALUES_TOPIC: Float64MultiArray,
+    messages.COMPLIANCE_TOPIC: Float64MultiArray,
+    messages.BACKBONES_TOPIC: MarkerArray,
+    messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+}
+
+#: A wrench in the end-disk frame is a follower load: it is rotated into the base frame
+#: with the end-disk pose it produces, found by fixed-point iteration to this tolerance
+#: (largest change of a rotation-matrix entry) in at most this many solves.
+FOLLOWER_TOLERANCE = 1e-12
+FOLLOWER_MAX_SOLVES = 8
+
+#: How long main() waits for the solver thread to finish its solve at shutdown.
+SHUTDOWN_JOIN_S = 5.0
+
+
+class TranslatorNode(Node):
+    """The translator as a ROS 2 node; ``close()`` stops it and finalizes the MCAP log."""
+
+    def __init__(self, params_path: Path = DEFAULT_PARAMS_PATH, **kwargs: Any) -> None:
+        """Declare parameters (defaults from ``params_path``), warm up, then subscribe."""
+        super().__init__(NODE_NAME, **kwargs)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        defaults = default_values(params_path)
+        values = {name: self.declare_parameter(name, value, SPECS[name].descriptor(value)).value
+                  for name, value in defaults.items()}
+        self._settings = NodeSettings.from_values(values)
+        self.solver = TranslatorSolver(model_params(values),
+                                       time_limit_s=self._settings.solve_time_limit_s)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
+        self.received = self.rejected = self.solved = self.failed = 0
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
+                                                                  reliable)
+                                     for topic, message_class in OUTPUTS.items()}
+        self._mailbox = LatestMailbox()
+        self._warm_up()
+        self._log, self.mcap_path = self._open_log()
+        self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
+        self._worker.start()
+        self._subscription = self.create_subscription(
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, qos_profile_sensor_data,
+            raw=True)
+        self.get_logger().info(
+            f'ready: {self._subscription.topic_name} -> '
+            f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
+            f'MCAP log {self.mcap_path or "off"}')
+
+    # parameters ------------------------------------------------------------------------------
+    def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
+        """Reject a change with the reason (descriptors have checked read-only and ranges)."""
+        values = {name: self.get_parameter(name).value for name in SPECS
+                  if self.has_parameter(name)}
+        values.update({parameter.name: parameter.value for parameter in parameters})
+        for parameter in parameters:
+            reason = check_value(parameter.name, parameter.value, values)
+            if reason is not None:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: List[Parameter]) -> None:
+        """Take accepted run-time values into a new settings snapshot."""
+        values = {name: self.get_parameter(name).value for name in SPECS}
+        self._settings = NodeSettings.from_values(values)
+        self.solver.time_limit_s = self._settings.solve_time_limit_s
+
+    # start-up --------------------------------------------------------------------------------
+    def _warm_up(self) -> None:
+        """Solve once (compiles or loads the kernels) and build every output, then forget."""
+        result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
+        self._output_messages(result, {'sec': 0, 'nanosec': 0}, True, True, self._counts())
+        self.solver.reset()
+
+    def _open_log(self) -> Tuple[Optional[LogThread], str]:
+        """Open the MCAP log (unless disabled) and register the wrench and output topics."""
+        settings = self._settings
+        if not settings.log_to_mcap:
+            return None, ''
+        path = Path(settings.mcap_path) if settings.mcap_path else (
+            Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
+                f'translator_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
+                      flush_every_s=settings.mcap_flush_s)
+        log.register(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
+                     qos='sensor_data')
+        for topic, publisher in self._publishers_by_topic.items():
+            log.register(publisher.topic_name, type_name(OUTPUTS[topic]), qos='reliable')
+        return LogThread(log), str(path)
+
+    # input -----------------------------------------------------------------------------------
+    def _on_wrench(self, data: bytes, info: dict) -> None:
+        """Log the wrench as received; reject it with a diagnostic or hand it to the solver."""
+        received_ns = info.get('received_timestamp') or time.time_ns()
+        self.received += 1
+        if self._log is not None:
+            self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
+                             received_ns, info.get('source_timestamp'))
+        force, moment, frame_id, stamp = messages.wrench_from_message(
+            deserialize_message(data, WrenchStamped))
+        settings = self._settings
+        try:
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+        except ValueError as error:
+            self.rejected += 1
+            self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
+            self._publish_all(_filled(messages.rejection_messages(
+                stamp, f'rejected: {error}', self._counts())))
+            return
+        self._mailbox.put((stamp, force, moment, end_disk))
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: solve the newest wrench, publish and log what it gives."""
+        while True:
+            item = self._mailbox.take()
+            if item is None:
+                return
+            try:
+                self._process(*item)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish_all(_filled(messages.rejection_messages(
+                    item[0], f'internal error: {error!r}', self._counts())))
+
+    def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
+                 end_disk: bool) -> None:
+        """Solve one wrench; publish and log what it gives."""
+        want_compliance = self._settings.log_compliance or any(
+            self._publishers_by_topic[topic].get_subscription_count() > 0
+            for topic in (messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC))
+        want_backbones = (self._settings.log_backbones or self._publishers_by_topic[
+            messages.BACKBONES_TOPIC].get_subscription_count() > 0)
+        result, solves = self._solve(force, moment, end_disk, want_compliance)
+        if result.converged:
+            self.solved += 1
+            self._rotation = result.frames['de'][:3, :3]
+        else:
+            self.failed += 1
+            self.get_logger().error(f'no equilibrium: {result.message}',
+                                    throttle_duration_sec=1.0)
+        extra = self._counts()
+        if end_disk:
+            extra['follower_solves'] = solves
+        self._publish_all(self._output_messages(result, stamp, want_compliance,
+                                                want_backbones, extra))
+
+    def _solve(self, force: np.ndarray, moment: np.ndarray, end_disk: bool,
+               compliance: bool) -> Tuple[SolveResult, int]:
+        """Solve a base-frame wrench, or an end-disk-frame one as a follower load."""
+        if not end_disk:
+            return self.solver.solve(force, moment, compliance=compliance), 1
+        rotation = self._rotation
+        for solves in range(1, FOLLOWER_MAX_SOLVES + 1):
+            result = self.solver.solve(rotation @ force, rotation @ moment,
+                                       compliance=compliance)
+            if not result.converged:
+                return result, solves
+            new_rotation = result.frames['de'][:3, :3]
+            if np.abs(new_rotation - rotation).max() <= FOLLOWER_TOLERANCE:
+                return result, solves
+            rotation = new_rotation
+        result.converged = False
+        result.message = (f'the end-disk orientation of the follower load did not settle in '
+                          f'{FOLLOWER_MAX_SOLVES} solves')
+        return result, FOLLOWER_MAX_SOLVES
+
+    # output ----------------------------------------------------------------------------------
+    def _counts(self) -> Dict[str, int]:
+        """Return the running message counts reported with every diagnostic."""
+        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+
+    def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
+                         want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
+        """Fill the messages of one solve (msg_tools.messages defines their content)."""
+        return _filled(messages.output_messages(
+            result, stamp, self._settings.base_frame, compliance=want_compliance,
+            backbones_params=self.solver.params if want_backbones else None,
+            extra_values=extra))
+
+    def _publish_all(self, topic_messages: List[Tuple[str, Any]]) -> None:
+        """Publish output messages and queue them for the MCAP log."""
+        for topic, message in topic_messages:
+            publisher = self._publishers_by_topic[topic]
+            publisher.publish(message)
+            if self._log is not None:
+                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), message,
+                                 time.time_ns())
+
+    # shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop taking wrenches, let the running solve finish, finalize the MCAP file."""
+        self.destroy_subscription(self._subscription)
+        self._mailbox.close()
+        self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log is not None:
+            self._log.close()
+            self.get_logger().info(
+                f'MCAP log {self.mcap_path} closed: {self._log.written} records, logging '
+                f'held the solver {1e3 * self._log.max_enqueue_wait_s:.3f} ms at most')
+
+
+def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
+    """Turn msg_tools.messages' (topic, type, dict) triples into (topic, rclpy message)."""
+    return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built]
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Run translator_node until SIGINT or SIGTERM; return the process exit code."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
+    try:
+        node = TranslatorNode()
+    except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
+            OSError) as error:
+        print(f'{NODE_NAME}: {error}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

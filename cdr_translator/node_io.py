@@ -1,0 +1,192 @@
+"""
+Helpers of translator_node that need no running node.
+
+Input checks, the latest-wins mailbox, message filling and the MCAP log thread, kept apart
+from node.py so that each can be tested without DDS.
+"""
+
+from functools import lru_cache
+import importlib
+import math
+import queue
+import threading
+import time
+from typing import Any, Mapping, Optional, Sequence
+
+from rclpy.serialization import serialize_message
+
+#: Records the MCAP log thread may hold before a producer waits (never dropped, never
+#: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
+LOG_QUEUE_CAPACITY = 20000
+
+
+def check_magnitude(force: Sequence[float], moment: Sequence[float], max_force: float,
+                    max_moment: float) -> None:
+    """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
+    for name, vector, limit, unit in (('force', force, max_force, 'N'),
+                                      ('moment', moment, max_moment, 'N m')):
+        magnitude = math.sqrt(sum(component * component for component in vector))
+        if magnitude > limit:
+            raise ValueError(f'|{name}| = {magnitude:.6g} {unit} exceeds max_{name} = '
+                             f'{limit:.6g} {unit}')
+
+
+def in_end_disk_frame(frame_id: str, base_frame: str, end_disk_frame: str) -> bool:
+    """
+    Tell whether a wrench's frame_id is the end-disk frame (True) or the base frame (False).
+
+    An empty frame_id means the base frame; any other name raises ValueError (no tf here).
+    """
+    if frame_id in ('', base_frame):
+        return False
+    if frame_id == end_disk_frame:
+        return True
+    raise ValueError(f'unknown frame_id {frame_id!r}: expected {base_frame!r} (or empty) or '
+                     f'{end_disk_frame!r}')
+
+
+class LatestMailbox:
+    """
+    One-slot, thread-safe mailbox: ``put`` replaces an untaken item (counted as skipped).
+
+    The consumer always gets the newest item; nothing ever queues up behind it.
+    """
+
+    def __init__(self) -> None:
+        """Start empty and open."""
+        self._condition = threading.Condition()
+        self._item: Any = None
+        self._full = False
+        self._closed = False
+        self.skipped = 0
+
+    def put(self, item: Any) -> bool:
+        """Leave ``item``; return True if it replaced one nobody had taken yet."""
+        with self._condition:
+            replaced = self._full
+            if replaced:
+                self.skipped += 1
+            self._item, self._full = item, True
+            self._condition.notify()
+            return replaced
+
+    def take(self, timeout: Optional[float] = None) -> Any:
+        """Wait for an item and return it; None once closed (or after ``timeout`` s)."""
+        with self._condition:
+            self._condition.wait_for(lambda: self._full or self._closed, timeout)
+            if self._closed or not self._full:
+                return None
+            item, self._item, self._full = self._item, None, False
+            return item
+
+    def close(self) -> None:
+        """Wake the consumer for good; an untaken item is dropped."""
+        with self._condition:
+            self._closed = True
+            self._condition.notify_all()
+
+
+@lru_cache(maxsize=None)
+def _field_types(message_class: type) -> dict:
+    """Map field name -> rosidl type of a generated message class."""
+    return dict(zip(message_class.get_fields_and_field_types(), message_class.SLOT_TYPES))
+
+
+@lru_cache(maxsize=None)
+def _message_class(namespaces: tuple, name: str) -> type:
+    """Import a generated message class, e.g. (('geometry_msgs', 'msg'), 'Point')."""
+    return getattr(importlib.import_module('.'.join(namespaces)), name)
+
+
+def fill_message(message: Any, values: Mapping[str, Any]) -> Any:
+    """
+    Set the fields of a generated ROS message from a nested plain dict; return the message.
+
+    Nested messages are dicts, sequences of messages lists of dicts, an int for a ``byte``
+    field becomes that one byte, everything else is assigned as it is (the message's own
+    setters check the types). KeyError names a field the message does not have.
+    """
+    types = _field_types(type(message))
+    for name, value in values.items():
+        if name not in types:
+            raise KeyError(f'{type(message).__name__} has no field {name!r}')
+        if isinstance(value, Mapping):
+            fill_message(getattr(message, name), value)
+        elif isinstance(value, (list, tuple)) and value and isinstance(value[0], Mapping):
+            element = types[name].value_type
+            element_class = _message_class(tuple(element.namespaces), element.name)
+            setattr(message, name, [fill_message(element_class(), item) for item in value])
+        elif isinstance(value, int) and isinstance(getattr(message, name), bytes):
+            setattr(message, name, bytes([value]))  # a .msg 'byte' field, e.g. a level
+        else:
+            setattr(message, name, value)
+    return message
+
+
+def type_name(message_class: type) -> str:
+    """Return the ROS 2 type name of a generated message class, e.g. 'std_msgs/msg/String'."""
+    package = message_class.__module__.split('.')[0]
+    return f'{package}/msg/{message_class.__name__}'
+
+
+class LogThread:
+    """
+    Serialize and write log records to an McapLog on a thread of its own.
+
+    Producers (the subscription callback, the solver thread) only enqueue: a record is the
+    already-serialized bytes of a received message or a published message object, which
+    this thread serializes. The queue is bounded (``capacity``); when it is full a producer
+    waits rather than drop a record. The McapLog itself flushes completed chunks every N
+    messages and T seconds. ``enqueue_wait_s`` and ``write_time_s`` measure whether logging
+    ever holds up the solver.
+    """
+
+    def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY) -> None:
+        """Start writing to ``log`` (an McapLog, closed by ``close()``)."""
+        self._log = log
+        self._queue: queue.Queue = queue.Queue(maxsize=capacity)
+        self.written = 0
+        self.errors = 0
+        self.last_error = ''
+        self.max_depth = 0
+        self.enqueue_wait_s = 0.0
+        self.max_enqueue_wait_s = 0.0
+        self.write_time_s = 0.0
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name='mcap_log', daemon=True)
+        self._thread.start()
+
+    def submit(self, topic: str, type_name: str, message: Any, log_time_ns: int,
+               publish_time_ns: Optional[int] = None) -> None:
+        """Queue one record; ``message`` is CDR bytes or a generated message object."""
+        started = time.perf_counter()
+        self._queue.put((topic, type_name, message, log_time_ns, publish_time_ns))
+        waited = time.perf_counter() - started
+        self.enqueue_wait_s += waited
+        self.max_enqueue_wait_s = max(self.max_enqueue_wait_s, waited)
+        self.max_depth = max(self.max_depth, self._queue.qsize())
+
+    def _run(self) -> None:
+        while True:
+            record = self._queue.get()
+            if record is None:
+                return
+            topic, name, message, log_time_ns, publish_time_ns = record
+            started = time.perf_counter()
+            try:
+                data = message if isinstance(message, bytes) else serialize_message(message)
+                self._log.write_serialized(topic, name, data, log_time_ns, publish_time_ns)
+                self.written += 1
+            except Exception as error:  # noqa: B902 - a bad record must not end the log
+                self.errors += 1
+                self.last_error = f'{topic}: {error}'
+            self.write_time_s += time.perf_counter() - started
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Write what is queued, then close the McapLog (summary written); idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._queue.put(None)
+        self._thread.join(timeout_s)
+        self._log.close()
