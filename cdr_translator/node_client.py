@@ -45,6 +45,11 @@ DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
                   messages.DIAGNOSTICS_TOPIC)
 
 
+#: The node run as a module of this interpreter, and as the installed console script.
+MODULE_COMMAND = (sys.executable, '-m', 'cdr_translator.node')
+SCRIPT_COMMAND = (str(Path(sys.executable).parent / 'translator_node'),)
+
+
 def isolated_ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
     """
     Return os.environ with its own ROS_DOMAIN_ID (random in 100..200) and localhost discovery.
@@ -60,15 +65,15 @@ def isolated_ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
 
 
 class NodeProcess:
-    """translator_node as a child process (``python -m cdr_translator.node``)."""
+    """translator_node as a child process (by default ``python -m cdr_translator.node``)."""
 
-    def __init__(self, ros_args: Sequence[str], env: Mapping[str, str], output: Path) -> None:
-        """Start the node with ``--ros-args ros_args``; stdout and stderr go to ``output``."""
+    def __init__(self, ros_args: Sequence[str], env: Mapping[str, str], output: Path,
+                 command: Sequence[str] = MODULE_COMMAND) -> None:
+        """Start ``command --ros-args ros_args``; stdout and stderr go to ``output``."""
         self.output = Path(output)
         self._file = open(self.output, 'wb')
-        self.process = subprocess.Popen(
-            [sys.executable, '-m', 'cdr_translator.node', '--ros-args', *ros_args],
-            env=dict(env), stdout=self._file, stderr=subprocess.STDOUT)
+        self.process = subprocess.Popen([*command, '--ros-args', *ros_args], env=dict(env),
+                                        stdout=self._file, stderr=subprocess.STDOUT)
 
     def text(self) -> str:
         """Return what the node has printed so far."""

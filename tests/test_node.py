@@ -13,7 +13,7 @@ import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.node_client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.node_client import TranslatorClient
+from cdr_translator.node_client import MODULE_COMMAND, SCRIPT_COMMAND, TranslatorClient
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
@@ -54,10 +54,11 @@ def ros_env():
 class Running:
     """A node process and a connected client; both are torn down on exit."""
 
-    def __init__(self, tmp_path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS)):
+    def __init__(self, tmp_path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS),
+                 command=MODULE_COMMAND):
         self.mcap = tmp_path / 'run.mcap'
         self.node = NodeProcess(['-p', f'mcap_path:={self.mcap}', *ros_args], env,
-                                tmp_path / 'node.log')
+                                tmp_path / 'node.log', command)
         self.client = None
         try:
             self.client = TranslatorClient(topics)
@@ -176,7 +177,7 @@ def test_burst_latest_wins(tmp_path, ros_env):
 @pytest.mark.parametrize('number', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_signal_exits_with_finalized_mcap(tmp_path, ros_env, number):
     """The node exits within seconds; the MCAP is finalized and holds every received wrench."""
-    with Running(tmp_path, ros_env) as run:
+    with Running(tmp_path, ros_env, command=SCRIPT_COMMAND) as run:  # .venv/bin/translator_node
         sent = []
         for force in [(0.1 * index, 0.0, 0.0) for index in range(40)] + [
                 (math.nan, 0.0, 0.0), (4.0, 0.0, 0.0)]:
