@@ -1,7 +1,8 @@
 """
 Command line: argument parsing and printing only; the physics lives in the solver.
 
-    python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--params FILE] [--json]
+    python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--compliance]
+                                   [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
 
 Exit codes: 0 converged, 3 not converged (the result is still printed), 2 bad input.
@@ -13,6 +14,7 @@ import math
 import sys
 from typing import List, Optional
 
+from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
@@ -40,6 +42,14 @@ def _parser() -> argparse.ArgumentParser:
                             'Marquardt for --method paper)')
     solve.add_argument('--time-limit', type=float, default=10.0,
                        help='give up after this many seconds (default: %(default)s)')
+    solve.add_argument('--compliance', action='store_true',
+                       help='add the 6x6 end-disk compliance and its primary-mobility analysis')
+    solve.add_argument('--sparsity-threshold', type=float, default=SPARSITY_THRESHOLD,
+                       help='C_s drops |C_ij| below this times sqrt(|C_ii C_jj|) '
+                            '(default: %(default)s)')
+    solve.add_argument('--mobility-ratio', type=float, default=MOBILITY_RATIO,
+                       help='an eigen-twist at least this fraction of the most compliant one '
+                            'is a primary mobility (default: %(default)s)')
     solve.add_argument('--json', action='store_true', help='print one JSON object')
     paper = commands.add_parser('paper', help="solve the paper's Table II cases and compare")
     for command in (solve, paper):
@@ -67,6 +77,16 @@ def _table(result: SolveResult) -> str:
                                       f"{data['max_arc_deviation_mm']['dj']:.4f} mm"),
         ('solve time', f"{1e3 * data['solve_time_s']:.2f} ms"),
     ]
+    analysis = result.compliance
+    if analysis is not None:
+        rows.append(('compliance C (SI)', ''))
+        rows.extend(('', '  '.join(f'{v:+.4e}' for v in row)) for row in analysis.matrix)
+        rows.append(('eigenvalues of C_s', '  '.join(
+            f'{label}: {value:.4e}' for label, value in zip(analysis.labels,
+                                                            analysis.eigenvalues))))
+        rows.append(('primary mobility', ', '.join(analysis.primary_mobility)))
+        rows.append(('stable', str(analysis.stable)))
+        rows.append(('compliance time', f'{1e3 * analysis.time_s:.2f} ms'))
     width = max(len(name) for name, _ in rows)
     return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
 
@@ -121,7 +141,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         solver = TranslatorSolver(params, method=args.method,
                                   max_iterations=args.max_iterations,
                                   time_limit_s=args.time_limit)
-        result = solver.solve(args.force, args.moment)
+        result = solver.solve(args.force, args.moment, compliance=args.compliance,
+                              sparsity_threshold=args.sparsity_threshold,
+                              mobility_ratio=args.mobility_ratio)
     except (ParameterError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT

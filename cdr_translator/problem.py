@@ -79,6 +79,15 @@ class Problem:
                                         self._no_points, self._frames)
         return out / self.residual_scale
 
+    def residual_and_end_frame(self, xs: np.ndarray,
+                               wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Nondimensional residual and the end-disk frame {de} (4x4, SI) from one shot."""
+        out = np.empty(self.size)
+        frames = np.empty((4, 4, 4))
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                        self._no_points, frames)
+        return out / self.residual_scale, frames[3]
+
     def jacobian(self, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarray) -> np.ndarray:
         """Nondimensional forward-difference Jacobian at ``xs`` (``rs`` = residual there)."""
         self.kernel.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,

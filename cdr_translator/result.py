@@ -3,11 +3,12 @@
 from dataclasses import dataclass, field
 from functools import cached_property
 import math
-from typing import Dict
+from typing import Dict, Optional
 
 import numpy as np
 
 from . import geometry
+from .compliance import ComplianceAnalysis
 
 #: Frame names, in the order the kernel writes them: base, tube ends, end disk.
 FRAME_NAMES = ('pe', 'pm', 'dm', 'de')
@@ -40,6 +41,8 @@ class SolveResult:
     solve_time_s: float
     method: str
     unknowns: np.ndarray = field(repr=False)
+    #: end-disk compliance and its analysis, when the solve was asked for it
+    compliance: Optional[ComplianceAnalysis] = field(default=None, repr=False)
 
     @property
     def end_disk_position(self) -> np.ndarray:
@@ -103,4 +106,5 @@ class SolveResult:
             'force_n': self.force.tolist(),
             'moment_nm': self.moment.tolist(),
             'method': self.method,
+            **(self.compliance.to_dict() if self.compliance is not None else {}),
         }

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from ._jit import interpreted_kernels
+from .compliance import compliance_analysis
 from .params import TranslatorParams
 from .problem import Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
@@ -104,8 +105,16 @@ class TranslatorSolver:
         self._lu = None
 
     def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
-              warm_start: bool = True) -> SolveResult:
-        """Solve for an end-disk wrench (N, N m) in {pe} applied at the end-disk centre."""
+              warm_start: bool = True, compliance: bool = False,
+              **compliance_options: float) -> SolveResult:
+        """
+        Solve for an end-disk wrench (N, N m) in {pe} applied at the end-disk centre.
+
+        With ``compliance`` the result also carries the end-disk compliance matrix and its
+        primary-mobility analysis (``cdr_translator.compliance``; options
+        ``sparsity_threshold`` and ``mobility_ratio`` go to ``compliance.analyse``), computed
+        by implicit differentiation at the converged solution, timed apart from the solve.
+        """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
         deadline = started + self.time_limit_s
@@ -123,7 +132,14 @@ class TranslatorSolver:
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
         elapsed = time.perf_counter() - started
-        return self._result(outcome, wrench, elapsed)
+        result = self._result(outcome, wrench, elapsed)
+        if compliance and outcome.converged:
+            try:
+                result.compliance, self._lu = compliance_analysis(
+                    self.problem, outcome.xs, wrench, self._lu, **compliance_options)
+            except ArithmeticError as error:
+                result.message += f'; no compliance: {error}'
+        return result
 
     # continuation ----------------------------------------------------------------------------
     def _continuation(self, wrench: np.ndarray, warm_start: bool, deadline: float,

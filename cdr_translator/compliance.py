@@ -1,0 +1,272 @@
+"""
+Compliance of the end disk and its primary-mobility (screw) analysis (paper Section IV.B).
+
+Convention: C maps a small extra wrench [f; m] (components in the base frame {pe}, applied at
+the end-disk centre) to the small twist [v; w] of the end disk: v the velocity of its centre,
+w its angular velocity, both in {pe}. SI units: C[:3, :3] m/N, C[:3, 3:] m/(N m),
+C[3:, :3] rad/N, C[3:, 3:] rad/(N m).
+
+Two computations that agree to about 1e-8 relative (tests/test_compliance.py):
+
+* ``implicit_compliance`` (the default): implicit differentiation of the shooting problem
+  at the converged solution (Rucker & Webster, ICRA 2011). r(x, w) = 0 gives
+  dx/dw = -J^-1 dr/dw; the twist is the derivative of the end-disk pose along each column.
+  No extra solves: the solver's stored LU factorization preconditions an iterative
+  refinement whose products J v are central differences of the residual, and the same shots
+  give the twist.
+* ``finite_difference_compliance``: central differences of loaded solves, the paper's way
+  (its ref. [15]); the check.
+"""
+
+from dataclasses import dataclass
+import math
+import time
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve
+
+from .params import TranslatorParams
+from .problem import Problem
+
+#: Human-readable names of the six twist/wrench axes, in the order of C's rows.
+AXIS_LABELS = ('translation x', 'translation y', 'translation z',
+               'rotation x', 'rotation y', 'rotation z')
+
+#: Default relative threshold below which a coupling term is zeroed in C_s (see ``analyse``).
+SPARSITY_THRESHOLD = 0.2
+
+#: Default ratio to the most compliant direction above which an eigen-twist is a mobility.
+MOBILITY_RATIO = 0.2
+
+#: Largest perturbation of the nondimensional unknowns in a directional difference.
+DIRECTIONAL_STEP = 1e-5
+
+#: The refinement stops when a sweep changes C by less than this, relative to max |C|;
+#: the sweeps converge linearly, so the C returned is far closer than that (about 1e-9).
+REFINEMENT_TOLERANCE = 1e-6
+
+#: Refinement sweeps on one factorization; a stored one that needs more is replaced.
+MAX_SWEEPS = 5
+
+
+@dataclass(frozen=True)
+class ComplianceAnalysis:
+    """
+    The 6x6 compliance C at one loaded configuration and its eigen/screw analysis.
+
+    ``sparse_matrix`` is the paper's C_s; ``eigenvalues`` (xi) and ``eigenvectors`` (Gamma,
+    one column per eigenvalue) are those of C_s, ordered by ``labels`` (the axis each
+    eigenvector mostly moves along). ``roles`` marks each column 'mobility' (a primary-mobility
+    twist) or 'constraint' (it spans the constraint-wrench space); ``primary_mobility``
+    lists the labels of the mobilities. ``stable`` says whether the symmetric part of the
+    stiffness C^-1 is positive definite. ``time_s`` is the cost of computing C.
+    """
+
+    matrix: np.ndarray
+    sparse_matrix: np.ndarray
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    labels: Tuple[str, ...]
+    roles: Tuple[str, ...]
+    primary_mobility: Tuple[str, ...]
+    stable: bool
+    smallest_stiffness_eigenvalue: float
+    sparsity_threshold: float
+    mobility_ratio: float
+    characteristic_length: float
+    method: str
+    time_s: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready form; the keys of ``solve --compliance --json``."""
+        return {
+            'compliance': self.matrix.tolist(),
+            'compliance_sparse': self.sparse_matrix.tolist(),
+            'compliance_eigenvalues': self.eigenvalues.tolist(),
+            'compliance_eigenvectors': self.eigenvectors.tolist(),
+            'compliance_labels': list(self.labels),
+            'compliance_roles': list(self.roles),
+            'primary_mobility': list(self.primary_mobility),
+            'stable': bool(self.stable),
+            'compliance_method': self.method,
+            'compliance_time_s': float(self.time_s),
+        }
+
+
+# implicit differentiation -------------------------------------------------------------------
+def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                        lu: Optional[tuple] = None) -> Tuple[np.ndarray, tuple]:
+    """
+    Return (C, lu) at the converged nondimensional unknowns ``xs`` under ``wrench``.
+
+    ``lu`` is any LU factorization of an approximate Jacobian (the solver keeps one); it
+    preconditions the refinement of dx/dw = -J^-1 dr/dw. If the refinement does not settle
+    within MAX_SWEEPS sweeps, a fresh forward-difference Jacobian at ``xs`` replaces ``lu``;
+    the factorization actually used is returned so that the caller can keep it.
+    (The dx/dw of a nearby solution is no better a start: dx/dw varies far faster with the
+    load than C does.)
+    """
+    sensitivity = problem.wrench_sensitivity
+    fresh = lu is None
+    if fresh:
+        lu = _fresh_factorization(problem, xs, wrench)
+    while True:
+        dxdw = -lu_solve(lu, sensitivity, check_finite=False)
+        previous = None
+        for _ in range(MAX_SWEEPS):
+            defect, compliance = _directional_derivatives(problem, xs, wrench, dxdw)
+            # dx/dw itself stalls at the differencing noise in directions C is blind to,
+            # so the sweeps stop when C stops changing
+            if (previous is not None and np.abs(compliance - previous).max()
+                    <= REFINEMENT_TOLERANCE * np.abs(compliance).max()):
+                return compliance, lu
+            previous = compliance
+            dxdw -= lu_solve(lu, defect + sensitivity, check_finite=False)
+        if fresh:
+            raise ArithmeticError('the compliance refinement did not converge even with a '
+                                  'fresh Jacobian: the equilibrium is (nearly) singular')
+        lu, fresh = _fresh_factorization(problem, xs, wrench), True
+
+
+def _fresh_factorization(problem: Problem, xs: np.ndarray, wrench: np.ndarray) -> tuple:
+    jacobian = problem.jacobian(xs, wrench, problem.residual(xs, wrench))
+    return lu_factor(jacobian, check_finite=False)
+
+
+def _directional_derivatives(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                             directions: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Central differences along each column d of ``directions``: (J d, end-disk twist of d).
+
+    Both come from the same two shots per column, so C costs 12 shots per sweep.
+    """
+    products = np.empty_like(directions)
+    twists = np.empty((6, directions.shape[1]))
+    for column in range(directions.shape[1]):
+        direction = directions[:, column]
+        step = DIRECTIONAL_STEP / max(np.abs(direction).max(), 1e-300)
+        plus_r, plus_frame = problem.residual_and_end_frame(xs + step * direction, wrench)
+        minus_r, minus_frame = problem.residual_and_end_frame(xs - step * direction, wrench)
+        products[:, column] = (plus_r - minus_r) / (2.0 * step)
+        twists[:, column] = frame_twist(minus_frame, plus_frame) / (2.0 * step)
+    return products, twists
+
+
+def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """
+    Twist [dp; dtheta] taking 4x4 frame ``before`` to ``after``, both in the base frame.
+
+    dp is the displacement of the origin, dtheta the rotation vector of
+    after[:3, :3] before[:3, :3]^T (a spatial rotation increment).
+    """
+    rotation = after[:3, :3] @ before[:3, :3].T
+    skew = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                     rotation[1, 0] - rotation[0, 1]]) / 2.0
+    sine = np.linalg.norm(skew)
+    cosine = (np.trace(rotation) - 1.0) / 2.0
+    angle = math.atan2(sine, cosine)
+    scale = angle / sine if sine > 1e-12 else 1.0 + angle ** 2 / 6.0
+    return np.concatenate([after[:3, 3] - before[:3, 3], scale * skew])
+
+
+# finite differences of loaded solves ------------------------------------------------------
+def finite_difference_compliance(params: TranslatorParams, force: Sequence[float],
+                                 moment: Sequence[float] = (0.0, 0.0, 0.0),
+                                 force_step: float = 1e-3, moment_step: float = 1e-4,
+                                 tolerance: float = 1e-12) -> np.ndarray:
+    """
+    C by central differences of 12 loaded solves around (force, moment): the check.
+
+    Uses its own solver (warm-started along the 12 solves) so no caller's state changes.
+    The default steps keep the truncation error (step^2) and the solve tolerance's share
+    (tolerance / step) both near 1e-8 of C.
+    """
+    from .solver import TranslatorSolver  # the solver module imports this one
+
+    solver = TranslatorSolver(params, tolerance=tolerance)
+    base = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
+
+    def end_frame(wrench: np.ndarray) -> np.ndarray:
+        result = solver.solve(wrench[:3], wrench[3:])
+        if not result.converged:
+            raise ArithmeticError(f'finite-difference solve at {wrench.tolist()} failed: '
+                                  f'{result.message}')
+        return result.frames['de']
+
+    end_frame(base)
+    compliance = np.empty((6, 6))
+    for column in range(6):
+        step = force_step if column < 3 else moment_step
+        offset = np.zeros(6)
+        offset[column] = step
+        plus, minus = end_frame(base + offset), end_frame(base - offset)
+        compliance[:, column] = frame_twist(minus, plus) / (2.0 * step)
+    return compliance
+
+
+# eigen / screw analysis -----------------------------------------------------------------------
+def analyse(compliance: np.ndarray, characteristic_length: float,
+            sparsity_threshold: float = SPARSITY_THRESHOLD,
+            mobility_ratio: float = MOBILITY_RATIO, method: str = 'implicit',
+            time_s: float = 0.0) -> ComplianceAnalysis:
+    """
+    Primary-mobility analysis of C in the manner of the paper (Table III).
+
+    C_s zeroes every coupling term whose magnitude is below ``sparsity_threshold`` times
+    sqrt(|C_ii C_jj|) (a unit-free measure, unlike a threshold on raw entries whose units
+    differ). Eigenvalues and eigenvectors are those of C_s. An eigen-direction gamma is a
+    primary-mobility twist when its compliance in length units, xi |gamma|^2 /
+    |S^-1 gamma|^2 with S = diag(1, 1, 1, L, L, L) (rotations measured as the displacement
+    they cause at ``characteristic_length`` L), is at least ``mobility_ratio`` times the
+    largest such value; otherwise it spans the constraint-wrench space.
+    """
+    if not 0.0 <= sparsity_threshold < 1.0:
+        raise ValueError(f'sparsity_threshold must lie in [0, 1), got {sparsity_threshold}')
+    if not 0.0 < mobility_ratio <= 1.0:
+        raise ValueError(f'mobility_ratio must lie in (0, 1], got {mobility_ratio}')
+    if not characteristic_length > 0.0:
+        raise ValueError(f'characteristic_length must be positive, got {characteristic_length}')
+    diagonal = np.sqrt(np.abs(np.diag(compliance)))
+    negligible = np.abs(compliance) < sparsity_threshold * np.outer(diagonal, diagonal)
+    np.fill_diagonal(negligible, False)
+    sparse = np.where(negligible, 0.0, compliance)
+    values, vectors = np.linalg.eig(sparse)
+    # C_s is symmetric up to the model's small asymmetry, so its spectrum is real
+    values, vectors = values.real, vectors.real
+    vectors /= np.linalg.norm(vectors, axis=0)
+    weights = np.repeat([1.0, characteristic_length], 3)
+    dominant = np.argmax(np.abs(vectors) * weights[:, None], axis=0)
+    order = np.lexsort((-values, dominant))
+    values, vectors, dominant = values[order], vectors[:, order], dominant[order]
+    vectors *= np.where(vectors[dominant, np.arange(6)] < 0.0, -1.0, 1.0)
+    in_length_units = values / np.sum((vectors / weights[:, None]) ** 2, axis=0)
+    mobile = in_length_units >= mobility_ratio * in_length_units.max()
+    labels = tuple(AXIS_LABELS[axis] for axis in dominant)
+    smallest = _smallest_stiffness_eigenvalue(compliance)
+    return ComplianceAnalysis(
+        matrix=compliance, sparse_matrix=sparse, eigenvalues=values, eigenvectors=vectors,
+        labels=labels, roles=tuple('mobility' if m else 'constraint' for m in mobile),
+        primary_mobility=tuple(label for label, m in zip(labels, mobile) if m),
+        stable=smallest > 0.0, smallest_stiffness_eigenvalue=smallest,
+        sparsity_threshold=sparsity_threshold, mobility_ratio=mobility_ratio,
+        characteristic_length=characteristic_length, method=method, time_s=time_s)
+
+
+def _smallest_stiffness_eigenvalue(compliance: np.ndarray) -> float:
+    """Smallest eigenvalue of the symmetric part of K = C^-1 (-inf if C is singular)."""
+    try:
+        stiffness = np.linalg.inv(compliance)
+    except np.linalg.LinAlgError:
+        return -math.inf
+    return float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T)).min())
+
+
+def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                        lu: Optional[tuple], **options: float) -> Tuple[ComplianceAnalysis, tuple]:
+    """Implicit C at a converged solution and its analysis, plus the LU factorization used."""
+    started = time.perf_counter()
+    compliance, lu = implicit_compliance(problem, xs, wrench, lu)
+    elapsed = time.perf_counter() - started
+    analysis = analyse(compliance, problem.params.stack_height, time_s=elapsed, **options)
+    return analysis, lu
