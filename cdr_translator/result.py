@@ -3,12 +3,15 @@
 from dataclasses import dataclass, field
 from functools import cached_property
 import math
-from typing import Dict, Optional
+from typing import Dict, Optional, TYPE_CHECKING
 
 import numpy as np
 
 from . import geometry
 from .compliance import ComplianceAnalysis
+
+if TYPE_CHECKING:  # verify imports this module
+    from .verify import Verification
 
 #: Frame names, in the order the kernel writes them: base, tube ends, end disk.
 FRAME_NAMES = ('pe', 'pm', 'dm', 'de')
@@ -43,6 +46,13 @@ class SolveResult:
     unknowns: np.ndarray = field(repr=False)
     #: end-disk compliance and its analysis, when the solve was asked for it
     compliance: Optional[ComplianceAnalysis] = field(default=None, repr=False)
+    #: independent re-check (cdr_translator.verify), when the solve was asked for it
+    verification: Optional['Verification'] = field(default=None, repr=False)
+
+    @property
+    def verified(self) -> Optional[bool]:
+        """Whether the independent re-check passed; None when it was not asked for."""
+        return None if self.verification is None else self.verification.passed
 
     @property
     def end_disk_position(self) -> np.ndarray:
@@ -107,4 +117,5 @@ class SolveResult:
             'moment_nm': self.moment.tolist(),
             'method': self.method,
             **(self.compliance.to_dict() if self.compliance is not None else {}),
+            **(self.verification.to_dict() if self.verification is not None else {}),
         }

@@ -23,6 +23,7 @@ from .compliance import compliance_analysis
 from .params import TranslatorParams
 from .problem import Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
+from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
 
@@ -104,8 +105,23 @@ class TranslatorSolver:
         self._previous = None
         self._lu = None
 
+    def start_from(self, result: SolveResult) -> None:
+        """
+        Warm-start the next solve from ``result``, e.g. one of a coarser discretization.
+
+        The unknowns mean the same at any ``steps_per_segment``; only the number of spacer
+        disks (and so their count) must match.
+        """
+        unknowns = np.asarray(result.unknowns, dtype=float)
+        if unknowns.shape != (self.problem.size,) or not np.all(np.isfinite(unknowns)):
+            raise ValueError(f'cannot start from a result with {unknowns.shape} unknowns '
+                             f'(finite ones, {self.problem.size} expected)')
+        self._previous = (unknowns / self.problem.x_scale,
+                          np.concatenate([result.force, result.moment]))
+        self._lu = None
+
     def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
-              warm_start: bool = True, compliance: bool = False,
+              warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
         """
         Solve for an end-disk wrench (N, N m) in {pe} applied at the end-disk centre.
@@ -114,6 +130,8 @@ class TranslatorSolver:
         primary-mobility analysis (``cdr_translator.compliance``; options
         ``sparsity_threshold`` and ``mobility_ratio`` go to ``compliance.analyse``), computed
         by implicit differentiation at the converged solution, timed apart from the solve.
+        With ``verify`` the result is re-checked independently (``cdr_translator.verify``:
+        ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
@@ -139,6 +157,8 @@ class TranslatorSolver:
                     self.problem, outcome.xs, wrench, self._lu, **compliance_options)
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
+        if verify:
+            result.verification = verify_result(result, self.params)
         return result
 
     # continuation ----------------------------------------------------------------------------
