@@ -117,7 +117,7 @@ class TranslatorClient:
                  depth: int = 1000) -> None:
         """Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``."""
         self.context = Context()
-        rclpy.init(context=self.context)
+        rclpy.init(args=[], context=self.context)
         self.node = Node(name, context=self.context)
         self.publisher = self.node.create_publisher(WrenchStamped, messages.WRENCH_TOPIC,
                                                     qos_profile_sensor_data)

@@ -145,6 +145,7 @@ class LogThread:
         """Start writing to ``log`` (an McapLog, closed by ``close()``)."""
         self._log = log
         self._queue: queue.Queue = queue.Queue(maxsize=capacity)
+        self.submitted = 0
         self.written = 0
         self.errors = 0
         self.last_error = ''
@@ -162,6 +163,7 @@ class LogThread:
         started = time.perf_counter()
         self._queue.put((topic, type_name, message, log_time_ns, publish_time_ns))
         waited = time.perf_counter() - started
+        self.submitted += 1
         self.enqueue_wait_s += waited
         self.max_enqueue_wait_s = max(self.max_enqueue_wait_s, waited)
         self.max_depth = max(self.max_depth, self._queue.qsize())
