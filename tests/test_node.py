@@ -249,12 +249,17 @@ def test_parameters_through_the_parameter_service(tmp_path, ros_env):
         run.answer(POSE, run.client.publish((2.0, 0.0, 0.0)))
 
 
-def test_bad_params_file_stops_with_the_reason(tmp_path, ros_env):
+@pytest.mark.parametrize('key, value, reason', [
+    ('base_frame', ' ', 'base_frame must not be empty'),
+    ('tube_length', -0.1, 'tube_length must be positive'),
+    ('max_force', 50, "max_force"),  # an int where a double is declared
+])
+def test_bad_params_file_stops_with_the_reason(tmp_path, ros_env, key, value, reason):
     """A params file with an invalid value: exit code 2 and the reason, before any DDS."""
     document = yaml.safe_load(DEFAULT_PARAMS_PATH.read_text())
-    document[NODE_NAME]['ros__parameters']['base_frame'] = ' '
+    document[NODE_NAME]['ros__parameters'][key] = value
     path = tmp_path / 'bad.yaml'
     path.write_text(yaml.safe_dump(document))
     with NodeProcess(['--params-file', str(path)], ros_env, tmp_path / 'node.log') as node:
-        assert node.process.wait(START_TIMEOUT_S) == 2
-        assert 'base_frame must not be empty' in node.text()
+        assert node.process.wait(START_TIMEOUT_S) == 2, node.text()
+        assert reason in node.text()
