@@ -6,7 +6,7 @@ VENV   := .venv
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 
-.PHONY: setup test demo clean
+.PHONY: setup test demo clean bags
 
 setup: $(STAMP)
 
@@ -28,6 +28,17 @@ test: setup
 
 demo: setup
 	$(VPY) -m cdr_translator paper
+
+# The synthetic sample bags in bags/ (reproducible: each holds the command that made it).
+bags: setup
+	$(VPY) -m msg_tools synth bags/paper_cases.mcap --profile paper
+	$(VPY) -m msg_tools synth bags/ramp_20N.mcap --profile ramp --count 200 --force 20 0 0
+	$(VPY) -m msg_tools synth bags/step_12N.mcap --profile step --count 60 --force 12 0 0
+	$(VPY) -m msg_tools synth bags/sinusoid_oblique.mcap --profile sinusoid --count 200 \
+	  --force 10 10 0 --frequency 0.5
+	$(VPY) -m msg_tools synth bags/random_walk.mcap --profile random-walk --count 500 \
+	  --force 20 0 0 --moment 0 0 0.1 --seed 1
+	$(VPY) -m msg_tools synth bags/hard_cases.mcap --profile hard
 
 clean:
 	rm -rf $(VENV) build install log *.egg-info .pytest_cache .hypothesis

@@ -197,6 +197,12 @@ class McapLog:
             if self._flush_every_messages and self._unflushed >= self._flush_every_messages:
                 self._flush_locked()
 
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Write an MCAP metadata record (string keys and values), e.g. how a file was made."""
+        with self._lock:
+            self._check_open()
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+
     def _flush_locked(self) -> None:
         """Finish the chunk in progress and push it to the file (caller holds the lock)."""
         self._writer.flush()

@@ -1,0 +1,285 @@
+"""
+Read every message of an MCAP file that can still be read, and say what could not.
+
+A finished file is read through its summary (chunk index and statistics): each chunk is
+located by its index, checked against its CRC and decompressed on its own, so a damaged
+chunk loses only its own messages (counted from the statistics). A file without a readable
+summary (the writer was killed, the file was cut or corrupted) is salvaged by a streaming
+read from the start: every complete chunk and message up to the first unreadable record is
+kept, a damaged chunk is skipped as long as its record length can be trusted. Messages come
+in file order (the order the recorder received them). ``ReadReport`` tells how the file
+was read and what was lost.
+"""
+
+from dataclasses import dataclass, field
+import io
+from pathlib import Path
+import struct
+from typing import Callable, Dict, Iterator, List, Optional, Tuple, Union
+
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
+from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap_ros2.decoder import DecoderFactory
+import zstandard
+
+#: Exceptions that mean "this part of the file cannot be read": struct.error for cut
+#: records, ZstdError (lz4: RuntimeError) for damaged compressed data, CRC mismatches
+#: (ValueError) and McapError for the rest.
+READ_ERRORS = (McapError, struct.error, zstandard.ZstdError, ValueError, RuntimeError,
+               EOFError, OSError, MemoryError)
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    """One message as stored: its channel, schema, times and CDR bytes."""
+
+    channel: Channel
+    schema: Optional[Schema]
+    log_time_ns: int
+    publish_time_ns: int
+    sequence: int
+    data: bytes
+
+    @property
+    def topic(self) -> str:
+        """Return the channel topic."""
+        return self.channel.topic
+
+    @property
+    def schema_name(self) -> str:
+        """Return the schema name ('package/msg/Name'), '' when the channel has none."""
+        return self.schema.name if self.schema is not None else ''
+
+
+@dataclass
+class ReadReport:
+    """How a file was read (``mode`` 'indexed' or 'salvaged') and what was lost."""
+
+    path: str
+    size_bytes: int
+    mode: str = 'indexed'
+    reason: str = ''
+    messages_read: int = 0
+    messages_expected: Optional[int] = None
+    unread_bytes: int = 0
+    problems: List[str] = field(default_factory=list)
+
+    @property
+    def lost_messages(self) -> Optional[int]:
+        """Messages known to be lost (None when the file no longer says how many it had)."""
+        if self.messages_expected is None:
+            return None
+        return max(self.messages_expected - self.messages_read, 0)
+
+    @property
+    def complete(self) -> bool:
+        """Tell whether the file was read through its index and nothing was lost."""
+        return self.mode == 'indexed' and not self.problems
+
+    def describe(self) -> str:
+        """Return a one-paragraph, human-readable account of the read."""
+        if self.complete:
+            return f'{self.path}: complete, {self.messages_read} messages'
+        head = f'{self.path}: {self.mode}'
+        if self.reason:
+            head += f' ({self.reason})'
+        lost = self.lost_messages
+        parts = [f'{self.messages_read} messages read',
+                 f'{lost} messages lost' if lost is not None else 'an unknown number of '
+                 'messages lost after the last complete chunk' if self.unread_bytes else '']
+        if self.unread_bytes:
+            parts.append(f'{self.unread_bytes} of {self.size_bytes} bytes unreadable')
+        return '; '.join([head] + [part for part in parts if part] + self.problems)
+
+
+class McapSource:
+    """
+    The messages of one MCAP file, read by index or salvaged by streaming.
+
+    ``messages()`` may be iterated once; ``report`` is complete when it ends. ``topics``
+    (optional) keeps only those channels.
+    """
+
+    def __init__(self, path: Union[str, Path], topics: Optional[List[str]] = None) -> None:
+        """Open ``path`` lazily; ValueError if it does not exist."""
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise ValueError(f'no such MCAP file: {self.path}')
+        self.topics = set(topics) if topics is not None else None
+        self.report = ReadReport(str(self.path), self.path.stat().st_size)
+        self.schemas: Dict[int, Schema] = {}
+        self.channels: Dict[int, Channel] = {}
+
+    # public -------------------------------------------------------------------------------
+    def messages(self) -> Iterator[RawMessage]:
+        """Yield every readable message in file order; fill ``report`` on the way."""
+        with open(self.path, 'rb') as stream:
+            summary, reason = self._summary(stream)
+            if summary is not None:
+                yield from self._indexed(stream, summary)
+            else:
+                self.report.mode, self.report.reason = 'salvaged', reason
+                stream.seek(0)
+                yield from self._streamed(stream)
+
+    def channel_overview(self) -> Tuple[Dict[int, Channel], Dict[int, Schema],
+                                        Optional[Dict[int, int]], Optional[Tuple[int, int]]]:
+        """
+        Return channels, schemas, per-channel counts and the (start, end) log time in ns.
+
+        From the summary when it is readable; otherwise by reading every message (the
+        counts and time range of what can be salvaged).
+        """
+        with open(self.path, 'rb') as stream:
+            summary, _ = self._summary(stream)
+        if summary is not None and summary.statistics is not None:
+            statistics = summary.statistics
+            span = ((statistics.message_start_time, statistics.message_end_time)
+                    if statistics.message_count else None)
+            return (dict(summary.channels), dict(summary.schemas),
+                    dict(statistics.channel_message_counts), span)
+        counts: Dict[int, int] = {}
+        start = end = None
+        for message in self.messages():
+            counts[message.channel.id] = counts.get(message.channel.id, 0) + 1
+            start = message.log_time_ns if start is None else min(start, message.log_time_ns)
+            end = message.log_time_ns if end is None else max(end, message.log_time_ns)
+        return (dict(self.channels), dict(self.schemas), counts,
+                (start, end) if start is not None else None)
+
+    # indexed ------------------------------------------------------------------------------
+    def _summary(self, stream: io.BufferedReader):
+        """Return (summary, '') or (None, why the index cannot be used)."""
+        try:
+            summary = SeekingReader(stream).get_summary()
+        except READ_ERRORS as error:
+            return None, f'no readable summary: {_error_text(error)}'
+        if summary is None:
+            return None, 'the file has no summary section'
+        if summary.statistics is None:
+            return None, 'the summary has no statistics'
+        if summary.statistics.message_count and not summary.chunk_indexes:
+            return None, 'the messages are not chunked'
+        return summary, ''
+
+    def _indexed(self, stream: io.BufferedReader, summary) -> Iterator[RawMessage]:
+        """Yield the messages chunk by chunk through the chunk index."""
+        self.schemas.update(summary.schemas)
+        self.channels.update(summary.channels)
+        self.report.messages_expected = sum(
+            count for channel_id, count in summary.statistics.channel_message_counts.items()
+            if self._wanted(channel_id))
+        for index in sorted(summary.chunk_indexes, key=lambda item: item.chunk_start_offset):
+            try:
+                stream.seek(index.chunk_start_offset)
+                chunk = next(StreamReader(stream, skip_magic=True, emit_chunks=True).records)
+                if not isinstance(chunk, Chunk):
+                    raise McapError(f'found a {type(chunk).__name__} record')
+                records = breakup_chunk(chunk, validate_crc=True)
+            except READ_ERRORS as error:
+                self.report.problems.append(
+                    f'chunk at byte {index.chunk_start_offset} unreadable '
+                    f'({_error_text(error)}): its messages are lost')
+                continue
+            yield from self._records(records)
+
+    # streamed -----------------------------------------------------------------------------
+    def _streamed(self, stream: io.BufferedReader) -> Iterator[RawMessage]:
+        """Yield the messages of every complete record up to the first unreadable one."""
+        position = 0
+        reader = StreamReader(stream, emit_chunks=True,
+                              record_size_limit=max(self.report.size_bytes, 1))
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            except READ_ERRORS as error:
+                self.report.unread_bytes = max(self.report.size_bytes - position, 0)
+                if self.report.unread_bytes:
+                    self.report.problems.append(
+                        f'unreadable from byte {position} ({_error_text(error)})')
+                return
+            end = stream.tell()
+            if isinstance(record, Chunk):
+                try:
+                    chunk_records = breakup_chunk(record, validate_crc=True)
+                except READ_ERRORS as error:
+                    self.report.problems.append(
+                        f'chunk at byte {position} unreadable ({_error_text(error)}): '
+                        f'its messages are lost')
+                    position = end
+                    continue
+                yield from self._records(chunk_records)
+            elif not isinstance(record, (DataEnd, Footer)):
+                yield from self._records([record])
+            position = end
+
+    # shared -------------------------------------------------------------------------------
+    def _wanted(self, channel_id: int) -> bool:
+        """Tell whether messages of ``channel_id`` pass the topic filter."""
+        if self.topics is None:
+            return True
+        channel = self.channels.get(channel_id)
+        return channel is not None and channel.topic in self.topics
+
+    def _records(self, records) -> Iterator[RawMessage]:
+        """Track schemas and channels; yield the wanted messages."""
+        for record in records:
+            if isinstance(record, Schema):
+                self.schemas[record.id] = record
+            elif isinstance(record, Channel):
+                self.channels[record.id] = record
+            elif isinstance(record, Message):
+                channel = self.channels.get(record.channel_id)
+                if channel is None:
+                    self.report.problems.append(
+                        f'a message on unknown channel {record.channel_id} was skipped')
+                    continue
+                if not self._wanted(record.channel_id):
+                    continue
+                self.report.messages_read += 1
+                yield RawMessage(channel, self.schemas.get(channel.schema_id),
+                                 record.log_time, record.publish_time, record.sequence,
+                                 bytes(record.data))
+
+
+class Decoders:
+    """CDR decoders per schema, built once each from the file's own definitions."""
+
+    def __init__(self) -> None:
+        """Start with no decoder built."""
+        self._factory = DecoderFactory()
+        self._decoders: Dict[Tuple[int, str], Callable[[bytes], object]] = {}
+
+    def decode(self, message: RawMessage) -> object:
+        """Decode ``message``; ValueError saying why it cannot be."""
+        key = (message.channel.schema_id, message.schema_name)
+        if key not in self._decoders:
+            if message.schema is None:
+                raise ValueError(f'channel {message.topic!r} has no schema')
+            try:
+                decoder = self._factory.decoder_for(message.channel.message_encoding,
+                                                    message.schema)
+            except READ_ERRORS + (NotImplementedError, KeyError, IndexError) as error:
+                raise ValueError(f'cannot parse the schema {message.schema_name!r} of '
+                                 f'{message.topic!r}: {_error_text(error)}') from error
+            if decoder is None:
+                raise ValueError(f'channel {message.topic!r}: no decoder for message encoding '
+                                 f'{message.channel.message_encoding!r} with schema encoding '
+                                 f'{message.schema.encoding!r}')
+            self._decoders[key] = decoder
+        try:
+            return self._decoders[key](message.data)
+        except READ_ERRORS + (IndexError, KeyError, NotImplementedError) as error:
+            raise ValueError(f'cannot decode a {message.schema_name} on {message.topic!r}: '
+                             f'{_error_text(error)}') from error
+
+
+def _error_text(error: BaseException) -> str:
+    """Return 'Type: message' of an exception (some mcap errors have empty messages)."""
+    text = str(error)
+    return f'{type(error).__name__}: {text}' if text else type(error).__name__
