@@ -33,5 +33,5 @@ def generate_launch_description() -> LaunchDescription:
              namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
              parameters=[LaunchConfiguration('params_file'),
                          {'mcap_path': ParameterValue(LaunchConfiguration('mcap_path'),
-                                                       value_type=str)}]),
+                                                      value_type=str)}]),
     ])

@@ -15,13 +15,13 @@ from scipy.spatial.transform import Rotation
 
 
 def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest entry of |a - b| over the largest entry of |b|."""
+    """Return the largest entry of |a - b| over the largest entry of |b|."""
     return float(np.abs(a - b).max() / np.abs(b).max())
 
 
 @pytest.fixture(scope='module')
 def compliance_solver(params):
-    """A solver of its own: these tests rely on its factorization state only via results."""
+    """Give these tests a solver of their own (its warm-start state is theirs)."""
     return TranslatorSolver(params)
 
 
@@ -124,7 +124,7 @@ def test_table_iii_structure_and_arc_direction(paper_cases, case):
 
 
 def _paper_sparse(case) -> np.ndarray:
-    """The paper's C_s pattern: diagonal, the x-z and the rotation x-z couplings."""
+    """Return the paper's C_s: its diagonal, x-z and rotation x-z couplings."""
     pattern = np.diag(np.diag(np.array(case.compliance)))
     for i, j in ((0, 2), (2, 0), (3, 5), (5, 3)):
         pattern[i, j] = case.compliance[i][j]
