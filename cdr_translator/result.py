@@ -48,6 +48,9 @@ class SolveResult:
     compliance: Optional[ComplianceAnalysis] = field(default=None, repr=False)
     #: independent re-check (cdr_translator.verify), when the solve was asked for it
     verification: Optional['Verification'] = field(default=None, repr=False)
+    #: the model that produced the result: 'full', or a reduced level of
+    #: cdr_translator.fidelity ('cc', 'rod', 'linear')
+    fidelity: str = 'full'
 
     @property
     def verified(self) -> Optional[bool]:
@@ -116,6 +119,7 @@ class SolveResult:
             'force_n': self.force.tolist(),
             'moment_nm': self.moment.tolist(),
             'method': self.method,
+            'fidelity': self.fidelity,
             **(self.compliance.to_dict() if self.compliance is not None else {}),
             **(self.verification.to_dict() if self.verification is not None else {}),
         }
