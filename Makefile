@@ -26,8 +26,10 @@ $(STAMP): requirements.txt setup.py setup.cfg
 test: setup
 	$(VPY) -m pytest tests
 
+# Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup
 	$(VPY) -m cdr_translator paper
+	$(VPY) scripts/demo.py
 
 # The synthetic sample bags in bags/ (reproducible: each holds the command that made it).
 bags: setup

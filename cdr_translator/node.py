@@ -4,7 +4,8 @@ translator_node: wrenches in, the translator's loaded shape out, every run logge
 Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
 ``compliance``, ``backbones`` and ``/diagnostics`` (see msg_tools.messages for their
-content). Wrenches are checked in the subscription callback and handed to a solver thread
+content). Wrenches are checked in the subscription callback (msg_tools.processing: the same
+checks, frames and follower-load solve as the offline replay) and handed to a solver thread
 through a one-slot mailbox: when they arrive faster than the solver, the newest wins and
 the others are counted as skipped. Every received wrench and every published message goes
 to an MCAP file through a log thread. This and node_params / node_io are the only modules
@@ -20,10 +21,10 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, WrenchStamped
+from geometry_msgs.msg import WrenchStamped
 from msg_tools import messages
 from msg_tools.mcap_log import McapLog
+from msg_tools.processing import check_magnitude, in_end_disk_frame, solve_wrench
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -34,32 +35,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
-from visualization_msgs.msg import MarkerArray
 
-from .node_io import check_magnitude, fill_message, in_end_disk_frame, LatestMailbox
-from .node_io import LogThread, type_name
+from .node_io import fill_message, LatestMailbox, LogThread, OUTPUTS, type_name
 from .node_params import check_value, default_values, model_params, NodeSettings, SPECS
 from .params import DEFAULT_PARAMS_PATH, NODE_NAME, ParameterError
 from .result import SolveResult
 from .solver import check_wrench, TranslatorSolver
-
-#: Output topics and their message classes (relative names except /diagnostics).
-OUTPUTS = {
-    messages.END_DISK_POSE_TOPIC: PoseStamped,
-    messages.BENDING_ANGLES_TOPIC: JointState,
-    messages.COMPLIANCE_EIGENVALUES_TOPIC: Float64MultiArray,
-    messages.COMPLIANCE_TOPIC: Float64MultiArray,
-    messages.BACKBONES_TOPIC: MarkerArray,
-    messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
-}
-
-#: A wrench in the end-disk frame is a follower load: it is rotated into the base frame
-#: with the end-disk pose it produces, found by fixed-point iteration to this tolerance
-#: (largest change of a rotation-matrix entry) in at most this many solves.
-FOLLOWER_TOLERANCE = 1e-12
-FOLLOWER_MAX_SOLVES = 8
 
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
@@ -191,7 +172,8 @@ class TranslatorNode(Node):
             for topic in (messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC))
         want_backbones = (self._settings.log_backbones or self._publishers_by_topic[
             messages.BACKBONES_TOPIC].get_subscription_count() > 0)
-        result, solves = self._solve(force, moment, end_disk, want_compliance)
+        result, solves = solve_wrench(self.solver, force, moment, end_disk, self._rotation,
+                                      want_compliance)
         if result.converged:
             self.solved += 1
             self._rotation = result.frames['de'][:3, :3]
@@ -204,26 +186,6 @@ class TranslatorNode(Node):
             extra['follower_solves'] = solves
         self._publish_all(self._output_messages(result, stamp, want_compliance,
                                                 want_backbones, extra))
-
-    def _solve(self, force: np.ndarray, moment: np.ndarray, end_disk: bool,
-               compliance: bool) -> Tuple[SolveResult, int]:
-        """Solve a base-frame wrench, or an end-disk-frame one as a follower load."""
-        if not end_disk:
-            return self.solver.solve(force, moment, compliance=compliance), 1
-        rotation = self._rotation
-        for solves in range(1, FOLLOWER_MAX_SOLVES + 1):
-            result = self.solver.solve(rotation @ force, rotation @ moment,
-                                       compliance=compliance)
-            if not result.converged:
-                return result, solves
-            new_rotation = result.frames['de'][:3, :3]
-            if np.abs(new_rotation - rotation).max() <= FOLLOWER_TOLERANCE:
-                return result, solves
-            rotation = new_rotation
-        result.converged = False
-        result.message = (f'the end-disk orientation of the follower load did not settle in '
-                          f'{FOLLOWER_MAX_SOLVES} solves')
-        return result, FOLLOWER_MAX_SOLVES
 
     # output ----------------------------------------------------------------------------------
     def _counts(self) -> Dict[str, int]:

@@ -16,29 +16,15 @@ import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, WrenchStamped
+from geometry_msgs.msg import WrenchStamped
 from msg_tools import messages
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
-from visualization_msgs.msg import MarkerArray
 
-from .node_io import fill_message
-
-#: Message class of every topic a client can listen to.
-TOPIC_CLASSES = {
-    messages.END_DISK_POSE_TOPIC: PoseStamped,
-    messages.BENDING_ANGLES_TOPIC: JointState,
-    messages.COMPLIANCE_EIGENVALUES_TOPIC: Float64MultiArray,
-    messages.COMPLIANCE_TOPIC: Float64MultiArray,
-    messages.BACKBONES_TOPIC: MarkerArray,
-    messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
-}
-
+from .node_io import fill_message, OUTPUTS
 
 #: What a client listens to unless told otherwise.
 DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
@@ -125,7 +111,7 @@ class TranslatorClient:
         self._condition = threading.Condition()
         reliable = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         self.subscriptions = [
-            self.node.create_subscription(TOPIC_CLASSES[topic], topic, self._recorder(topic),
+            self.node.create_subscription(OUTPUTS[topic], topic, self._recorder(topic),
                                           reliable)
             for topic in topics]
         self.executor = SingleThreadedExecutor(context=self.context)

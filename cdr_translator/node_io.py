@@ -1,48 +1,39 @@
 """
 Helpers of translator_node that need no running node.
 
-Input checks, the latest-wins mailbox, message filling and the MCAP log thread, kept apart
-from node.py so that each can be tested without DDS.
+The latest-wins mailbox, message filling and the MCAP log thread, kept apart from node.py
+so that each can be tested without DDS. The input checks and the solve of one wrench are
+msg_tools.processing's, shared with the offline replay.
 """
 
 from functools import lru_cache
 import importlib
-import math
 import queue
 import threading
 import time
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any, Mapping, Optional
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from msg_tools import messages
 from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
+
+#: The node's output topics (relative names except /diagnostics) and their message classes.
+OUTPUTS = {
+    messages.END_DISK_POSE_TOPIC: PoseStamped,
+    messages.BENDING_ANGLES_TOPIC: JointState,
+    messages.COMPLIANCE_EIGENVALUES_TOPIC: Float64MultiArray,
+    messages.COMPLIANCE_TOPIC: Float64MultiArray,
+    messages.BACKBONES_TOPIC: MarkerArray,
+    messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+}
 
 #: Records the MCAP log thread may hold before a producer waits (never dropped, never
 #: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
 LOG_QUEUE_CAPACITY = 20000
-
-
-def check_magnitude(force: Sequence[float], moment: Sequence[float], max_force: float,
-                    max_moment: float) -> None:
-    """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
-    for name, vector, limit, unit in (('force', force, max_force, 'N'),
-                                      ('moment', moment, max_moment, 'N m')):
-        magnitude = math.sqrt(sum(component * component for component in vector))
-        if magnitude > limit:
-            raise ValueError(f'|{name}| = {magnitude:.6g} {unit} exceeds max_{name} = '
-                             f'{limit:.6g} {unit}')
-
-
-def in_end_disk_frame(frame_id: str, base_frame: str, end_disk_frame: str) -> bool:
-    """
-    Tell whether a wrench's frame_id is the end-disk frame (True) or the base frame (False).
-
-    An empty frame_id means the base frame; any other name raises ValueError (no tf here).
-    """
-    if frame_id in ('', base_frame):
-        return False
-    if frame_id == end_disk_frame:
-        return True
-    raise ValueError(f'unknown frame_id {frame_id!r}: expected {base_frame!r} (or empty) or '
-                     f'{end_disk_frame!r}')
 
 
 class LatestMailbox:

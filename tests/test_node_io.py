@@ -4,8 +4,7 @@ import math
 import threading
 
 from cdr_translator import TranslatorParams
-from cdr_translator.node_io import check_magnitude, fill_message, in_end_disk_frame
-from cdr_translator.node_io import LatestMailbox, LogThread, type_name
+from cdr_translator.node_io import fill_message, LatestMailbox, LogThread, type_name
 from cdr_translator.node_params import check_value, default_values, model_params
 from cdr_translator.node_params import NodeSettings, SPECS
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME, NODE_ONLY_KEYS
@@ -14,6 +13,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import messages
 from msg_tools.mcap_log import McapLog
+from msg_tools.processing import check_magnitude, in_end_disk_frame
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import MarkerArray
