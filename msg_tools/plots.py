@@ -110,7 +110,7 @@ def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, No
             every_point.append(rod)
     points = np.concatenate(every_point)
     span = np.ptp(points, axis=0)
-    shape.set_box_aspect(np.maximum(span, 0.05 * span.max()))
+    shape.set_box_aspect(np.maximum(span, 0.3 * span.max()))
     shape.set(xlabel='x (mm)', ylabel='y (mm)', zlabel='z (mm)',
               title='Deflected shape (dashed: fitted arcs)')
     shape.legend(loc='upper left', fontsize='small')
