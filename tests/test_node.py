@@ -18,6 +18,7 @@ from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import messages
+from msg_tools.reader import McapSource
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -201,6 +202,22 @@ def test_signal_exits_with_finalized_mcap(tmp_path, ros_env, number):
     assert [(p.header.stamp.sec, p.header.stamp.nanosec, p.pose.position.x)
             for p in logged['/end_disk_pose']] == [
         (p.header.stamp.sec, p.header.stamp.nanosec, p.pose.position.x) for p in poses]
+
+
+def test_kill_9_leaves_the_flushed_chunks_readable(tmp_path, ros_env):
+    """After SIGKILL the MCAP has no summary, but a streaming read salvages every wrench."""
+    with Running(tmp_path, ros_env, ['-p', 'mcap_flush_s:=0.2']) as run:
+        for index in range(20):
+            stamp = run.client.publish((0.5 * index, 0.0, 0.0))
+            time.sleep(0.005)
+        received = int(diagnostic_values(run.answer(DIAGNOSTICS, stamp))['received'])
+        time.sleep(1.0)  # several flush periods
+        run.node.process.kill()
+        run.node.process.wait(ANSWER_TIMEOUT_S)
+    source = McapSource(run.mcap)
+    wrenches = [raw for raw in source.messages() if raw.topic == '/wrench']
+    assert source.report.mode == 'salvaged'
+    assert len(wrenches) == received
 
 
 def test_parameters_through_the_parameter_service(tmp_path, ros_env):
