@@ -349,3 +349,32 @@ def test_fitted_arc_follows_a_circle():
     assert np.allclose(radii, 0.05, atol=1e-12) and np.allclose(arc[:, 1], 0.01, atol=1e-12)
     line = arc_points(np.column_stack([np.zeros(5), np.zeros(5), np.arange(5.0)]))
     assert np.allclose(line[:, 2], np.linspace(0, 4, 60))
+
+
+def _recorded_poses(path, topic):
+    return {(m.ros_msg.header.stamp.sec, m.ros_msg.header.stamp.nanosec):
+            np.array([m.ros_msg.pose.position.x, m.ros_msg.pose.position.y,
+                      m.ros_msg.pose.position.z])
+            for m in read_ros2_messages(str(path), topics=[topic])}
+
+
+def _node_recordings():
+    """Bags recorded from the live node: they hold its end_disk_pose output."""
+    found = []
+    for bag in sorted(BAGS.glob('*.mcap')):
+        with open(bag, 'rb') as stream:
+            topics = [c.topic for c in make_reader(stream).get_summary().channels.values()]
+        found += [(bag, topic) for topic in topics if topic.endswith('/end_disk_pose')]
+    return found
+
+
+@pytest.mark.parametrize('bag, topic', _node_recordings() or [pytest.param(
+    None, None, marks=pytest.mark.skip(reason='no bag recorded from the live node yet'))])
+def test_live_node_recording_replays_to_the_same_poses(bag, topic, tmp_path):
+    """Live/offline parity: every pose the node published is replayed within 1e-9 m."""
+    summary = replay(bag, tmp_path / 'offline.mcap', compliance=False)
+    assert summary.solved > 0
+    live = _recorded_poses(bag, topic)
+    offline = _recorded_poses(tmp_path / 'offline.mcap', topic)
+    assert live and set(live) <= set(offline)
+    assert max(np.abs(live[stamp] - offline[stamp]).max() for stamp in live) < 1e-9
