@@ -269,7 +269,7 @@ def test_parameters_through_the_parameter_service(tmp_path, ros_env):
 @pytest.mark.parametrize('key, value, reason', [
     ('base_frame', ' ', 'base_frame must not be empty'),
     ('tube_length', -0.1, 'tube_length must be positive'),
-    ('max_force', 50, 'max_force'),  # an int where a double is declared
+    ('max_force', 50, "expecting type 'DOUBLE'"),  # an int where a double is declared
 ])
 def test_bad_params_file_stops_with_the_reason(tmp_path, ros_env, key, value, reason):
     """A params file with an invalid value: exit code 2 and the reason, before any DDS."""
