@@ -4,6 +4,7 @@ Command line: argument parsing and printing only; the physics lives in the solve
     python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--compliance]
                                    [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
+    python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
 
 Exit codes: 0 converged, 3 not converged (the result is still printed), 2 bad input.
 """
@@ -15,6 +16,8 @@ import sys
 from typing import List, Optional
 
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
+from .delta import DeltaResult, DeltaRobot
+from .delta_params import DeltaParams
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
@@ -52,7 +55,21 @@ def _parser() -> argparse.ArgumentParser:
                             'is a primary mobility (default: %(default)s)')
     solve.add_argument('--json', action='store_true', help='print one JSON object')
     paper = commands.add_parser('paper', help="solve the paper's Table II cases and compare")
-    for command in (solve, paper):
+    delta = commands.add_parser('delta', help='Continuum Delta Robot forward statics: platform '
+                                              'pose and leg loads for slider positions')
+    delta.add_argument('--sliders', nargs=3, type=float, required=True,
+                       metavar=('Q1', 'Q2', 'Q3'), help='slider positions from home, m')
+    delta.add_argument('--payload', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                       metavar=('FX', 'FY', 'FZ'), help='force on the platform, N, world frame')
+    delta.add_argument('--payload-moment', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                       metavar=('MX', 'MY', 'MZ'), help='moment on the platform, N m, world frame')
+    delta.add_argument('--payload-offset', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                       metavar=('X', 'Y', 'Z'),
+                       help='where the force acts, m, platform frame (default: its centre)')
+    delta.add_argument('--time-limit', type=float, default=30.0,
+                       help='give up after this many seconds (default: %(default)s)')
+    delta.add_argument('--json', action='store_true', help='print one JSON object')
+    for command in (solve, paper, delta):
         command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
                              help='ROS 2 params YAML (default: %(default)s)')
     return parser
@@ -89,6 +106,30 @@ def _table(result: SolveResult) -> str:
         rows.append(('compliance time', f'{1e3 * analysis.time_s:.2f} ms'))
     width = max(len(name) for name, _ in rows)
     return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
+
+
+def _delta_table(result: DeltaResult) -> str:
+    data = result.to_dict()
+    rows = [('converged', f"{data['converged']} ({data['message']})"),
+            ('platform position', _mm(data['platform_position_m'])),
+            ('platform displacement', _mm(data['platform_displacement_m'])),
+            ('platform rotation', f"{data['platform_rotation_deg']:.3e} deg"),
+            ('equilibrium residual', f"{data['equilibrium_residual_norm']:.3e} (N, N m)"),
+            ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "
+                           f"({data['leg_solves']} leg solves)")]
+    for leg, ((pj, dj), wrench) in enumerate(zip(data['leg_bending_deg'],
+                                                 data['leg_tip_wrench']), start=1):
+        rows.append((f'leg {leg} PJ / DJ bending', f'{pj:.3f} deg / {dj:.3f} deg'))
+        rows.append((f'leg {leg} tip force (leg frame)',
+                     '[' + ', '.join(f'{v:.4f}' for v in wrench[:3]) + '] N'))
+        rows.append((f'leg {leg} tip moment (leg frame)',
+                     '[' + ', '.join(f'{v:.5f}' for v in wrench[3:]) + '] N m'))
+    width = max(len(name) for name, _ in rows)
+    return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
+
+
+def _mm(values: List[float]) -> str:
+    return '[' + ', '.join(f'{1e3 * v:.4f}' for v in values) + '] mm'
 
 
 def _comparison_cell(paper: float, ours: float, spec: str) -> str:
@@ -138,14 +179,22 @@ def main(argv: Optional[List[str]] = None) -> int:
         if args.command == 'paper':
             print(_paper_comparison(params))
             return EXIT_CONVERGED
-        solver = TranslatorSolver(params, method=args.method,
-                                  max_iterations=args.max_iterations,
-                                  time_limit_s=args.time_limit)
-        result = solver.solve(args.force, args.moment, compliance=args.compliance,
-                              sparsity_threshold=args.sparsity_threshold,
-                              mobility_ratio=args.mobility_ratio)
+        if args.command == 'delta':
+            robot = DeltaRobot(params, DeltaParams.from_yaml(args.params),
+                               time_limit_s=args.time_limit)
+            result = robot.solve(args.sliders, args.payload, args.payload_moment,
+                                 args.payload_offset)
+            table = _delta_table
+        else:
+            solver = TranslatorSolver(params, method=args.method,
+                                      max_iterations=args.max_iterations,
+                                      time_limit_s=args.time_limit)
+            result = solver.solve(args.force, args.moment, compliance=args.compliance,
+                                  sparsity_threshold=args.sparsity_threshold,
+                                  mobility_ratio=args.mobility_ratio)
+            table = _table
     except (ParameterError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
-    print(json.dumps(result.to_dict()) if args.json else _table(result))
+    print(json.dumps(result.to_dict()) if args.json else table(result))
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
