@@ -20,7 +20,7 @@ setup(
         (os.path.join('share', package_name, 'config'), sorted(glob('config/*.yaml'))),
         (os.path.join('share', package_name, 'launch'), sorted(glob('launch/*.launch.py'))),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml', 'threadpoolctl'],
     zip_safe=True,
     maintainer='cdr_translator maintainers',
     maintainer_email='maintainers@example.com',

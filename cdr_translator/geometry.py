@@ -43,11 +43,16 @@ def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
     return -quaternion if quaternion[3] < 0.0 else quaternion
 
 
-def _fit_plane(points: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centroid and orthonormal axes (in-plane u, v, normal) of the best-fit plane."""
+#: Points whose second principal spread is below this fraction of the first are a line:
+#: far above rounding (1e-15) and far below a real arc (1e-4 for a 1 mrad bend).
+STRAIGHT_SPREAD_RATIO = 1e-9
+
+
+def _fit_plane(points: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid, orthonormal axes (in-plane u, v, normal) and principal spreads of the plane."""
     centroid = points.mean(axis=0)
-    _, _, axes = np.linalg.svd(points - centroid)
-    return centroid, axes[:2], axes[2]
+    _, spread, axes = np.linalg.svd(points - centroid)
+    return centroid, axes[:2], axes[2], spread
 
 
 def fit_circle(points: np.ndarray, iterations: int = 20) -> Tuple[np.ndarray, np.ndarray, float]:
@@ -57,7 +62,10 @@ def fit_circle(points: np.ndarray, iterations: int = 20) -> Tuple[np.ndarray, np
     The plane comes from an SVD, the circle in it from the algebraic (Kasa) fit refined
     by Gauss-Newton on the geometric distances. Returns radius = inf for collinear points.
     """
-    centroid, in_plane, normal = _fit_plane(points)
+    centroid, in_plane, normal, spread = _fit_plane(points)
+    if spread[1] <= STRAIGHT_SPREAD_RATIO * spread[0]:
+        # a rank-deficient algebraic fit would return a finite, meaningless circle
+        return centroid, normal, math.inf
     planar = (points - centroid) @ in_plane.T
     design = np.column_stack([2.0 * planar, np.ones(len(planar))])
     target = (planar ** 2).sum(axis=1)
@@ -87,7 +95,7 @@ def circle_deviation(points: np.ndarray) -> float:
     offset = points - centre
     height = offset @ normal
     if math.isinf(radius):
-        _, in_plane, _ = _fit_plane(points)
+        _, in_plane, _, _ = _fit_plane(points)
         along = offset @ in_plane[0]
         return float(np.linalg.norm(offset - np.outer(along, in_plane[0]), axis=1).max())
     in_plane_radius = np.linalg.norm(offset - np.outer(height, normal), axis=1)
