@@ -38,7 +38,7 @@ from . import geometry
 from .delta_params import check_sliders, DeltaParams, Leg
 from .params import DEFAULT_PARAMS_PATH, TranslatorParams
 from .result import SolveResult
-from .solver import TranslatorSolver
+from .solver import check_wrench, TranslatorSolver
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).
 SIZE = 24
@@ -78,17 +78,6 @@ def _inverse_left_jacobian(vector: np.ndarray) -> np.ndarray:
         coefficient = (1.0 / angle ** 2
                        - (1.0 + math.cos(angle)) / (2.0 * angle * math.sin(angle)))
     return np.eye(3) - 0.5 * cross + coefficient * cross @ cross
-
-
-def _check_vector(name: str, values: Sequence[float]) -> np.ndarray:
-    """Return a finite 3-vector; ValueError naming the bad component."""
-    array = np.asarray(values, dtype=float)
-    if array.shape != (3,):
-        raise ValueError(f'{name} must have 3 components, got shape {array.shape}')
-    for axis, value in zip('xyz', array):
-        if not math.isfinite(value):
-            raise ValueError(f'{name} {axis} component is {value}: it must be finite')
-    return array
 
 
 @dataclass
@@ -287,11 +276,11 @@ class DeltaRobot:
         ``payload_offset`` (m), a point fixed in the platform frame {p} (default: the
         platform origin). Bad input raises ValueError; non-convergence is a result.
         """
-        inputs = np.concatenate([
-            check_sliders(sliders, self.geometry.slider_stroke),
-            _check_vector('payload force', payload_force),
-            _check_vector('payload moment', payload_moment),
-            _check_vector('payload offset', payload_offset)])
+        offset = np.asarray(payload_offset, dtype=float)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
+        inputs = np.concatenate([check_sliders(sliders, self.geometry.slider_stroke),
+                                 check_wrench(payload_force, payload_moment), offset])
         started = time.perf_counter()
         self._deadline = started + self.time_limit_s
         self._leg_solves = 0

@@ -243,9 +243,10 @@ def test_warm_and_cold_solves_agree(robot):
     ({'sliders': (0.0, float('nan'), 0.0)}, 'slider 2 position is nan'),
     ({'sliders': (0.0, 0.0)}, 'sliders must have 3 positions'),
     ({'sliders': (0.0, 0.0, 0.031)}, 'slider 3 position 0.031 m is outside the stroke'),
-    ({'payload_force': (0.0, float('inf'), 0.0)}, 'payload force y component is inf'),
-    ({'payload_force': (0.0, 0.0)}, 'payload force must have 3 components'),
-    ({'payload_moment': (float('nan'), 0.0, 0.0)}, 'payload moment x component is nan'),
+    ({'payload_force': (0.0, float('inf'), 0.0)}, 'force y component is inf'),
+    ({'payload_force': (0.0, 0.0)}, 'force must have 3 components'),
+    ({'payload_moment': (float('nan'), 0.0, 0.0)}, 'moment x component is nan'),
+    ({'payload_offset': (0.0, 0.0)}, 'payload offset must be 3 finite coordinates'),
 ])
 def test_bad_input_raises(robot, kwargs, fragment):
     """Bad input is a ValueError naming the value."""
@@ -266,18 +267,15 @@ def test_non_convergence_is_a_result():
     assert result.equilibrium_residual_norm > 1.0  # the payload is not carried yet
 
 
-def write_params(tmp_path, **changes):
-    """Write the shipped params file with some cdr_node values changed (None deletes)."""
-    document = yaml.safe_load(DEFAULT_PARAMS_PATH.read_text())
-    values = document[CDR_NODE_NAME]['ros__parameters']
+def shipped_geometry(**changes):
+    """Return the shipped cdr_node values with some changed (None deletes a key)."""
+    values = yaml.safe_load(DEFAULT_PARAMS_PATH.read_text())[CDR_NODE_NAME]['ros__parameters']
     for key, value in changes.items():
         if value is None:
             values.pop(key)
         else:
             values[key] = value
-    path = tmp_path / 'params.yaml'
-    path.write_text(yaml.safe_dump(document))
-    return path
+    return values
 
 
 @pytest.mark.parametrize('key, value, fragment', [
@@ -290,25 +288,35 @@ def write_params(tmp_path, **changes):
     ('base_radius', None, 'missing cdr_node parameter.*base_radius'),
     ('leg_count', 3, 'unknown cdr_node parameter.*leg_count'),
 ])
-def test_bad_geometry_names_the_key(tmp_path, key, value, fragment):
+def test_bad_geometry_names_the_key(key, value, fragment):
     """Bad geometry values raise ParameterError naming the key."""
     with pytest.raises(ParameterError, match=fragment):
-        DeltaParams.from_yaml(write_params(tmp_path, **{key: value}))
+        DeltaParams.from_mapping(shipped_geometry(**{key: value}))
 
 
-def test_unreachable_platform_rejected(tmp_path):
+def test_geometry_file_errors(tmp_path):
+    """A params file without a cdr_node section, or no file, is a ParameterError."""
+    path = tmp_path / 'params.yaml'
+    path.write_text('translator_node:\n  ros__parameters: {}\n')
+    with pytest.raises(ParameterError, match='has no cdr_node: ros__parameters: section'):
+        DeltaParams.from_yaml(path)
+    with pytest.raises(ParameterError, match='cannot read parameter file'):
+        DeltaParams.from_yaml(tmp_path / 'missing.yaml')
+
+
+def test_unreachable_platform_rejected():
     """Radii further apart than a leg is long cannot hold straight legs at home."""
-    geometry_params = DeltaParams.from_yaml(write_params(tmp_path, base_radius=0.5))
+    geometry_params = DeltaParams.from_mapping(shipped_geometry(base_radius=0.5))
     with pytest.raises(ParameterError, match='straight legs cannot reach the platform'):
         DeltaRobot(TranslatorParams.from_yaml(), geometry_params)
 
 
-def test_inclined_sliders(tmp_path):
+def test_inclined_sliders():
     """Sliders along the legs: equal strokes push each leg along its own axis."""
     leg_params = TranslatorParams.from_yaml()
     shipped = DeltaParams.from_yaml()
     beta = math.degrees(shipped.leg_inclination(leg_params.stack_height))
-    inclined = DeltaParams.from_yaml(write_params(tmp_path, slider_inclination_deg=beta))
+    inclined = DeltaParams.from_mapping(shipped_geometry(slider_inclination_deg=beta))
     robot = DeltaRobot(leg_params, inclined)
     for leg in robot.legs:
         assert np.allclose(leg.slider_axis, leg.rotation[:, 2])
