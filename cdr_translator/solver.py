@@ -15,9 +15,10 @@ import functools
 import math
 import time
 from typing import Callable, Optional, Sequence, Tuple
+import warnings
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from threadpoolctl import ThreadpoolController
 
 from ._jit import interpreted_kernels
@@ -31,6 +32,10 @@ METHODS = ('fast', 'paper')
 
 #: Smallest fraction of the remaining wrench change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
+
+#: Largest nondimensional residual at which a corrector out of iterations gets another
+#: round on the same step instead of a halved step (it is converging, only slowly).
+NEARLY_CONVERGED = 1e-6
 
 
 @dataclass
@@ -193,9 +198,10 @@ class TranslatorSolver:
         and the corrector (Newton, or the paper's Levenberg-Marquardt) refines it. A failed
         step is halved; a step is doubled after one that converged in at most half the
         allowed iterations, but never right after a failure (halving then doubling again
-        would retry the step that just failed). A warm start is the same walk, usually one
-        step. If it stalls, the outcome is the best state found, its residual taken at the
-        requested wrench.
+        would retry the step that just failed); a corrector that ran out of iterations within
+        NEARLY_CONVERGED of the solution continues instead. A warm start is the same walk,
+        usually one step. If it stalls, the outcome is the best state found, its residual
+        taken at the requested wrench.
         """
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
@@ -213,6 +219,11 @@ class TranslatorSolver:
                                                         check_finite=False)
             outcome = corrector(guess, goal, deadline, lu, self.max_iterations)
             iterations += outcome.iterations
+            if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
+                    and time.perf_counter() < deadline):
+                # out of iterations but inside the basin: keep correcting, don't halve
+                outcome = corrector(outcome.xs, goal, deadline, outcome.lu, self.max_iterations)
+                iterations += outcome.iterations
             if outcome.converged:
                 done, xs, current, lu = target, outcome.xs, goal, outcome.lu
                 if outcome.iterations <= self.max_iterations // 2:
@@ -265,7 +276,9 @@ class TranslatorSolver:
                 return _Outcome(xs, rs, iteration - 1, False,
                                 f'time limit of {self.time_limit_s} s reached', lu)
             if lu is None:
-                lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
+                with warnings.catch_warnings():  # a singular J shows as a non-finite step
+                    warnings.simplefilter('ignore', LinAlgWarning)
+                    lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
                 fresh = True
             step = -lu_solve(lu, rs, check_finite=False)
             finite = bool(np.isfinite(step).all())
