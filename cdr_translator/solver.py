@@ -233,21 +233,24 @@ class TranslatorSolver:
             grow = 1.0
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
-                return self._stalled(xs, outcome, wrench, done, iterations)
+                return self._stalled(xs, outcome, wrench, done, iterations, deadline)
         self._lu = lu
         outcome.iterations = iterations
         return outcome
 
     def _stalled(self, xs: np.ndarray, failed: _Outcome, wrench: np.ndarray, done: float,
-                 iterations: int) -> _Outcome:
+                 iterations: int, deadline: float) -> _Outcome:
         """Best of the last converged state and the failed iterate, judged at ``wrench``."""
         candidates = [(candidate, self.problem.residual(candidate, wrench))
                       for candidate in (xs, failed.xs)]
         best, rs = min(candidates, key=lambda pair: _norm(pair[1])
                        if math.isfinite(_norm(pair[1])) else math.inf)
+        reason = failed.message
+        if 'time limit' not in reason and time.perf_counter() > deadline:
+            reason = f'time limit of {self.time_limit_s} s reached after: {reason}'
         return _Outcome(best, rs, iterations, False,
                         f'continuation stalled at {done:.1%} of the way to the wrench: '
-                        f'{failed.message}')
+                        f'{reason}')
 
     def _unloaded(self) -> Tuple[Tuple[np.ndarray, np.ndarray], tuple]:
         """Return the straight unloaded solution and its LU factorization (computed once)."""
