@@ -19,7 +19,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import WrenchStamped
 from msg_tools import messages
@@ -44,11 +44,6 @@ from .solver import check_wrench, TranslatorSolver
 
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
-
-#: Python's GIL switch interval in the node (default 5 ms). The solver, executor and log
-#: threads share one GIL; with the default a thread that wants it can wait 5 ms behind a
-#: busy one, which showed as skipped wrenches at 200 Hz with logging on.
-SWITCH_INTERVAL_S = 2e-4
 
 
 class TranslatorNode(Node):
@@ -111,20 +106,11 @@ class TranslatorNode(Node):
 
     def _open_log(self) -> Tuple[Optional[LogThread], str]:
         """Open the MCAP log (unless disabled) and register the wrench and output topics."""
-        settings = self._settings
-        if not settings.log_to_mcap:
-            return None, ''
-        path = Path(settings.mcap_path) if settings.mcap_path else (
-            Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
-                f'translator_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
-                      flush_every_s=settings.mcap_flush_s)
-        log.register(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
-                     qos='sensor_data')
-        for topic, publisher in self._publishers_by_topic.items():
-            log.register(publisher.topic_name, type_name(OUTPUTS[topic]), qos='reliable')
-        return LogThread(log), str(path)
+        topics = [(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
+                   'sensor_data')]
+        topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
+                   for topic, publisher in self._publishers_by_topic.items()]
+        return open_log(self._settings, 'translator', topics)
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes, info: dict) -> None:
@@ -227,6 +213,28 @@ class TranslatorNode(Node):
                 f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record')
 
 
+def open_log(settings: Any, prefix: str,
+             topics: Sequence[Tuple[str, str, str]]) -> Tuple[Optional[LogThread], str]:
+    """
+    Open a node's MCAP log and its writer thread; (None, '') when logging is off.
+
+    ``settings`` has log_to_mcap, mcap_path, log_dir, mcap_flush_messages and mcap_flush_s;
+    an empty mcap_path names the file <log_dir>/<prefix>_<UTC time>_<pid>.mcap. ``topics``
+    are (resolved name, type name, 'sensor_data' or 'reliable') to register up front.
+    """
+    if not settings.log_to_mcap:
+        return None, ''
+    path = Path(settings.mcap_path) if settings.mcap_path else (
+        Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
+            f'{prefix}_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
+                  flush_every_s=settings.mcap_flush_s)
+    for topic, name, qos in topics:
+        log.register(topic, name, qos=qos)
+    return LogThread(log), str(path)
+
+
 def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
     """Turn msg_tools.messages' (topic, type, dict) triples into (topic, rclpy message)."""
     return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built]
@@ -234,16 +242,25 @@ def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
 
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Run translator_node until SIGINT or SIGTERM; return the process exit code."""
+    return run(TranslatorNode, NODE_NAME, args)
+
+
+def run(factory: Callable[[], Node], name: str, args: Optional[Sequence[str]] = None) -> int:
+    """
+    Run the node ``factory()`` builds until SIGINT or SIGTERM; return the exit code.
+
+    2 when it cannot start (bad parameters, unwritable log), else 0 after its ``close()``
+    (which must stop its threads and finalize its log) and a clean shutdown.
+    """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    sys.setswitchinterval(SWITCH_INTERVAL_S)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
     try:
-        node = TranslatorNode()
+        node = factory()
     except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
             OSError) as error:
-        print(f'{NODE_NAME}: {error}', file=sys.stderr)
+        print(f'{name}: {error}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     executor = SingleThreadedExecutor()
