@@ -14,7 +14,7 @@ GLOBAL_CHECKS = ('global_force_n', 'global_moment_nm')
 
 @pytest.fixture(scope='module')
 def table_ii(params):
-    """The 12 N Table II case, converged."""
+    """Solve the 12 N Table II case."""
     result = TranslatorSolver(params).solve((12.0, 0.0, 0.0))
     assert result.converged
     return result
@@ -107,7 +107,7 @@ def test_non_converged_result_never_passes(params):
 
 
 def test_non_finite_unknowns_do_not_pass(params, table_ii):
-    """NaN in the unknowns is reported, not integrated."""
+    """Report a NaN in the unknowns instead of integrating it."""
     unknowns = table_ii.unknowns.copy()
     unknowns[5] = np.nan
     verification = verify(corrupted(table_ii, unknowns=unknowns), params)
