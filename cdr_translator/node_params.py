@@ -11,39 +11,35 @@ are the logging settings (the MCAP file is opened at start).
 from dataclasses import dataclass
 import math
 from pathlib import Path
-from typing import Any, Mapping, Optional, Union
+from typing import Any, Mapping, Optional, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from .params import DEFAULT_PARAMS_PATH, NODE_ONLY_KEYS, ParameterError, read_params_file
 from .params import TranslatorParams
 
-#: Largest value a range may state (ROS ranges are closed; "no upper bound" is this).
-_UNBOUNDED = 1e300
-
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """Name, human description and closed bounds of one declared parameter."""
+    """Name, human description and closed bounds (both or neither) of one parameter."""
 
     name: str
     description: str
     read_only: bool = False
-    minimum: Optional[float] = None
-    maximum: Optional[float] = None
+    bounds: Optional[Tuple[float, float]] = None
 
     def descriptor(self, value: Any) -> ParameterDescriptor:
-        """Return the ROS descriptor; a range only for numbers, typed like ``value``."""
+        """Return the ROS descriptor; the range typed like ``value`` (int or float)."""
         descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only)
-        if self.minimum is None or isinstance(value, bool):
+        if self.bounds is None:
             return descriptor
-        maximum = _UNBOUNDED if self.maximum is None else self.maximum
+        low, high = self.bounds
         if isinstance(value, int):
-            descriptor.integer_range = [IntegerRange(
-                from_value=int(self.minimum), to_value=int(min(maximum, 2 ** 62)), step=1)]
+            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high),
+                                                     step=1)]
         else:
             descriptor.floating_point_range = [FloatingPointRange(
-                from_value=float(self.minimum), to_value=float(maximum), step=0.0)]
+                from_value=float(low), to_value=float(high), step=0.0)]
         return descriptor
 
 
@@ -57,9 +53,9 @@ _MODEL = (
     ParameterSpec('youngs_modulus', 'Pa, Young modulus E of the backbones', read_only=True),
     ParameterSpec('poisson_ratio', 'Poisson ratio; G = E / (2 (1 + nu))', read_only=True),
     ParameterSpec('spacers_per_joint', 'spacer disks per continuum joint', read_only=True,
-                  minimum=0, maximum=64),
+                  bounds=(0, 64)),
     ParameterSpec('steps_per_segment', 'RK4 steps per disk interval', read_only=True,
-                  minimum=1, maximum=1024),
+                  bounds=(1, 1024)),
 )
 
 _NODE = (
@@ -68,11 +64,11 @@ _NODE = (
     ParameterSpec('end_disk_frame', 'frame_id of {de}, the DJ end disk; wrenches in it are '
                   'rotated into base_frame with the solved end-disk pose'),
     ParameterSpec('max_force', 'N, wrenches with a larger |force| are rejected',
-                  minimum=0.0, maximum=1e6),
+                  bounds=(0.0, 1e6)),
     ParameterSpec('max_moment', 'N m, wrenches with a larger |moment| are rejected',
-                  minimum=0.0, maximum=1e6),
+                  bounds=(0.0, 1e6)),
     ParameterSpec('solve_time_limit_s', 's, a solve running longer gives up (no pose)',
-                  minimum=1e-3, maximum=60.0),
+                  bounds=(1e-3, 60.0)),
     ParameterSpec('log_compliance', 'compute and publish the compliance for every solve, '
                   'not only while compliance topics have subscribers'),
     ParameterSpec('log_backbones', 'publish backbone markers for every solve, not only while '
@@ -83,9 +79,9 @@ _NODE = (
                   read_only=True),
     ParameterSpec('log_dir', 'folder of the auto-named MCAP files', read_only=True),
     ParameterSpec('mcap_flush_messages', 'finish an MCAP chunk after this many messages',
-                  read_only=True, minimum=1, maximum=1_000_000),
+                  read_only=True, bounds=(1, 1_000_000)),
     ParameterSpec('mcap_flush_s', 's, finish an MCAP chunk at least this often',
-                  read_only=True, minimum=0.01, maximum=3600.0),
+                  read_only=True, bounds=(0.01, 3600.0)),
 )
 
 #: Every parameter translator_node declares, by name.
