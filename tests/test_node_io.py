@@ -1,6 +1,5 @@
 """translator_node's parts that need no DDS: parameters, input checks, mailbox, filler, log."""
 
-import math
 import threading
 
 from cdr_translator import TranslatorParams
@@ -60,7 +59,6 @@ def test_descriptors_carry_description_range_and_read_only():
     ('base_frame', '', {'end_disk_frame': 'e'}, 'must not be empty'),
     ('base_frame', 'a b', {'end_disk_frame': 'e'}, 'white space'),
     ('end_disk_frame', 'b', {'base_frame': 'b'}, 'must differ'),
-    ('max_force', math.nan, {}, 'must be finite'),
 ])
 def test_check_value_gives_reasons(name, value, others, reason):
     """Run-time values the descriptors cannot catch are refused with a reason."""
