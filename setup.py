@@ -33,6 +33,7 @@ setup(
     entry_points={
         'console_scripts': [
             'translator_node = cdr_translator.node:main',
+            'cdr_node = cdr_translator.cdr_node:main',
         ],
     },
 )

@@ -19,7 +19,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import WrenchStamped
 from msg_tools import messages
@@ -82,14 +82,7 @@ class TranslatorNode(Node):
     # parameters ------------------------------------------------------------------------------
     def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
         """Reject a change with the reason (descriptors have checked read-only and ranges)."""
-        values = {name: self.get_parameter(name).value for name in SPECS
-                  if self.has_parameter(name)}
-        values.update({parameter.name: parameter.value for parameter in parameters})
-        for parameter in parameters:
-            reason = check_value(parameter.name, parameter.value, values)
-            if reason is not None:
-                return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
+        return check_parameters(self, SPECS, parameters)
 
     def _apply_parameters(self, parameters: List[Parameter]) -> None:
         """Take accepted run-time values into a new settings snapshot."""
@@ -211,6 +204,26 @@ class TranslatorNode(Node):
                 f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
                 f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
                 f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record')
+
+
+def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[Any],
+                     check: Callable[[str, Any, Mapping[str, Any]], Optional[str]] = check_value
+                     ) -> SetParametersResult:
+    """
+    Judge a parameter change of ``node`` (an on-set-parameters callback's work).
+
+    ``check(name, value, others)`` gives the reason to reject a value (None: accept), with
+    the others as they would be after the change; descriptors have already checked
+    read-only and ranges.
+    """
+    values = {name: node.get_parameter(name).value for name in specs
+              if node.has_parameter(name)}
+    values.update({parameter.name: parameter.value for parameter in parameters})
+    for parameter in parameters:
+        reason = check(parameter.name, parameter.value, values)
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+    return SetParametersResult(successful=True)
 
 
 def open_log(settings: Any, prefix: str,
