@@ -9,7 +9,6 @@ are the logging settings (the MCAP file is opened at start).
 """
 
 from dataclasses import dataclass
-import math
 from pathlib import Path
 from typing import Any, Mapping, Optional, Tuple, Union
 
@@ -109,8 +108,9 @@ def check_value(name: str, value: Any, others: Mapping[str, Any]) -> Optional[st
     """
     Return why ``name`` may not take ``value`` (None if it may), given the other values.
 
-    Checks what descriptors cannot express: frame names non-empty, without spaces and
-    distinct, finite limits.
+    Checks what descriptors cannot express: frame names non-empty, without white space and
+    distinct (ranges and read-only are the descriptors' business, the model's values the
+    library's).
     """
     if name in ('base_frame', 'end_disk_frame'):
         other = others.get('end_disk_frame' if name == 'base_frame' else 'base_frame')
@@ -120,8 +120,6 @@ def check_value(name: str, value: Any, others: Mapping[str, Any]) -> Optional[st
             return f'{name} {value!r} must not contain white space'
         if value == other:
             return f'{name} {value!r} must differ from the other frame'
-    if isinstance(value, float) and not math.isfinite(value):
-        return f'{name} must be finite, got {value!r}'
     return None
 
 
