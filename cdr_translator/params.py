@@ -39,6 +39,10 @@ NODE_ONLY_KEYS: frozenset = frozenset((
     'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
     'mcap_flush_messages', 'mcap_flush_s'))
 
+#: Keys of the same params file that choose the fidelity level and its error budget
+#: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).
+FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_angle_error'))
+
 
 class ParameterError(ValueError):
     """A parameter is missing, unknown or has an impossible value."""
@@ -157,7 +161,7 @@ class TranslatorParams:
     def from_mapping(cls, values: Mapping[str, Any]) -> 'TranslatorParams':
         """Build from a flat mapping; unknown or missing keys raise ParameterError naming them."""
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known - NODE_ONLY_KEYS)
+        unknown = sorted(set(values) - known - NODE_ONLY_KEYS - FIDELITY_KEYS)
         if unknown:
             raise ParameterError(
                 f'unknown parameter(s) {", ".join(unknown)}; known: {", ".join(sorted(known))}')
