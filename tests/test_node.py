@@ -8,7 +8,10 @@ test kills in the end. Every wait is bounded; none of the assertions depends on 
 
 import math
 import os
+from pathlib import Path
 import signal
+import subprocess
+import sys
 import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
@@ -30,6 +33,7 @@ import yaml
 #: The first solve may compile the kernels (cached on disk after), DDS discovery takes
 #: seconds on a loaded machine: generous bounds, never waited for in full when all is well.
 START_TIMEOUT_S = 120.0
+ROOT = Path(__file__).resolve().parents[1]
 ANSWER_TIMEOUT_S = 30.0
 POSE = messages.END_DISK_POSE_TOPIC
 ANGLES = messages.BENDING_ANGLES_TOPIC
@@ -280,3 +284,19 @@ def test_bad_params_file_stops_with_the_reason(tmp_path, ros_env, key, value, re
     with NodeProcess(['--params-file', str(path)], ros_env, tmp_path / 'node.log') as node:
         assert node.process.wait(START_TIMEOUT_S) == 2, node.text()
         assert reason in node.text()
+
+
+def test_demo_script_plays_a_bag_and_summarizes(tmp_path, ros_env):
+    """scripts/demo.py (make demo) on the paper's two cases: exit 0 and a summary."""
+    out = tmp_path / 'demo.mcap'
+    process = subprocess.run(
+        [sys.executable, str(ROOT / 'scripts' / 'demo.py'), '--bags',
+         str(ROOT / 'bags' / 'paper_cases.mcap'), '--out', str(out)],
+        capture_output=True, text=True, timeout=START_TIMEOUT_S + 60.0, env=ros_env)
+    assert process.returncode == 0, process.stdout + process.stderr
+    assert 'wrenches played                         2 ' in process.stdout
+    assert 'node solved                             3' in process.stdout  # + the handshake
+    assert 'last wrench answered                    yes' in process.stdout
+    largest = math.degrees(TranslatorSolver().solve((20.0, 0.0, 0.0)).pj_bending[0])
+    assert f'pj_bending deg min..max                 0.000 .. {largest:.3f}' in process.stdout
+    assert out.is_file()
