@@ -6,7 +6,7 @@ VENV   := .venv
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 
-.PHONY: setup test demo clean bags
+.PHONY: setup test demo clean bags hard-cases
 
 setup: $(STAMP)
 
@@ -25,6 +25,10 @@ $(STAMP): requirements.txt setup.py setup.cfg
 
 test: setup
 	$(VPY) -m pytest tests
+
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md and the README table.
+hard-cases: setup
+	$(VPY) -m bench.hard_cases
 
 # Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup
