@@ -23,6 +23,7 @@ from typing import Any, List, Optional, Sequence, Tuple
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from .compliance import analyse, finite_difference_compliance
 from .params import TranslatorParams
 from .result import SolveResult
 from .solver import TranslatorSolver
@@ -76,7 +77,7 @@ def _combined_cases() -> List[HardCase]:
     for k, direction in enumerate(directions):
         moment = directions[(k + 5) % len(directions)]
         cases.append(HardCase(
-            f'30 N along ({", ".join(f"{c:+.2f}" for c in direction)}) + 0.3 N m',
+            f'30 N along ({", ".join(f"{c + 0.0:+.2f}" for c in direction)}) + 0.3 N m',
             'combined', (load(*(30.0 * direction), *(0.3 * moment)),), quick=k % 3 == 0))
     return cases
 
@@ -236,8 +237,9 @@ def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[b
     """
     Judge whether a converged equilibrium is stable; return (stable or None, reason).
 
-    Two tests, both needed: the end-disk stiffness K = C^-1 (``result.compliance``) must
-    have a positive-definite symmetric part, and the determinant of the shooting Jacobian
+    Two tests, both needed: the end-disk stiffness K = C^-1 (``result.compliance``, or
+    central differences of solves where that failed) must have a positive-definite
+    symmetric part, and the determinant of the shooting Jacobian
     must keep the sign it has in the unloaded (stable) state. An eigenvalue of the
     structure's stiffness crossing zero anywhere makes the Jacobian singular; an odd number
     of such crossings flips the determinant's sign, which catches internal modes the end
@@ -246,9 +248,17 @@ def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[b
     """
     if not result.converged:
         return None, 'not converged'
-    if result.compliance is None:
-        reason = result.message.partition('no compliance: ')[2] or 'no compliance computed'
-        return None, f'unknown: {reason}'
+    analysis = result.compliance
+    source = 'end-disk stiffness'
+    if analysis is None:  # the implicit computation failed: differences of solves instead
+        try:
+            analysis = analyse(finite_difference_compliance(solver.params, result.force,
+                                                            result.moment),
+                               solver.params.stack_height, method='finite differences')
+            source = 'end-disk stiffness (from finite differences of solves)'
+        except ArithmeticError as error:
+            reason = result.message.partition('no compliance: ')[2] or 'not computed'
+            return None, f'unknown: implicit compliance: {reason}; finite differences: {error}'
     problem = solver.problem
     wrench = np.concatenate([result.force, result.moment])
     xs = result.unknowns / problem.x_scale
@@ -257,12 +267,12 @@ def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[b
     straight = problem.straight_guess(zero)
     unloaded = np.linalg.slogdet(
         problem.jacobian(straight, zero, problem.residual(straight, zero)))[0]
-    if not result.compliance.stable:
-        return False, (f'end-disk stiffness not positive definite (smallest eigenvalue '
-                       f'{result.compliance.smallest_stiffness_eigenvalue:.3g})')
+    if not analysis.stable:
+        return False, (f'{source} not positive definite (smallest eigenvalue '
+                       f'{analysis.smallest_stiffness_eigenvalue:.3g})')
     if sign != unloaded:
         return False, 'the Jacobian determinant changed sign: an internal mode is unstable'
-    return True, 'end-disk stiffness positive definite, Jacobian sign as unloaded'
+    return True, f'{source} positive definite, Jacobian sign as unloaded'
 
 
 def _refine(params: TranslatorParams, result: SolveResult,
