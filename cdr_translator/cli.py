@@ -2,7 +2,7 @@
 Command line: argument parsing and printing only; the physics lives in the solver.
 
     python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--compliance]
-                                   [--params FILE] [--json]
+                                   [--verify] [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
     python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
 
@@ -47,6 +47,8 @@ def _parser() -> argparse.ArgumentParser:
                        help='give up after this many seconds (default: %(default)s)')
     solve.add_argument('--compliance', action='store_true',
                        help='add the 6x6 end-disk compliance and its primary-mobility analysis')
+    solve.add_argument('--verify', action='store_true',
+                       help='re-check the solution independently (cdr_translator.verify)')
     solve.add_argument('--sparsity-threshold', type=float, default=SPARSITY_THRESHOLD,
                        help='C_s drops |C_ij| below this times sqrt(|C_ii C_jj|) '
                             '(default: %(default)s)')
@@ -104,6 +106,9 @@ def _table(result: SolveResult) -> str:
         rows.append(('primary mobility', ', '.join(analysis.primary_mobility)))
         rows.append(('stable', str(analysis.stable)))
         rows.append(('compliance time', f'{1e3 * analysis.time_s:.2f} ms'))
+    if result.verification is not None:
+        rows.append(('verified', f'{result.verification.passed} '
+                                 f'({result.verification.message})'))
     width = max(len(name) for name, _ in rows)
     return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
 
@@ -190,7 +195,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                                       max_iterations=args.max_iterations,
                                       time_limit_s=args.time_limit)
             result = solver.solve(args.force, args.moment, compliance=args.compliance,
-                                  sparsity_threshold=args.sparsity_threshold,
+                                  verify=args.verify, sparsity_threshold=args.sparsity_threshold,
                                   mobility_ratio=args.mobility_ratio)
             table = _table
     except (ParameterError, ValueError) as error:

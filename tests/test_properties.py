@@ -24,7 +24,7 @@ def components(bound: float) -> st.SearchStrategy:
     return st.tuples(*[st.floats(-bound, bound, allow_nan=False, allow_infinity=False)] * 3)
 
 
-SETTINGS = {'deadline': None, 'derandomize': True,
+SETTINGS = {'deadline': None, 'derandomize': True, 'database': None,
             'suppress_health_check': [HealthCheck.function_scoped_fixture,
                                       HealthCheck.too_slow]}
 

@@ -2,8 +2,10 @@
 
 import copy
 import dataclasses
+import json
 
 from cdr_translator import TranslatorSolver
+from cdr_translator.cli import main
 from cdr_translator.result import PAPER_TOLERANCES
 from cdr_translator.verify import Tolerances, verify
 import numpy as np
@@ -123,3 +125,13 @@ def test_solve_with_verify_fills_the_result(params):
     assert data['verified'] is True and data['verification_message'] == 'verified'
     assert set(data['verification_checks']) == set(data['verification_limits'])
     assert solver.solve((5.0, 0.0, 0.0)).verified is None
+
+
+def test_cli_verify_flag(capsys):
+    """`solve --verify --json` adds the verification keys; a coarse 60 N state says why."""
+    assert main(['solve', '--force', '12', '0', '0', '--verify', '--json']) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data['verified'] is True and data['verification_message'] == 'verified'
+    assert main(['solve', '--force', '60', '0', '0', '--verify']) == 0
+    table = capsys.readouterr().out
+    assert 'verified' in table and 'False (verification failed: tangent_tilt_rad' in table
