@@ -177,6 +177,23 @@ def test_failure_is_a_result_with_the_best_residual_at_the_requested_wrench(para
     assert result.residual_norm == pytest.approx(float(np.linalg.norm(residual)), rel=1e-12)
 
 
+def test_non_finite_trial_states_are_survived(params):
+    """At 500 N the first full-load predictions overflow; those steps are halved, not fatal."""
+    solver = TranslatorSolver(params)
+    messages = []
+    newton = solver._newton
+
+    def recording(*args):
+        outcome = newton(*args)
+        messages.append(outcome.message)
+        return outcome
+
+    solver._newton = recording
+    result = solver.solve((500.0, 0.0, 0.0))
+    assert 'residual became non-finite during the iteration' in messages
+    assert result.converged and np.all(np.isfinite(result.unknowns))
+
+
 def test_time_cap_ends_a_hard_solve_with_a_message(params):
     """A case that needs many steps stops at a tiny cap and says it was the time limit."""
     result = TranslatorSolver(params, time_limit_s=1e-3).solve((500.0, 0.0, 0.0))
