@@ -1,0 +1,512 @@
+"""
+Speed against error of every fidelity level (issue 6); writes bench/results/.
+
+Usage: python -m bench.speed_vs_error [--skip-paper] [--skip-node] [--skip-validation]
+                                      [--repeats N]
+
+Every level and discretization is timed (wall clock around ``solve``, median) and compared
+with the reference (the full model at 32 RK4 steps per disk interval, residual 1e-12) on
+fixed scenes: the paper's two cases, larger lateral loads, torsion, combined loads (cold
+solves), and a 1000-sample wrench sequence (warm-started). Times are also given as ratios
+to the paper's numerics (``method='paper'``) measured in the same run on the paper's two
+cases. Also measured: the compliance's cost, and translator_node's sustained wrench rate
+over DDS. Writes speed_vs_error.md (tables), speed_vs_error.png (time against error) and
+speed_vs_error.json (every number) into bench/results/, and the validated ranges of the
+reduced levels into config/fidelity_validation.yaml (what FidelitySolver's error budget
+reads; ``--skip-validation`` keeps the file as it is).
+"""
+
+import argparse
+from dataclasses import dataclass, field
+import datetime
+import json
+import math
+import os
+from pathlib import Path
+import platform
+import signal
+import statistics
+import tempfile
+import time
+from typing import Callable, Dict, List, Optional
+
+from cdr_translator import TranslatorParams, TranslatorSolver
+from cdr_translator.compliance import finite_difference_compliance
+from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
+from cdr_translator.fidelity import validation
+from cdr_translator.fidelity.reduced import ROD_STEPS
+from matplotlib.figure import Figure
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / 'results'
+
+#: Static scenes, solved cold: name -> wrench [f (N); m (N m)] in {pe}.
+SCENES = {
+    'paper 12 N': (12.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    'paper 20 N': (20.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    'lateral 30 N': (30.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    'oblique 28 N': (20.0, 20.0, 0.0, 0.0, 0.0, 0.0),
+    'torsion 0.5 N m': (0.0, 0.0, 0.0, 0.0, 0.0, 0.5),
+    'combined': (15.0, -8.0, -5.0, 0.3, 0.2, 0.2),
+}
+PAPER_SCENES = ('paper 12 N', 'paper 20 N')
+
+#: Error budgets of the 'auto' rows: (position m, angle deg).
+BUDGETS = ((10e-3, 3.0), (1e-3, 0.5), (0.1e-3, 0.05), (0.01e-3, 0.01))
+
+SEQUENCE_LENGTH = 1000
+
+
+def wrench_sequence(count: int = SEQUENCE_LENGTH) -> np.ndarray:
+    """Return a smooth 6-D wrench sequence inside the validated box (at most 0.05 N per sample)."""
+    t = np.linspace(0.0, 1.0, count)
+    return np.stack([10.0 + 8.0 * np.sin(2 * np.pi * t), 6.0 * np.sin(3 * np.pi * t + 0.3),
+                     -4.0 * np.sin(1.4 * np.pi * t), 0.15 * np.sin(2.6 * np.pi * t),
+                     0.1 * np.cos(1.8 * np.pi * t), 0.2 * np.sin(4.2 * np.pi * t)], axis=1)
+
+
+@dataclass
+class Row:
+    """One level/discretization and everything measured for it."""
+
+    level: str
+    setting: str
+    unknowns: str
+    make: Callable[[], object]
+    sequence_setup: Optional[Callable[[object, np.ndarray], None]] = None
+    spacers: int = 1  # the structure whose reference the errors are measured against
+    static: Dict[str, dict] = field(default_factory=dict)
+    sequence: dict = field(default_factory=dict)
+
+
+def rows(params: TranslatorParams) -> List[Row]:
+    """Every configuration the benchmark measures."""
+    result = []
+    for steps in (2, 4, 8, 16):
+        result.append(Row('full', f'{steps} steps' + (' (default)' if steps == 8 else ''), '90',
+                          lambda s=steps: FidelitySolver(
+                              params.with_changes(steps_per_segment=s), fidelity='full')))
+    result.append(Row('full', "8 steps, tolerance 1e-6 (about the paper's)", '90',
+                      lambda: FidelitySolver(params, fidelity='full', tolerance=1e-6)))
+    for spacers in (2, 3):
+        result.append(Row('full', f'{spacers} spacer disks per joint, 8 steps (longer joints: '
+                          'errors against its own reference)', str(30 + 20 * (2 * spacers + 1)),
+                          lambda n=spacers: FidelitySolver(
+                              params.with_changes(spacers_per_joint=n), fidelity='full'),
+                          spacers=spacers))
+    for steps in (1, 2, 4):
+        result.append(Row('rod', f'{steps} steps per interval' + (
+            ' (default)' if steps == ROD_STEPS else ''), '7',
+            lambda s=steps: FidelitySolver(params, fidelity='rod', rod_steps=s)))
+    result.append(Row('cc', 'one arc per joint', '8',
+                      lambda: FidelitySolver(params, fidelity='cc')))
+    result.append(Row('linear', "about the unloaded state / the sequence's first sample",
+                      '0', _linear_solver(params),
+                      lambda solver, first: solver.cache_full_solution(first)))
+    for position, angle in BUDGETS:
+        result.append(Row('auto', f'budget {1e3 * position:g} mm, {angle:g} deg', '-',
+                          lambda p=position, a=angle: FidelitySolver(
+                              params, max_position_error=p, max_angle_error_deg=a)))
+    return result
+
+
+def _linear_solver(params: TranslatorParams) -> Callable[[], FidelitySolver]:
+    def make() -> FidelitySolver:
+        solver = FidelitySolver(params, fidelity='linear')
+        solver.cache_full_solution(np.zeros(6))
+        return solver
+    return make
+
+
+def reference_solutions(params: TranslatorParams, sequence: np.ndarray) -> tuple:
+    """Return the reference results of every scene (cold) and of the sequence (warm-started)."""
+    reference = reference_solver(params)
+    static = {}
+    for name, wrench in SCENES.items():
+        reference.reset()
+        static[name] = reference.solve(wrench[:3], wrench[3:])
+    reference.reset()
+    return static, [reference.solve(w[:3], w[3:]) for w in sequence]
+
+
+def timed_solve(solver, wrench: np.ndarray, **options):
+    """Solve and return (result, wall seconds)."""
+    started = time.perf_counter()
+    result = solver.solve(wrench[:3], wrench[3:], **options)
+    return result, time.perf_counter() - started
+
+
+def measure_static(row: Row, references: dict, repeats: int) -> None:
+    """Cold solves of every scene: median time and errors."""
+    solver = row.make()
+    for name, wrench in SCENES.items():
+        wrench = np.array(wrench)
+        times = []
+        for _ in range(repeats):
+            if row.level != 'linear':
+                solver.reset()
+            result, elapsed = timed_solve(solver, wrench)
+            times.append(elapsed)
+        position, angle = pose_errors(result, references[name])
+        row.static[name] = {'time_s': statistics.median(times), 'position_m': position,
+                            'angle_deg': math.degrees(angle), 'converged': result.converged,
+                            'fidelity': result.fidelity}
+
+
+def measure_sequence(row: Row, sequence: np.ndarray, expected: list) -> None:
+    """Run the warm-started sequence: median time, errors, levels used."""
+    solver = row.make()
+    if row.sequence_setup is not None:
+        row.sequence_setup(solver, sequence[0])
+    times, positions, angles, used = [], [], [], {}
+    for wrench, reference in zip(sequence, expected):
+        result, elapsed = timed_solve(solver, wrench)
+        times.append(elapsed)
+        position, angle = pose_errors(result, reference)
+        positions.append(position)
+        angles.append(math.degrees(angle))
+        used[result.fidelity] = used.get(result.fidelity, 0) + 1
+    row.sequence = {'median_time_s': statistics.median(times),
+                    'p95_time_s': float(np.percentile(times, 95)),
+                    'mean_time_s': float(np.mean(times)),
+                    'max_position_m': max(positions), 'median_position_m': float(
+                        np.median(positions)),
+                    'max_angle_deg': max(angles), 'median_angle_deg': float(np.median(angles)),
+                    'levels': used}
+
+
+def paper_baseline(params: TranslatorParams, references: dict) -> dict:
+    """Time the paper's numerics on its two cases, cold, once each."""
+    solver = TranslatorSolver(params, method='paper', time_limit_s=600.0)
+    measured = {}
+    for name in PAPER_SCENES:
+        wrench = np.array(SCENES[name])
+        solver.reset()
+        result, elapsed = timed_solve(solver, wrench)
+        position, angle = pose_errors(result, references[name])
+        measured[name] = {'time_s': elapsed, 'converged': result.converged,
+                          'position_m': position, 'angle_deg': math.degrees(angle),
+                          'iterations': result.iterations}
+    return measured
+
+
+def compliance_costs(params: TranslatorParams, sequence: np.ndarray) -> dict:
+    """Cost of C: implicit after a cold and along warm solves, finite differences, reduced."""
+    solver = TranslatorSolver(params)
+    cold, cold_solve = [], []
+    for name in SCENES:
+        solver.reset()
+        result = solver.solve(SCENES[name][:3], SCENES[name][3:], compliance=True)
+        cold.append(result.compliance.time_s)
+        cold_solve.append(result.solve_time_s)
+    warm, warm_solve = [], []
+    for wrench in sequence[:200]:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+        warm.append(result.compliance.time_s)
+        warm_solve.append(result.solve_time_s)
+    started = time.perf_counter()
+    finite_difference_compliance(params, SCENES['paper 12 N'][:3])
+    finite = time.perf_counter() - started
+    reduced = {}
+    for level in ('cc', 'rod'):
+        model = FidelitySolver(params, fidelity=level)
+        times = [model.solve(w[:3], w[3:], compliance=True).compliance.time_s
+                 for w in sequence[:100]]
+        reduced[level] = statistics.median(times)
+    tangent = FidelitySolver(params, fidelity='linear')
+    builds = []
+    for wrench in sequence[::100]:
+        tangent.cache_full_solution(wrench)
+        builds.append(tangent.tangent.build_time_s)
+    return {'implicit_after_cold_median_s': statistics.median(cold),
+            'cold_solve_median_s': statistics.median(cold_solve),
+            'implicit_along_sequence_median_s': statistics.median(warm),
+            'warm_solve_median_s': statistics.median(warm_solve),
+            'finite_difference_s': finite, 'reduced_median_s': reduced,
+            'linear_tangent_build_median_s': statistics.median(builds)}
+
+
+def node_rate(seconds: float = 3.0, rate_hz: float = 2000.0) -> dict:
+    """translator_node's sustained answers per second under a wrench burst over DDS."""
+    try:
+        from bench.node_latency import measure
+        from cdr_translator.node_client import isolated_ros_env, NodeProcess, TranslatorClient
+        from msg_tools import messages
+    except ImportError as error:
+        return {'error': f'node tools unavailable: {error}'}
+    env = isolated_ros_env()
+    os.environ.update(env)
+    with tempfile.TemporaryDirectory() as folder:
+        with NodeProcess(['-p', 'log_to_mcap:=false'], env, Path(folder) / 'node.log') as node:
+            client = TranslatorClient([messages.END_DISK_POSE_TOPIC,
+                                       messages.DIAGNOSTICS_TOPIC], depth=100000)
+            try:
+                if not client.handshake(120.0):
+                    return {'error': f'node did not answer: {node.text()[-500:]}'}
+                row = measure(client, rate_hz, seconds)
+                node.stop(signal.SIGINT)
+            finally:
+                client.close()
+    return {'offered_hz': rate_hz, 'seconds': seconds, 'sent': row['sent'],
+            'received': row['received'], 'answered': row['poses'],
+            'answers_per_s': row['poses'] / seconds,
+            'latency_p50_ms': float(np.median(row['latencies_ms']))}
+
+
+# report ------------------------------------------------------------------------------------
+def _ms(seconds: float) -> str:
+    milliseconds = 1e3 * seconds
+    return f'{milliseconds:.3g}' if milliseconds < 100 else f'{milliseconds:.0f}'
+
+
+def _ratio(reference_s: float, seconds: float) -> str:
+    value = reference_s / seconds
+    return f'{value:,.0f}×' if value >= 10 else f'{value:.2g}×'
+
+
+def _err(value: float, digits: int = 3) -> str:
+    return '0' if value == 0.0 else f'{value:.{digits}g}'
+
+
+def markdown(report: dict, table_rows: List[Row]) -> str:
+    """Return the Markdown report."""
+    paper = report['paper_baseline']
+    paper_mean = report['paper_mean_s']
+    lines = ['# Speed against error', '',
+             f"Measured {report['date']} on {report['machine']}; load average "
+             f"{report['load_before']} before and {report['load_after']} after the run "
+             '(the machine was shared with other jobs: times are pessimistic and vary by '
+             'tens of percent between runs).', '',
+             'Reference: the full model at 32 RK4 steps per disk interval, residual 1e-12. '
+             'Errors: end-disk position |p - p_ref| and the largest of the PJ/DJ bending-angle '
+             'errors and the end-disk orientation error. Times: wall clock of `solve()`, '
+             'median; static scenes are cold solves (from the unloaded state), the sequence '
+             f'is {SEQUENCE_LENGTH} wrenches warm-started one after the other.', '']
+    if paper:
+        lines += ["Paper baseline (`method='paper'`: the same model interpreted, "
+                  'Levenberg-Marquardt with a one-column-per-residual FD Jacobian, paper '
+                  'tolerances, cold): ' + ', '.join(
+                      f"{name} {value['time_s']:.1f} s ({value['position_m'] * 1e3:.3g} mm, "
+                      f"{value['angle_deg']:.2g}° from the reference)"
+                      for name, value in paper.items())
+                  + f'; mean {paper_mean:.1f} s is the divisor of every "× paper" column.', '']
+    lines += ['| level | setting | unknowns | cold, paper cases (ms) | × paper | static: max '
+              'position error (mm) | static: max angle error (°) | sequence median (ms) | '
+              '× paper | sequence: max position error (mm) | sequence: max angle error (°) |',
+              '|---|---|---|---|---|---|---|---|---|---|---|']
+    for row in table_rows:
+        cold = statistics.median(row.static[name]['time_s'] for name in PAPER_SCENES)
+        static_position = max(value['position_m'] for value in row.static.values())
+        static_angle = max(value['angle_deg'] for value in row.static.values())
+        sequence = row.sequence
+        lines.append(
+            f'| {row.level} | {row.setting} | {row.unknowns} | {_ms(cold)} | '
+            f"{_ratio(paper_mean, cold) if paper_mean else '-'} | "
+            f'{_err(1e3 * static_position)} | {_err(static_angle)} | '
+            f"{_ms(sequence['median_time_s'])} | "
+            f"{_ratio(paper_mean, sequence['median_time_s']) if paper_mean else '-'} | "
+            f"{_err(1e3 * sequence['max_position_m'])} | {_err(sequence['max_angle_deg'])} |")
+    lines += ['', '## Errors per static scene (position mm / angle °; level used by auto)', '',
+              '| level | setting | ' + ' | '.join(SCENES) + ' |',
+              '|---|---|' + '---|' * len(SCENES)]
+    for row in table_rows:
+        cells = []
+        for name in SCENES:
+            value = row.static[name]
+            cell = f"{_err(1e3 * value['position_m'], 2)} / {_err(value['angle_deg'], 2)}"
+            if row.level == 'auto':
+                cell += f" ({value['fidelity']})"
+            if not value['converged']:
+                cell += ' (not converged)'
+            cells.append(cell)
+        lines.append(f'| {row.level} | {row.setting} | ' + ' | '.join(cells) + ' |')
+    lines += ['', '## Error budget along the sequence', '',
+              '| budget | levels used | median (ms) | mean (ms) | max position error (mm) | '
+              'max angle error (°) | inside the budget |', '|---|---|---|---|---|---|---|']
+    for row in table_rows:
+        if row.level != 'auto':
+            continue
+        budget = next(b for b in BUDGETS if row.setting == f'budget {1e3 * b[0]:g} mm, '
+                                                           f'{b[1]:g} deg')
+        sequence = row.sequence
+        used = ', '.join(f'{level} {count}' for level, count in sorted(
+            sequence['levels'].items(), key=lambda item: -item[1]))
+        inside = (sequence['max_position_m'] <= budget[0]
+                  and sequence['max_angle_deg'] <= budget[1])
+        lines.append(f"| {row.setting[7:]} | {used} | {_ms(sequence['median_time_s'])} | "
+                     f"{_ms(sequence['mean_time_s'])} | "
+                     f"{_err(1e3 * sequence['max_position_m'])} | "
+                     f"{_err(sequence['max_angle_deg'])} | {'yes' if inside else 'NO'} |")
+    compliance = report['compliance']
+    lines += ['', '## Compliance and node', '',
+              '| what | time |', '|---|---|',
+              '| implicit C after a cold solve (median over the scenes) | '
+              f"{_ms(compliance['implicit_after_cold_median_s'])} ms |",
+              '| implicit C along the sequence (warm solves of '
+              f"{_ms(compliance['warm_solve_median_s'])} ms) | "
+              f"{_ms(compliance['implicit_along_sequence_median_s'])} ms |",
+              '| C by central differences of 12 full solves '
+              '(`finite_difference_compliance`, the check) | '
+              f"{_ms(compliance['finite_difference_s'])} ms |"]
+    for level, seconds in compliance['reduced_median_s'].items():
+        lines.append(f'| C of the {level} level (central differences of its own solves) | '
+                     f'{_ms(seconds)} ms |')
+    lines.append('| linear level: expansion (C, dx/dw, frame and point sensitivities) about a '
+                 f"new cached solution | {_ms(compliance['linear_tangent_build_median_s'])} ms |")
+    node = report['node']
+    if 'error' in node:
+        lines.append(f"| translator_node sustained rate | not measured: {node['error']} |")
+    else:
+        lines.append(f"| translator_node sustained rate ({node['offered_hz']:.0f} Hz offered "
+                     f"for {node['seconds']:g} s over DDS, no MCAP log, latest wins) | "
+                     f"{node['answers_per_s']:.0f} answers/s ({node['received']} received, "
+                     f"median latency {node['latency_p50_ms']:.1f} ms) |")
+    lines += ['', '## Targets', '', '| target | measured |', '|---|---|']
+    lines += [f'| {target} | {value} |' for target, value in report['targets']]
+    bounds = report.get('validation')
+    if bounds:
+        lines += ['', '## Validated ranges (config/fidelity_validation.yaml)', '',
+                  'Largest errors over the samples in each nested box |f_i| <= s·'
+                  f'{validation.BOX_FORCE_N[0]:g} N, |m_i| <= s·{validation.BOX_MOMENT_NM[0]:g} '
+                  "N m (for 'linear': offsets from the cached wrench).", '',
+                  '| level | s | samples | max position error (mm) | max angle error (°) |',
+                  '|---|---|---|---|---|']
+        for level, bound in bounds.items():
+            for scale, count, position, angle in zip(bound['scales'], bound['samples'],
+                                                     bound['max_position_error_m'],
+                                                     bound['max_angle_error_deg']):
+                lines.append(f'| {level} | {scale:g} | {count} | {_err(1e3 * position)} | '
+                             f'{_err(angle)} |')
+    return '\n'.join(lines) + '\n'
+
+
+def plot(report: dict, table_rows: List[Row], path: Path) -> None:
+    """Median time against error, position and angle, static (cold) and sequence (warm)."""
+    figure = Figure(figsize=(13, 5.5))
+    axes = figure.subplots(1, 2)
+    colours = {'full': 'tab:blue', 'rod': 'tab:green', 'cc': 'tab:orange',
+               'linear': 'tab:red', 'auto': 'tab:purple', 'paper': 'black'}
+    floor = 1e-7
+    for axis, key, scale, unit in ((axes[0], 'position', 1e3, 'end-disk position error (mm)'),
+                                   (axes[1], 'angle', 1.0, 'angle error (°)')):
+        for row in table_rows:
+            static_time = statistics.median(row.static[name]['time_s'] for name in PAPER_SCENES)
+            static_error = max(v[f'{key}_m' if key == 'position' else 'angle_deg']
+                               for v in row.static.values()) * scale
+            sequence_error = row.sequence[f'max_{key}_m' if key == 'position'
+                                          else 'max_angle_deg'] * scale
+            colour = colours[row.level]
+            axis.scatter(1e3 * static_time, max(static_error, floor), color=colour, marker='o')
+            axis.scatter(1e3 * row.sequence['median_time_s'], max(sequence_error, floor),
+                         facecolors='none', edgecolors=colour, marker='s')
+            axis.annotate(f'{row.level} {row.setting.split(" (")[0][:22]}',
+                          (1e3 * row.sequence['median_time_s'], max(sequence_error, floor)),
+                          fontsize=6, alpha=0.7, xytext=(3, 2), textcoords='offset points')
+        for name, value in report['paper_baseline'].items():
+            error = value['position_m'] * 1e3 if key == 'position' else value['angle_deg']
+            axis.scatter(1e3 * value['time_s'], max(error, floor), color='black', marker='*',
+                         s=80)
+            axis.annotate(f'paper baseline {name[6:]}',
+                          (1e3 * value['time_s'], max(error, floor)), fontsize=7)
+        axis.set_xscale('log')
+        axis.set_yscale('log')
+        axis.set_xlabel('median solve time (ms)')
+        axis.set_ylabel(f'{unit}, worst over the scenes')
+        axis.grid(True, which='both', alpha=0.3)
+    for level, colour in colours.items():
+        axes[0].scatter([], [], color=colour, label=level)
+    axes[0].scatter([], [], color='grey', marker='o', label='static scenes, cold')
+    axes[0].scatter([], [], facecolors='none', edgecolors='grey', marker='s',
+                    label='1000-sample sequence, warm')
+    axes[0].legend(fontsize=7, loc='lower left')
+    figure.suptitle('Translator: speed against error of every fidelity level '
+                    f'(errors below {floor:g} drawn at {floor:g})')
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
+def targets(report: dict, table_rows: List[Row]) -> list:
+    """Measured against the issue's targets."""
+    default = next(row for row in table_rows if row.setting == '8 steps (default)')
+    paper_tol = next(row for row in table_rows if 'tolerance 1e-6' in row.setting)
+    cold = max(default.static[name]['time_s'] for name in PAPER_SCENES)
+    cold_all = statistics.median(value['time_s'] for value in default.static.values())
+    warm = default.sequence['median_time_s']
+    result = [
+        ('full model, warm along a sequence <= 0.5 ms median',
+         f'{_ms(warm)} ms at the default tolerance 1e-10; '
+         f"{_ms(paper_tol.sequence['median_time_s'])} ms at 1e-6 (about the paper's)"),
+        ('full model cold <= 10 ms',
+         f'{_ms(cold)} ms (slower paper case); median over all six scenes {_ms(cold_all)} ms'),
+        ('compliance <= 0.2 ms on top of a solve',
+         f"{_ms(report['compliance']['implicit_along_sequence_median_s'])} ms along the "
+         f"sequence, {_ms(report['compliance']['implicit_after_cold_median_s'])} ms after a "
+         'cold solve')]
+    if report['paper_mean_s']:
+        result.insert(2, ('>= 1000× faster than the paper baseline',
+                          f"{report['paper_mean_s'] / cold:,.0f}× cold, "
+                          f"{report['paper_mean_s'] / warm:,.0f}× warm"))
+    return result
+
+
+def main() -> None:
+    """Run everything and write bench/results/ (and config/fidelity_validation.yaml)."""
+    parser = argparse.ArgumentParser(description='Speed against error of every fidelity level.')
+    parser.add_argument('--skip-paper', action='store_true', help='omit the slow baseline')
+    parser.add_argument('--skip-node', action='store_true', help='omit the DDS burst')
+    parser.add_argument('--skip-validation', action='store_true',
+                        help='keep config/fidelity_validation.yaml as it is')
+    parser.add_argument('--repeats', type=int, default=5, help='cold solves per scene')
+    args = parser.parse_args()
+    started = time.perf_counter()
+    params = TranslatorParams.from_yaml()
+    report = {'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
+              'machine': f'{platform.machine()}, {os.cpu_count()} cores, Python '
+                         f'{platform.python_version()}',
+              'load_before': ', '.join(f'{v:.1f}' for v in os.getloadavg())}
+    if not args.skip_validation:
+        print('validating the reduced levels against the reference ...', flush=True)
+        data = validation.validate(params, FidelitySolver(params).rod_steps)
+        data.save(validation.DEFAULT_VALIDATION_PATH,
+                  'Validated ranges of the reduced fidelity levels (cdr_translator.fidelity).\n'
+                  'Written by bench/speed_vs_error.py (make bench); do not edit by hand.')
+    stored = validation.Validation.load(validation.DEFAULT_VALIDATION_PATH)
+    report['validation'] = None if stored is None else {
+        level: bound.to_dict() for level, bound in stored.levels.items()}
+    sequence = wrench_sequence()
+    table_rows = rows(params)
+    references = {}
+    for spacers in sorted({row.spacers for row in table_rows}):
+        print(f'reference solutions, {spacers} spacer disks per joint ...', flush=True)
+        references[spacers] = reference_solutions(
+            params.with_changes(spacers_per_joint=spacers), sequence)
+    for row in table_rows:
+        print(f'{row.level}: {row.setting} ...', flush=True)
+        static, expected = references[row.spacers]
+        measure_static(row, static, args.repeats)
+        measure_sequence(row, sequence, expected)
+    print('compliance ...', flush=True)
+    report['compliance'] = compliance_costs(params, sequence)
+    report['paper_baseline'] = {}
+    if not args.skip_paper:
+        print('paper baseline (slow) ...', flush=True)
+        report['paper_baseline'] = paper_baseline(params, references[1][0])
+    report['paper_mean_s'] = statistics.mean(
+        value['time_s'] for value in report['paper_baseline'].values()) \
+        if report['paper_baseline'] else None
+    report['node'] = {'error': 'skipped (--skip-node)'} if args.skip_node else node_rate()
+    report['load_after'] = ', '.join(f'{v:.1f}' for v in os.getloadavg())
+    report['targets'] = targets(report, table_rows)
+    report['rows'] = [{'level': row.level, 'setting': row.setting, 'unknowns': row.unknowns,
+                       'static': row.static, 'sequence': row.sequence} for row in table_rows]
+    report['runtime_s'] = time.perf_counter() - started
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / 'speed_vs_error.md').write_text(markdown(report, table_rows))
+    plot(report, table_rows, RESULTS / 'speed_vs_error.png')
+    (RESULTS / 'speed_vs_error.json').write_text(json.dumps(report, indent=1, default=str))
+    print((RESULTS / 'speed_vs_error.md').read_text())
+    print(f"benchmark took {report['runtime_s']:.0f} s")
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,13 @@
+"""
+Fidelity levels of the translator model and the error budget that chooses among them.
+
+``FidelitySolver`` (fidelity.solver) solves with the full model or a reduced one:
+'rod' (fidelity.equivalent_rod), 'cc' (fidelity.cc), 'linear' (fidelity.linear), or picks
+the cheapest level whose validated error (fidelity.validation) meets a budget ('auto').
+"""
+
+from .solver import FIDELITIES, FidelitySolver, LEVEL_COST_ORDER, LEVELS
+from .validation import pose_errors, reference_solver, Validation
+
+__all__ = ['FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS', 'Validation',
+           'pose_errors', 'reference_solver']

@@ -1,0 +1,99 @@
+"""
+Fidelity level 'linear': the full model's first-order expansion about a cached solution.
+
+At a converged full solution x0 under w0, the end-disk pose moves by the twist C (w - w0)
+(C the compliance there, ``compliance.implicit_compliance``): the {de} frame is
+exp([C_w (w - w0)]) R0 with its centre moved by C_v (w - w0). The tube frames {pm}, {dm}
+and the backbone points move likewise by their own first-order sensitivities, central
+differences of the full model's shot along the tangent dx/dw = -J^-1 dr/dw (the same
+implicit derivative, with the fresh factorization of J the compliance computation made).
+Nothing is solved at a new wrench: the cost is a few small matrix products.
+"""
+
+import math
+import time
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.linalg import lu_solve
+
+from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
+from ..compliance import implicit_compliance
+from ..problem import Problem
+from ..solver import _one_blas_thread
+
+
+class TangentModel:
+    """The cached full solution and its first-order sensitivities to the wrench."""
+
+    def __init__(self, problem: Problem) -> None:
+        """Bind the full model's ``problem`` (the one TranslatorSolver uses)."""
+        self.problem = problem
+        self.origin: Optional[np.ndarray] = None  # the cached wrench w0
+        self.build_time_s = 0.0
+        self._unknowns = self._dxdw = self._compliance = None
+        self._frames = self._twists = self._points = self._dpdw = None
+
+    @property
+    def ready(self) -> bool:
+        """Whether a tangent has been built."""
+        return self.origin is not None
+
+    def clear(self) -> None:
+        """Forget the cached solution."""
+        self.origin = None
+
+    @_one_blas_thread  # 90x90 factorizations: more BLAS threads only spin on a busy machine
+    def build(self, xs0: np.ndarray, wrench0: np.ndarray) -> None:
+        """Cache the converged nondimensional unknowns ``xs0`` under ``wrench0``."""
+        started = time.perf_counter()
+        problem = self.problem
+        compliance, lu = implicit_compliance(problem, xs0, wrench0)
+        dxdw = -lu_solve(lu, problem.wrench_sensitivity, check_finite=False)
+        points, frames = problem.shape(xs0, wrench0)
+        twists = np.zeros((4, 6, 6))  # d(twist of each frame)/dw; {pe} is fixed
+        dpdw = np.empty(points.shape + (6,))
+        for column in range(6):
+            direction = dxdw[:, column]
+            step = DIRECTIONAL_STEP / max(np.abs(direction).max(), 1e-300)
+            plus_points, plus = problem.shape(xs0 + step * direction, wrench0)
+            minus_points, minus = problem.shape(xs0 - step * direction, wrench0)
+            for k in (1, 2):
+                twists[k, :, column] = frame_twist(minus[k], plus[k]) / (2.0 * step)
+            dpdw[..., column] = (plus_points - minus_points) / (2.0 * step)
+        twists[3] = compliance
+        self._unknowns = xs0 * problem.x_scale
+        self._dxdw = dxdw * problem.x_scale[:, None]
+        self._compliance = compliance
+        self._frames, self._twists, self._points, self._dpdw = frames, twists, points, dpdw
+        self.origin = wrench0.copy()
+        self.build_time_s = time.perf_counter() - started
+
+    def predict(self, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (SI unknowns, points, frames) predicted to first order at ``wrench``."""
+        if self.origin is None:
+            raise RuntimeError('the linear level has no cached full solution yet')
+        offset = wrench - self.origin
+        frames = self._frames.copy()
+        for k in (1, 2, 3):
+            twist = self._twists[k] @ offset
+            frames[k, :3, :3] = _rotation(twist[3:]) @ self._frames[k, :3, :3]
+            frames[k, :3, 3] += twist[:3]
+        return (self._unknowns + self._dxdw @ offset, self._points + self._dpdw @ offset,
+                frames)
+
+    def compliance(self, **options: float) -> ComplianceAnalysis:
+        """Return the compliance of the linear level: the cached solution's, analysed."""
+        return analyse(self._compliance, self.problem.params.stack_height,
+                       method='implicit (cached)', time_s=0.0, **options)
+
+
+def _rotation(vector: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    angle = math.sqrt(vector @ vector)
+    skew = np.array([[0.0, -vector[2], vector[1]], [vector[2], 0.0, -vector[0]],
+                     [-vector[1], vector[0], 0.0]])
+    if angle < 1e-8:
+        return np.eye(3) + skew + 0.5 * skew @ skew
+    return (np.eye(3) + math.sin(angle) / angle * skew
+            + (1.0 - math.cos(angle)) / angle ** 2 * skew @ skew)

@@ -1,0 +1,291 @@
+"""
+FidelitySolver: one solve interface over every fidelity level, and the error budget.
+
+Levels: 'full' (TranslatorSolver, the paper's model), 'rod' (equivalent rod, 7 unknowns),
+'cc' (constant-curvature virtual work, 8), 'linear' (first-order expansion about a cached
+full solution). 'auto' picks, for each wrench, the cheapest level whose measured error in
+its validated range (``fidelity.validation``) stays inside the budget
+(``max_position_error`` m, ``max_angle_error_deg`` deg), in the order LEVEL_COST_ORDER,
+and falls back to 'full' outside every validated range. Every result says which level
+produced it (``result.fidelity``) and why (``result.message``).
+"""
+
+import math
+from pathlib import Path
+import time
+from typing import Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .linear import TangentModel
+from .reduced import ReducedModel, ROD_STEPS
+from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from ..compliance import analyse, ComplianceAnalysis, frame_twist
+from ..params import DEFAULT_PARAMS_PATH, read_params_file, TranslatorParams
+from ..problem import RESIDUAL_KINDS
+from ..result import FRAME_NAMES, SolveResult
+from ..solver import check_wrench, TranslatorSolver
+
+#: The levels a solve can use.
+LEVELS = ('full', 'rod', 'cc', 'linear')
+
+#: Values of the ``fidelity`` parameter: a level, or 'auto' (the error budget decides).
+FIDELITIES = LEVELS + ('auto',)
+
+#: Reduced levels, cheapest first (the order 'auto' tries them; make bench measures it).
+LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
+
+#: Weight of the newest full solve in the running mean of its cost.
+FULL_TIME_WEIGHT = 0.2
+
+#: Wrench steps of the finite-difference compliance of a reduced level (N, N m).
+COMPLIANCE_STEPS = (1e-3, 1e-4)
+
+_DEFAULT = object()
+
+
+class FidelitySolver:
+    """
+    Solve the translator at a chosen fidelity or within an error budget.
+
+    Same ``solve``/``reset`` interface and SolveResult as TranslatorSolver:
+
+    >>> solver = FidelitySolver(params, max_position_error=1e-3, max_angle_error_deg=0.5)
+    >>> result = solver.solve([12.0, 0.0, 0.0])
+    >>> result.fidelity                   # the level used, e.g. 'rod'
+    """
+
+    def __init__(self, params: Optional[TranslatorParams] = None, fidelity: str = 'auto',
+                 max_position_error: float = 0.0, max_angle_error_deg: float = 0.0,
+                 rod_steps: int = ROD_STEPS,
+                 validation: Union[Validation, None, object] = _DEFAULT,
+                 tolerance: float = 1e-10, time_limit_s: float = 10.0) -> None:
+        """
+        Set up every level for ``params`` (default: config/translator.yaml).
+
+        A zero budget (the default) lets 'auto' use 'full' only. ``validation`` defaults to
+        config/fidelity_validation.yaml; data for other parameters count as none.
+        ``tolerance`` and ``time_limit_s`` go to the full model's TranslatorSolver.
+        """
+        if fidelity not in FIDELITIES:
+            raise ValueError(f'fidelity must be one of {FIDELITIES}, got {fidelity!r}')
+        for name, value in (('max_position_error', max_position_error),
+                            ('max_angle_error_deg', max_angle_error_deg)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0.0:
+                raise ValueError(f'{name} must be a finite number >= 0, got {value!r}')
+        if fidelity != 'auto' and (max_position_error > 0.0 or max_angle_error_deg > 0.0):
+            raise ValueError(f"an error budget needs fidelity 'auto', got {fidelity!r}")
+        self.full = TranslatorSolver(params, tolerance=tolerance, time_limit_s=time_limit_s)
+        self.params = self.full.params
+        self.fidelity = fidelity
+        self.max_position_error = float(max_position_error)
+        self.max_angle_error_deg = float(max_angle_error_deg)
+        self.time_limit_s = time_limit_s
+        self.rod_steps = rod_steps
+        self.reduced = {'cc': ReducedModel.constant_curvature(self.params),
+                        'rod': ReducedModel.equivalent_rod(self.params, rod_steps)}
+        self.tangent = TangentModel(self.full.problem)
+        if validation is _DEFAULT:
+            validation = Validation.load(DEFAULT_VALIDATION_PATH)
+        if validation is not None and not validation.matches(self.params, rod_steps):
+            validation = None
+        self.validation: Optional[Validation] = validation
+        self._previous = dict.fromkeys(self.reduced)
+        self._last_wrench: Optional[np.ndarray] = None
+        # running costs of a full solve and of a tangent expansion (guesses until measured)
+        self._full_time_s = 1e-3
+        self._build_time_s = 3e-3
+
+    @classmethod
+    def from_params_file(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH,
+                         **options) -> 'FidelitySolver':
+        """
+        Build from a params file: the model, ``fidelity`` and the budget.
+
+        The budget keys are ``max_position_error`` (m) and ``max_angle_error`` (deg);
+        absent keys mean 'auto' with a zero budget, i.e. the full model.
+        """
+        values = read_params_file(path)
+        settings = {'fidelity': values.get('fidelity', 'auto'),
+                    'max_position_error': values.get('max_position_error', 0.0),
+                    'max_angle_error_deg': values.get('max_angle_error', 0.0)}
+        settings.update(options)
+        return cls(TranslatorParams.from_mapping(values), **settings)
+
+    def reset(self) -> None:
+        """Forget every previous solution and the cached tangent: the next solve is cold."""
+        self.full.reset()
+        self.tangent.clear()
+        self._previous = dict.fromkeys(self.reduced)
+        self._last_wrench = None
+
+    # level choice -----------------------------------------------------------------------------
+    def choose(self, wrench: np.ndarray) -> Tuple[str, str]:
+        """Return (level, reason) for ``wrench`` under the fixed level or the budget."""
+        if self.fidelity != 'auto':
+            return self.fidelity, f'fidelity fixed to {self.fidelity}'
+        if self.max_position_error <= 0.0 or self.max_angle_error_deg <= 0.0:
+            return 'full', 'no error budget'
+        if self.validation is None:
+            return 'full', 'no validation data for these parameters'
+        budget = (self.max_position_error, self.max_angle_error_deg)
+        for level in LEVEL_COST_ORDER:
+            if level == 'linear' and not self.tangent.ready:
+                continue
+            if self.validation.admissible(level, wrench, *budget, origin=self.tangent.origin):
+                return level, 'the cheapest level whose validated error meets the budget'
+        if box_scale(wrench) > 1.0:
+            return 'full', 'wrench outside the validated range'
+        return 'full', 'no reduced level meets the budget here'
+
+    # solving --------------------------------------------------------------------------------
+    def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
+              warm_start: bool = True, compliance: bool = False,
+              **compliance_options: float) -> SolveResult:
+        """
+        Solve for an end-disk wrench (N, N m, in {pe} at the end-disk centre).
+
+        ``compliance``: 'full' gives the implicit compliance, 'linear' the cached
+        solution's, 'cc' and 'rod' central differences of their own solves.
+        """
+        wrench = check_wrench(force, moment)
+        if not warm_start:
+            self.reset()
+        level, reason = self.choose(wrench)
+        if level == 'linear' and not self.tangent.ready:
+            result = self.cache_full_solution(wrench, compliance, **compliance_options)
+            result.message += '; linear level: no cached solution yet, solved in full'
+        elif level == 'full':
+            result = self._solve_full(wrench, compliance, compliance_options)
+        elif level == 'linear':
+            result = self._solve_linear(wrench, compliance, compliance_options)
+        else:
+            result = self._solve_reduced(level, wrench, compliance, compliance_options)
+        result.message += f' [{result.fidelity}: {reason}]'
+        self._last_wrench = wrench
+        return result
+
+    def cache_full_solution(self, wrench: np.ndarray, compliance: bool = False,
+                            **compliance_options: float) -> SolveResult:
+        """Solve the full model at ``wrench`` and expand the linear level about it."""
+        started = time.perf_counter()
+        result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
+                                 **compliance_options)
+        if result.converged:
+            self.tangent.build(result.unknowns / self.full.problem.x_scale, wrench)
+        result.solve_time_s = time.perf_counter() - started
+        return result
+
+    def _solve_full(self, wrench: np.ndarray, compliance: bool,
+                    compliance_options: dict) -> SolveResult:
+        """Full model; in 'auto' it refreshes the tangent when the wrench moves slowly."""
+        if not self._tangent_worth_building(wrench):
+            result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
+                                     **compliance_options)
+            self._full_time_s += FULL_TIME_WEIGHT * (result.solve_time_s - self._full_time_s)
+            return result
+        result = self.cache_full_solution(wrench, compliance, **compliance_options)
+        self._build_time_s = self.tangent.build_time_s
+        return result
+
+    def _tangent_worth_building(self, wrench: np.ndarray) -> bool:
+        """
+        In 'auto': whether to expand about the coming full solution.
+
+        Only when the budget admits 'linear' in some offset box, the wrench lies in the
+        validated range, and the expected reuse pays for the expansion: the box's reach
+        divided by the last wrench step (the solves it may serve) times the cost of a full
+        solve exceeds the cost of an expansion (both measured as the solver runs).
+        """
+        if self.fidelity != 'auto' or self.validation is None or self._last_wrench is None:
+            return False
+        bound = self.validation.levels.get('linear')
+        if bound is None or box_scale(wrench) > 1.0:
+            return False
+        reach = bound.largest_scale(self.max_position_error, self.max_angle_error_deg)
+        step = box_scale(wrench - self._last_wrench)
+        if reach <= 0.0 or step > reach:
+            return False
+        expected_reuse = reach / max(step, 1e-12)
+        return expected_reuse * self._full_time_s > self._build_time_s
+
+    def _solve_linear(self, wrench: np.ndarray, compliance: bool,
+                      compliance_options: dict) -> SolveResult:
+        started = time.perf_counter()
+        unknowns, points, frames = self.tangent.predict(wrench)
+        elapsed = time.perf_counter() - started
+        offset = np.abs(wrench - self.tangent.origin).max()
+        # the level solves no equations: its residual is zero by construction
+        result = _result(True, f'first-order expansion about the full solution at '
+                         f'{np.round(self.tangent.origin, 6).tolist()} (largest offset '
+                         f'{offset:.3g})', 0, np.zeros(1), dict.fromkeys(RESIDUAL_KINDS, 0.0),
+                         wrench, frames, points, elapsed, unknowns, 'linear')
+        if compliance:
+            result.compliance = self.tangent.compliance(**compliance_options)
+        return result
+
+    def _solve_reduced(self, level: str, wrench: np.ndarray, compliance: bool,
+                       compliance_options: dict) -> SolveResult:
+        model = self.reduced[level]
+        started = time.perf_counter()
+        start = self._previous[level]
+        if start is not None and box_scale(wrench - start[1]) > box_scale(wrench):
+            start = None  # the unloaded state is nearer than the last solution
+        outcome = model.solve(wrench, start, started + self.time_limit_s)
+        if not outcome.converged and start is not None:
+            # the warm start may sit too far away: restart from the unloaded state
+            restart = model.solve(wrench, None, started + self.time_limit_s)
+            restart.iterations += outcome.iterations
+            if restart.converged:
+                outcome = restart
+        elapsed = time.perf_counter() - started
+        if outcome.converged:
+            self._previous[level] = (outcome.x, wrench)
+        result = _result(outcome.converged, outcome.message, outcome.iterations, outcome.rs,
+                         model.residual_by_kind(outcome.rs), wrench,
+                         model.frames(outcome.x, wrench), model.points(outcome.x, wrench),
+                         elapsed, outcome.x * model.unknown_scale, level)
+        if compliance and outcome.converged:
+            try:
+                result.compliance = _reduced_compliance(model, outcome.x, wrench,
+                                                        self.params.stack_height,
+                                                        compliance_options)
+            except ArithmeticError as error:
+                result.message += f'; no compliance: {error}'
+            self._previous[level] = (outcome.x, wrench)  # the differences moved the model
+        return result
+
+
+def _result(converged: bool, message: str, iterations: int, rs: np.ndarray,
+            residual_by_type: dict, wrench: np.ndarray, frames: np.ndarray,
+            points: np.ndarray, elapsed: float, unknowns: np.ndarray,
+            fidelity: str) -> SolveResult:
+    return SolveResult(
+        converged=converged, message=message, iterations=iterations,
+        residual_norm=float(np.sqrt(rs @ rs)), residual_by_type=residual_by_type,
+        force=wrench[:3].copy(), moment=wrench[3:].copy(),
+        frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
+        backbones=points, solve_time_s=elapsed, method='fast', unknowns=unknowns,
+        fidelity=fidelity)
+
+
+def _reduced_compliance(model: ReducedModel, x: np.ndarray, wrench: np.ndarray,
+                        characteristic_length: float,
+                        options: dict) -> ComplianceAnalysis:
+    """Compliance of a reduced level by central differences of its own solves."""
+    started = time.perf_counter()
+    matrix = np.empty((6, 6))
+    deadline = started + 10.0
+    for column in range(6):
+        offset = np.zeros(6)
+        offset[column] = COMPLIANCE_STEPS[column // 3]
+        ends = []
+        for sign in (1.0, -1.0):
+            outcome = model.solve(wrench + sign * offset, (x, wrench), deadline)
+            if not outcome.converged:
+                raise ArithmeticError(f'{model.name} compliance solve failed: {outcome.message}')
+            ends.append(model.frames(outcome.x, wrench + sign * offset)[3])
+        matrix[:, column] = frame_twist(ends[1], ends[0]) / (2.0 * offset[column])
+    return analyse(matrix, characteristic_length, method=f'{model.name} finite differences',
+                   time_s=time.perf_counter() - started, **options)

@@ -1,0 +1,285 @@
+"""
+Errors of the fidelity levels against a reference, and the validated ranges they hold on.
+
+The **reference** is the full model at REFERENCE_STEPS RK4 steps per disk interval and a
+1e-12 nondimensional residual (its own discretization error is below 1e-10 m).
+
+**Errors** of a result: the end-disk position error |p - p_ref| (m) and the angle error, the
+largest of the PJ and DJ bending-angle errors and the end-disk orientation error (the
+rotation angle of R_ref^T R).
+
+**Validated range** of a reduced level: nested wrench boxes |f_i| <= s F_i, |m_i| <= s M_i
+(half-widths F, M = BOX_FORCE_N, BOX_MOMENT_NM; scales s in SCALES). For each box, the largest
+errors over fixed samples inside it (the 12 axis extremes, the 64 corners and Halton points)
+are stored. A wrench belongs to the smallest box that holds it; outside the largest it is
+unvalidated. For 'linear' the boxes are offsets w - w0 from the cached wrench w0
+(LINEAR_SCALES, same half-widths), sampled around cached solutions spread over the largest
+box. ``validate`` computes all of it (about a minute); ``bench/speed_vs_error.py``
+(``make bench``) stores the result in config/fidelity_validation.yaml, which the
+FidelitySolver reads. The data hold only for the model parameters they were computed with
+(stored beside them); with other parameters no reduced level is validated.
+"""
+
+from dataclasses import dataclass
+import math
+from pathlib import Path
+from typing import Dict, Iterable, List, Optional, Tuple, Union
+
+import numpy as np
+from scipy.stats import qmc
+import yaml
+
+from .. import geometry
+from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
+from ..result import SolveResult
+from ..solver import TranslatorSolver
+
+#: RK4 steps per disk interval and tolerance of the reference solution.
+REFERENCE_STEPS = 32
+REFERENCE_TOLERANCE = 1e-12
+
+#: Half-widths of the largest validated wrench box.
+BOX_FORCE_N = (20.0, 20.0, 20.0)
+BOX_MOMENT_NM = (0.5, 0.5, 0.5)
+
+#: Nested boxes (fractions of the largest) with an error bound each.
+SCALES = (0.125, 0.25, 0.5, 1.0)
+
+#: Offset boxes around a cached solution for the 'linear' level.
+LINEAR_SCALES = (1.0 / 256.0, 1.0 / 128.0, 1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0)
+
+#: Interior (Halton) samples per box, cached solutions and offsets per offset box of 'linear'.
+INTERIOR_SAMPLES = 24
+LINEAR_BASES = 8
+LINEAR_OFFSETS = 16
+
+#: Where the shipped validation data live (beside config/translator.yaml).
+DEFAULT_VALIDATION_PATH = DEFAULT_PARAMS_PATH.parent / 'fidelity_validation.yaml'
+
+#: The model parameters the data depend on (the full model's discretization does not count).
+_KEYED_PARAMS = ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
+                 'youngs_modulus', 'poisson_ratio', 'spacers_per_joint')
+
+
+def reference_solver(params: TranslatorParams) -> TranslatorSolver:
+    """Return the full model at the reference discretization and tolerance."""
+    return TranslatorSolver(params.with_changes(steps_per_segment=REFERENCE_STEPS),
+                            tolerance=REFERENCE_TOLERANCE, time_limit_s=60.0)
+
+
+def pose_errors(result: SolveResult, reference: SolveResult) -> Tuple[float, float]:
+    """Return (end-disk position error in m, angle error in rad) of ``result``."""
+    position = float(np.linalg.norm(result.end_disk_position - reference.end_disk_position))
+    orientation = geometry.rotation_angle(
+        geometry.relative_rotation(reference.frames['de'], result.frames['de']))
+    angle = max(abs(result.pj_bending[0] - reference.pj_bending[0]),
+                abs(result.dj_bending[0] - reference.dj_bending[0]), orientation)
+    return position, angle
+
+
+def box_half_widths() -> np.ndarray:
+    """Half-widths (6,) of the largest validated box, [force N; moment N m]."""
+    return np.array(BOX_FORCE_N + BOX_MOMENT_NM)
+
+
+def box_scale(wrench: np.ndarray) -> float:
+    """Smallest s with the wrench inside the box of scale s."""
+    return float(np.max(np.abs(wrench) / box_half_widths()))
+
+
+def box_samples(scale: float, seed: int) -> np.ndarray:
+    """
+    Wrenches (n, 6) inside the box of ``scale``: axis extremes, corners, Halton points.
+
+    The corners come in Gray-code order (neighbours differ in one component) so that a
+    warm-started reference walks short steps.
+    """
+    half = scale * box_half_widths()
+    axes = [sign * half[i] * np.eye(6)[i] for i in range(6) for sign in (1.0, -1.0)]
+    corners = []
+    for index in range(64):
+        gray = index ^ (index >> 1)
+        signs = np.array([1.0 if gray >> bit & 1 else -1.0 for bit in range(6)])
+        corners.append(signs * half)
+    interior = (2.0 * qmc.Halton(d=6, seed=seed).random(INTERIOR_SAMPLES) - 1.0) * half
+    return np.vstack([axes, corners, interior])
+
+
+def offset_samples(scale: float, rng: np.random.Generator) -> np.ndarray:
+    """Offsets (LINEAR_OFFSETS, 6) on the surface of the offset box of ``scale``."""
+    half = scale * box_half_widths()
+    samples = rng.uniform(-1.0, 1.0, (LINEAR_OFFSETS, 6))
+    # push one component of each sample to the face so that every sample is on the surface
+    faces = rng.integers(0, 6, LINEAR_OFFSETS)
+    samples[np.arange(LINEAR_OFFSETS), faces] = np.sign(
+        samples[np.arange(LINEAR_OFFSETS), faces])
+    return samples * half
+
+
+@dataclass(frozen=True)
+class LevelBound:
+    """Largest measured errors of one level in each of its nested boxes."""
+
+    scales: Tuple[float, ...]
+    max_position_error_m: Tuple[float, ...]
+    max_angle_error_deg: Tuple[float, ...]
+    samples: Tuple[int, ...]
+
+    def within(self, scale: float, max_position_error: float,
+               max_angle_error_deg: float) -> bool:
+        """Whether the box holding ``scale`` has its errors inside the budget."""
+        for index, bound in enumerate(self.scales):
+            if scale <= bound * (1.0 + 1e-12):
+                return (self.max_position_error_m[index] <= max_position_error
+                        and self.max_angle_error_deg[index] <= max_angle_error_deg)
+        return False
+
+    def largest_scale(self, max_position_error: float, max_angle_error_deg: float) -> float:
+        """Largest box scale whose errors stay inside the budget (0 if none)."""
+        admissible = [bound for index, bound in enumerate(self.scales)
+                      if self.max_position_error_m[index] <= max_position_error
+                      and self.max_angle_error_deg[index] <= max_angle_error_deg]
+        # the boxes are nested, so a larger admissible box implies the smaller ones
+        return max(admissible, default=0.0)
+
+    def to_dict(self) -> dict:
+        """Plain dict for YAML."""
+        return {'scales': [float(v) for v in self.scales],
+                'max_position_error_m': [float(v) for v in self.max_position_error_m],
+                'max_angle_error_deg': [float(v) for v in self.max_angle_error_deg],
+                'samples': [int(v) for v in self.samples]}
+
+    @classmethod
+    def from_dict(cls, values: dict) -> 'LevelBound':
+        """Inverse of ``to_dict``."""
+        return cls(tuple(float(v) for v in values['scales']),
+                   tuple(float(v) for v in values['max_position_error_m']),
+                   tuple(float(v) for v in values['max_angle_error_deg']),
+                   tuple(int(v) for v in values['samples']))
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Validated ranges and measured errors of the reduced levels for one parameter set."""
+
+    params: Dict[str, float]
+    rod_steps: int
+    box: Tuple[float, ...]
+    levels: Dict[str, LevelBound]
+
+    def matches(self, params: TranslatorParams, rod_steps: int) -> bool:
+        """Whether these data were computed for ``params`` and the 'rod' discretization."""
+        values = params.to_dict()
+        return (rod_steps == self.rod_steps
+                and all(values[key] == self.params.get(key) for key in _KEYED_PARAMS)
+                and np.array_equal(np.array(self.box), box_half_widths()))
+
+    def admissible(self, level: str, wrench: np.ndarray, max_position_error: float,
+                   max_angle_error_deg: float, origin: Optional[np.ndarray] = None) -> bool:
+        """
+        Whether ``level`` meets the budget at ``wrench``.
+
+        For 'linear' ``origin`` is the cached wrench: it must lie in the largest box and the
+        offset in an offset box whose errors are inside the budget.
+        """
+        bound = self.levels.get(level)
+        if bound is None:
+            return False
+        if level == 'linear':
+            if origin is None or box_scale(origin) > 1.0:
+                return False
+            return bound.within(box_scale(wrench - origin), max_position_error,
+                                max_angle_error_deg)
+        return bound.within(box_scale(wrench), max_position_error, max_angle_error_deg)
+
+    def save(self, path: Union[str, Path], header: str = '') -> None:
+        """Write the data as YAML, with ``header`` as leading comment lines."""
+        document = {'params': {key: self.params[key] for key in _KEYED_PARAMS},
+                    'rod_steps': self.rod_steps,
+                    'reference': {'steps_per_segment': REFERENCE_STEPS,
+                                  'tolerance': REFERENCE_TOLERANCE},
+                    'box_half_widths': {'force_n': [float(v) for v in self.box[:3]],
+                                        'moment_nm': [float(v) for v in self.box[3:]]},
+                    'levels': {name: bound.to_dict() for name, bound in self.levels.items()}}
+        comments = ''.join(f'# {line}\n' for line in header.splitlines())
+        Path(path).write_text(comments + yaml.safe_dump(document, sort_keys=False))
+
+    @classmethod
+    def load(cls, path: Union[str, Path] = DEFAULT_VALIDATION_PATH) -> Optional['Validation']:
+        """Read data written by ``save``; None if the file does not exist."""
+        path = Path(path)
+        if not path.is_file():
+            return None
+        document = yaml.safe_load(path.read_text())
+        box = document['box_half_widths']
+        return cls(dict(document['params']), int(document['rod_steps']),
+                   tuple(float(v) for v in box['force_n'] + box['moment_nm']),
+                   {name: LevelBound.from_dict(values)
+                    for name, values in document['levels'].items()})
+
+
+def _bound(scales: Iterable[float], errors: Dict[float, List[Tuple[float, float]]]) -> LevelBound:
+    """Largest errors per nested box: every sample of a box counts for the larger ones."""
+    scales = tuple(scales)
+    positions, angles, counts = [], [], []
+    for index, scale in enumerate(scales):
+        pooled = [pair for inner in scales[:index + 1] for pair in errors[inner]]
+        positions.append(max(pair[0] for pair in pooled))
+        angles.append(math.degrees(max(pair[1] for pair in pooled)))
+        counts.append(len(pooled))
+    return LevelBound(scales, tuple(positions), tuple(angles), tuple(counts))
+
+
+def validate(params: TranslatorParams, rod_steps: int, seed: int = 6) -> Validation:
+    """
+    Measure the reduced levels against the reference over the validated boxes.
+
+    Every reference solve is warm-started from the previous sample. The levels are run
+    through FidelitySolver with the level fixed (cold for 'cc' and 'rod', so that the
+    errors do not depend on the order of the samples).
+    """
+    from .solver import FidelitySolver  # the solver module imports this one
+
+    reference = reference_solver(params)
+    levels = {name: FidelitySolver(params, fidelity=name, rod_steps=rod_steps)
+              for name in ('cc', 'rod', 'linear')}
+    errors = {name: {scale: [] for scale in SCALES} for name in ('cc', 'rod')}
+    for scale in SCALES:
+        for wrench in box_samples(scale, seed):
+            expected = _reference(reference, wrench)
+            for name in ('cc', 'rod'):
+                levels[name].reset()
+                errors[name][scale].append(_errors(levels[name], wrench, expected))
+    rng = np.random.default_rng(seed)
+    linear = {scale: [] for scale in LINEAR_SCALES}
+    bases = np.vstack([np.zeros(6), (2.0 * qmc.Halton(d=6, seed=seed + 1).random(
+        LINEAR_BASES - 1) - 1.0) * box_half_widths()])
+    solver = levels['linear']
+    for base in bases:
+        solver.cache_full_solution(base)
+        for scale in LINEAR_SCALES:
+            for offset in offset_samples(scale, rng):
+                expected = _reference(reference, base + offset)
+                linear[scale].append(_errors(solver, base + offset, expected))
+    bounds = {name: _bound(SCALES, errors[name]) for name in ('cc', 'rod')}
+    bounds['linear'] = _bound(LINEAR_SCALES, linear)
+    return Validation({key: params.to_dict()[key] for key in _KEYED_PARAMS}, rod_steps,
+                      tuple(box_half_widths()), bounds)
+
+
+def _reference(reference: TranslatorSolver, wrench: np.ndarray) -> SolveResult:
+    result = reference.solve(wrench[:3], wrench[3:])
+    if not result.converged:
+        reference.reset()
+        result = reference.solve(wrench[:3], wrench[3:])
+    if not result.converged:
+        raise ArithmeticError(f'reference solve failed at {wrench.tolist()}: {result.message}')
+    return result
+
+
+def _errors(solver, wrench: np.ndarray, expected: SolveResult) -> Tuple[float, float]:
+    result = solver.solve(wrench[:3], wrench[3:])
+    if not result.converged:
+        raise ArithmeticError(f'{result.fidelity} solve failed at {wrench.tolist()}: '
+                              f'{result.message}')
+    return pose_errors(result, expected)
