@@ -6,7 +6,7 @@ VENV   := .venv
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 
-.PHONY: setup test demo clean bags hard-cases
+.PHONY: setup test demo clean bags hard-cases bench
 
 setup: $(STAMP)
 
@@ -29,6 +29,11 @@ test: setup
 # The whole hard-case suite (about a minute): bench/results/hard_cases.md and the README table.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
+
+# Speed against error of every fidelity level, the paper baseline and the node's rate (about
+# 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml.
+bench: setup
+	$(VPY) -m bench.speed_vs_error
 
 # Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup
