@@ -2,7 +2,9 @@
 Command line: argument parsing and printing only; the physics lives in the solver.
 
     python -m cdr_translator solve --force FX FY FZ [--moment MX MY MZ] [--compliance]
-                                   [--verify] [--params FILE] [--json]
+                                   [--verify] [--fidelity full|rod|cc|auto
+                                   [--max-position-error M] [--max-angle-error DEG]]
+                                   [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
     python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
 
@@ -18,6 +20,7 @@ from typing import List, Optional
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .delta import DeltaResult, DeltaRobot
 from .delta_params import DeltaParams
+from .fidelity import FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
@@ -55,6 +58,14 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument('--mobility-ratio', type=float, default=MOBILITY_RATIO,
                        help='an eigen-twist at least this fraction of the most compliant one '
                             'is a primary mobility (default: %(default)s)')
+    solve.add_argument('--fidelity', choices=('full', 'rod', 'cc', 'auto'), default='full',
+                       help='model level (README "Speed against error"); auto: the cheapest '
+                            'level within --max-position-error and --max-angle-error')
+    solve.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
+                       help='error budget of --fidelity auto: end-disk position, m')
+    solve.add_argument('--max-angle-error', type=float, default=0.0, metavar='DEG',
+                       help='error budget of --fidelity auto: bending angles and end-disk '
+                            'orientation, deg')
     solve.add_argument('--json', action='store_true', help='print one JSON object')
     paper = commands.add_parser('paper', help="solve the paper's Table II cases and compare")
     delta = commands.add_parser('delta', help='Continuum Delta Robot forward statics: platform '
@@ -95,6 +106,7 @@ def _table(result: SolveResult) -> str:
         ('max arc deviation PJ / DJ', f"{data['max_arc_deviation_mm']['pj']:.4f} mm / "
                                       f"{data['max_arc_deviation_mm']['dj']:.4f} mm"),
         ('solve time', f"{1e3 * data['solve_time_s']:.2f} ms"),
+        ('fidelity', data['fidelity']),
     ]
     analysis = result.compliance
     if analysis is not None:
@@ -191,12 +203,21 @@ def main(argv: Optional[List[str]] = None) -> int:
                                  args.payload_offset)
             table = _delta_table
         else:
-            solver = TranslatorSolver(params, method=args.method,
-                                      max_iterations=args.max_iterations,
-                                      time_limit_s=args.time_limit)
-            result = solver.solve(args.force, args.moment, compliance=args.compliance,
-                                  verify=args.verify, sparsity_threshold=args.sparsity_threshold,
-                                  mobility_ratio=args.mobility_ratio)
+            options = {'compliance': args.compliance,
+                       'sparsity_threshold': args.sparsity_threshold,
+                       'mobility_ratio': args.mobility_ratio}
+            if args.fidelity == 'full':
+                solver = TranslatorSolver(params, method=args.method,
+                                          max_iterations=args.max_iterations,
+                                          time_limit_s=args.time_limit)
+                options['verify'] = args.verify
+            elif args.method != 'fast' or args.verify or args.max_iterations is not None:
+                raise ValueError('--method, --verify and --max-iterations apply to '
+                                 '--fidelity full only')
+            else:
+                solver = FidelitySolver(params, args.fidelity, args.max_position_error,
+                                        args.max_angle_error, time_limit_s=args.time_limit)
+            result = solver.solve(args.force, args.moment, **options)
             table = _table
     except (ParameterError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
