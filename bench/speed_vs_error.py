@@ -226,7 +226,7 @@ def compliance_costs(params: TranslatorParams, sequence: np.ndarray) -> dict:
             'linear_tangent_build_median_s': statistics.median(builds)}
 
 
-def node_rate(seconds: float = 3.0, rate_hz: float = 2000.0) -> dict:
+def node_rate(seconds: float = 3.0, rate_hz: float = 1000.0) -> dict:
     """translator_node's sustained answers per second under a wrench burst over DDS."""
     try:
         from bench.node_latency import measure
@@ -358,7 +358,8 @@ def markdown(report: dict, table_rows: List[Row]) -> str:
         lines.append(f"| translator_node sustained rate | not measured: {node['error']} |")
     else:
         lines.append(f"| translator_node sustained rate ({node['offered_hz']:.0f} Hz offered "
-                     f"for {node['seconds']:g} s over DDS, no MCAP log, latest wins) | "
+                     f"for {node['seconds']:g} s over DDS by a client sharing the 2 cores, no "
+                     'MCAP log, latest wins) | '
                      f"{node['answers_per_s']:.0f} answers/s ({node['received']} received, "
                      f"median latency {node['latency_p50_ms']:.1f} ms) |")
     lines += ['', '## Targets', '', '| target | measured |', '|---|---|']

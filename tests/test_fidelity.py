@@ -1,8 +1,10 @@
 """Fidelity levels (cdr_translator.fidelity): physics of the reduced models and the budget."""
 
+import json
 import math
 
 from cdr_translator import TranslatorSolver
+from cdr_translator.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, main
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver, Validation
 from cdr_translator.fidelity import validation
 import numpy as np
@@ -277,6 +279,18 @@ def test_bad_options_are_value_errors(params, options, message):
         FidelitySolver(params, **options)
 
 
+def test_drop_in_for_translator_solver(params):
+    """The attributes edges use (params, time_limit_s, reset, solve) behave the same."""
+    solver = FidelitySolver(params, fidelity='full')
+    solver.time_limit_s = 0.0
+    assert solver.full.time_limit_s == 0.0
+    result = solver.solve([12.0, 0.0, 0.0])
+    assert not result.converged and 'time limit' in result.message
+    solver.time_limit_s = 10.0
+    solver.reset()
+    assert solver.solve([12.0, 0.0, 0.0]).converged and solver.params == params
+
+
 def test_non_finite_wrench_is_rejected(params):
     """NaN/Inf wrench: ValueError, as with the full solver."""
     with pytest.raises(ValueError, match='force x'):
@@ -295,3 +309,17 @@ def test_params_file_budget(tmp_path, params):
     fixed = FidelitySolver.from_params_file(path, fidelity='full', max_position_error=0.0,
                                             max_angle_error_deg=0.0)
     assert fixed.solve([1.0, 0.0, 0.0]).fidelity == 'full'
+
+
+def test_cli_fidelity(capsys):
+    """The CLI's --fidelity picks the level; the JSON says which; misuse exits with 2."""
+    assert main(['solve', '--force', '12', '0', '0', '--fidelity', 'cc', '--json']) \
+        == EXIT_CONVERGED
+    data = json.loads(capsys.readouterr().out)
+    assert data['fidelity'] == 'cc' and data['converged']
+    assert main(['solve', '--force', '5', '0', '0', '--fidelity', 'auto',
+                 '--max-position-error', '1e-9', '--max-angle-error', '1e-6']) == EXIT_CONVERGED
+    assert 'fidelity' in capsys.readouterr().out
+    assert main(['solve', '--force', '5', '0', '0', '--fidelity', 'rod', '--verify']) \
+        == EXIT_BAD_INPUT
+    assert '--fidelity full only' in capsys.readouterr().err

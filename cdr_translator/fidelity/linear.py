@@ -45,10 +45,15 @@ class TangentModel:
 
     @_one_blas_thread  # 90x90 factorizations: more BLAS threads only spin on a busy machine
     def build(self, xs0: np.ndarray, wrench0: np.ndarray) -> None:
-        """Cache the converged nondimensional unknowns ``xs0`` under ``wrench0``."""
+        """
+        Cache the converged nondimensional unknowns ``xs0`` under ``wrench0``.
+
+        ArithmeticError (from the compliance) if the equilibrium is nearly singular; the
+        previous cache is then kept.
+        """
         started = time.perf_counter()
         problem = self.problem
-        compliance, lu = implicit_compliance(problem, xs0, wrench0)
+        compliance, lu, _ = implicit_compliance(problem, xs0, wrench0)
         dxdw = -lu_solve(lu, problem.wrench_sensitivity, check_finite=False)
         points, frames = problem.shape(xs0, wrench0)
         twists = np.zeros((4, 6, 6))  # d(twist of each frame)/dw; {pe} is fixed

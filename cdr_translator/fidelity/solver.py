@@ -81,7 +81,6 @@ class FidelitySolver:
         self.fidelity = fidelity
         self.max_position_error = float(max_position_error)
         self.max_angle_error_deg = float(max_angle_error_deg)
-        self.time_limit_s = time_limit_s
         self.rod_steps = rod_steps
         self.reduced = {'cc': ReducedModel.constant_curvature(self.params),
                         'rod': ReducedModel.equivalent_rod(self.params, rod_steps)}
@@ -96,6 +95,15 @@ class FidelitySolver:
         # running costs of a full solve and of a tangent expansion (guesses until measured)
         self._full_time_s = 1e-3
         self._build_time_s = 3e-3
+
+    @property
+    def time_limit_s(self) -> float:
+        """Cap of one solve (s), any level; settable, like TranslatorSolver's."""
+        return self.full.time_limit_s
+
+    @time_limit_s.setter
+    def time_limit_s(self, value: float) -> None:
+        self.full.time_limit_s = value
 
     @classmethod
     def from_params_file(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH,
@@ -173,7 +181,11 @@ class FidelitySolver:
         result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
                                  **compliance_options)
         if result.converged:
-            self.tangent.build(result.unknowns / self.full.problem.x_scale, wrench)
+            try:
+                self.tangent.build(result.unknowns / self.full.problem.x_scale, wrench)
+            except ArithmeticError as error:
+                self.tangent.clear()
+                result.message += f'; no linear expansion here: {error}'
         result.solve_time_s = time.perf_counter() - started
         return result
 
