@@ -38,6 +38,12 @@ LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
 #: Weight of the newest full solve in the running mean of its cost.
 FULL_TIME_WEIGHT = 0.2
 
+#: An expansion about a full solution must promise this many times its own cost in savings.
+EXPANSION_MARGIN = 2.0
+
+#: ... and at least this many solves inside its offset box at the current pace.
+MIN_EXPANSION_REUSE = 12.0
+
 #: Wrench steps of the finite-difference compliance of a reduced level (N, N m).
 COMPLIANCE_STEPS = (1e-3, 1e-4)
 
@@ -92,6 +98,7 @@ class FidelitySolver:
         self.validation: Optional[Validation] = validation
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench: Optional[np.ndarray] = None
+        self._last_level: Optional[str] = None
         # running costs of a full solve and of a tangent expansion (guesses until measured)
         self._full_time_s = 1e-3
         self._build_time_s = 3e-3
@@ -127,6 +134,7 @@ class FidelitySolver:
         self.tangent.clear()
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench = None
+        self._last_level = None
 
     # level choice -----------------------------------------------------------------------------
     def choose(self, wrench: np.ndarray) -> Tuple[str, str]:
@@ -172,6 +180,7 @@ class FidelitySolver:
             result = self._solve_reduced(level, wrench, compliance, compliance_options)
         result.message += f' [{result.fidelity}: {reason}]'
         self._last_wrench = wrench
+        self._last_level = result.fidelity
         return result
 
     def cache_full_solution(self, wrench: np.ndarray, compliance: bool = False,
@@ -195,7 +204,9 @@ class FidelitySolver:
         if not self._tangent_worth_building(wrench):
             result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
                                      **compliance_options)
-            self._full_time_s += FULL_TIME_WEIGHT * (result.solve_time_s - self._full_time_s)
+            if self._last_level == 'full':
+                self._full_time_s += FULL_TIME_WEIGHT * (result.solve_time_s
+                                                         - self._full_time_s)
             return result
         result = self.cache_full_solution(wrench, compliance, **compliance_options)
         self._build_time_s = self.tangent.build_time_s
@@ -208,7 +219,10 @@ class FidelitySolver:
         Only when the budget admits 'linear' in some offset box, the wrench lies in the
         validated range, and the expected reuse pays for the expansion: the box's reach
         divided by the last wrench step (the solves it may serve) times the cost of a full
-        solve exceeds the cost of an expansion (both measured as the solver runs).
+        solve exceeds EXPANSION_MARGIN times the cost of an expansion (both measured as the
+        solver runs; a full solve's cost only from solves that followed a full one, i.e.
+        truly warm: the one after a run of linear solves starts further away, which is also
+        why an expansion must promise at least MIN_EXPANSION_REUSE solves).
         """
         if self.fidelity != 'auto' or self.validation is None or self._last_wrench is None:
             return False
@@ -220,7 +234,8 @@ class FidelitySolver:
         if reach <= 0.0 or step > reach:
             return False
         expected_reuse = reach / max(step, 1e-12)
-        return expected_reuse * self._full_time_s > self._build_time_s
+        return (expected_reuse >= MIN_EXPANSION_REUSE
+                and expected_reuse * self._full_time_s > EXPANSION_MARGIN * self._build_time_s)
 
     def _solve_linear(self, wrench: np.ndarray, compliance: bool,
                       compliance_options: dict) -> SolveResult:
