@@ -75,6 +75,7 @@ class Row:
     make: Callable[[], object]
     sequence_setup: Optional[Callable[[object, np.ndarray], None]] = None
     spacers: int = 1  # the structure whose reference the errors are measured against
+    label: str = ''  # short name on the plot
     static: Dict[str, dict] = field(default_factory=dict)
     sequence: dict = field(default_factory=dict)
 
@@ -85,28 +86,33 @@ def rows(params: TranslatorParams) -> List[Row]:
     for steps in (2, 4, 8, 16):
         result.append(Row('full', f'{steps} steps' + (' (default)' if steps == 8 else ''), '90',
                           lambda s=steps: FidelitySolver(
-                              params.with_changes(steps_per_segment=s), fidelity='full')))
+                              params.with_changes(steps_per_segment=s), fidelity='full'),
+                          label=f'full {steps}'))
     result.append(Row('full', "8 steps, tolerance 1e-6 (about the paper's)", '90',
-                      lambda: FidelitySolver(params, fidelity='full', tolerance=1e-6)))
+                      lambda: FidelitySolver(params, fidelity='full', tolerance=1e-6),
+                      label='full 8, tol 1e-6'))
     for spacers in (2, 3):
         result.append(Row('full', f'{spacers} spacer disks per joint, 8 steps (longer joints: '
                           'errors against its own reference)', str(30 + 20 * (2 * spacers + 1)),
                           lambda n=spacers: FidelitySolver(
                               params.with_changes(spacers_per_joint=n), fidelity='full'),
-                          spacers=spacers))
+                          spacers=spacers, label=f'full S={spacers}'))
     for steps in (1, 2, 4):
         result.append(Row('rod', f'{steps} steps per interval' + (
             ' (default)' if steps == ROD_STEPS else ''), '7',
-            lambda s=steps: FidelitySolver(params, fidelity='rod', rod_steps=s)))
+            lambda s=steps: FidelitySolver(params, fidelity='rod', rod_steps=s),
+            label=f'rod {steps}'))
     result.append(Row('cc', 'one arc per joint', '8',
-                      lambda: FidelitySolver(params, fidelity='cc')))
+                      lambda: FidelitySolver(params, fidelity='cc'), label='cc'))
     result.append(Row('linear', "about the unloaded state / the sequence's first sample",
                       '0', _linear_solver(params),
-                      lambda solver, first: solver.cache_full_solution(first)))
+                      lambda solver, first: solver.cache_full_solution(first),
+                      label='linear'))
     for position, angle in BUDGETS:
         result.append(Row('auto', f'budget {1e3 * position:g} mm, {angle:g} deg', '-',
                           lambda p=position, a=angle: FidelitySolver(
-                              params, max_position_error=p, max_angle_error_deg=a)))
+                              params, max_position_error=p, max_angle_error_deg=a),
+                          label=f'auto {1e3 * position:g} mm'))
     return result
 
 
@@ -400,9 +406,12 @@ def plot(report: dict, table_rows: List[Row], path: Path) -> None:
             axis.scatter(1e3 * static_time, max(static_error, floor), color=colour, marker='o')
             axis.scatter(1e3 * row.sequence['median_time_s'], max(sequence_error, floor),
                          facecolors='none', edgecolors=colour, marker='s')
-            axis.annotate(f'{row.level} {row.setting.split(" (")[0][:22]}',
-                          (1e3 * row.sequence['median_time_s'], max(sequence_error, floor)),
-                          fontsize=6, alpha=0.7, xytext=(3, 2), textcoords='offset points')
+            for time_s, error, style in ((static_time, static_error, 'normal'),
+                                         (row.sequence['median_time_s'], sequence_error,
+                                          'italic')):
+                axis.annotate(row.label, (1e3 * time_s, max(error, floor)), fontsize=6,
+                              style=style, alpha=0.8, xytext=(4, -2),
+                              textcoords='offset points')
         for name, value in report['paper_baseline'].items():
             error = value['position_m'] * 1e3 if key == 'position' else value['angle_deg']
             axis.scatter(1e3 * value['time_s'], max(error, floor), color='black', marker='*',
@@ -419,7 +428,7 @@ def plot(report: dict, table_rows: List[Row], path: Path) -> None:
     axes[0].scatter([], [], color='grey', marker='o', label='static scenes, cold')
     axes[0].scatter([], [], facecolors='none', edgecolors='grey', marker='s',
                     label='1000-sample sequence, warm')
-    axes[0].legend(fontsize=7, loc='lower left')
+    axes[0].legend(fontsize=7, loc='upper right')
     figure.suptitle('Translator: speed against error of every fidelity level '
                     f'(errors below {floor:g} drawn at {floor:g})')
     figure.tight_layout()
