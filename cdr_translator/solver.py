@@ -30,6 +30,9 @@ from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
 
+#: Largest nondimensional change of the unknowns a first continuation step may predict.
+PREDICTOR_REACH = 0.3
+
 #: Smallest fraction of the remaining wrench change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
 
@@ -208,7 +211,7 @@ class TranslatorSolver:
         xs, start = self._previous
         lu = self._lu
         sensitivity = self.problem.wrench_sensitivity
-        done, step, iterations = 0.0, 1.0, 0
+        done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
         current = start
         outcome = None
         grow = 2.0
@@ -237,6 +240,22 @@ class TranslatorSolver:
         self._lu = lu
         outcome.iterations = iterations
         return outcome
+
+    def _first_step(self, lu: Optional[tuple], change: np.ndarray) -> float:
+        """
+        Fraction of the wrench change to try first: whole if the linear prediction is small.
+
+        A first step whose predicted change of the unknowns exceeds PREDICTOR_REACH
+        (nondimensional) left the linear regime; trying it anyway cost a failed corrector
+        and a halving (cold 12 N: 30 ms with the whole step, 9 ms sized this way).
+        """
+        if lu is None:
+            return 1.0
+        predicted = np.abs(lu_solve(lu, self.problem.wrench_sensitivity @ change,
+                                    check_finite=False)).max()
+        if predicted <= PREDICTOR_REACH:
+            return 1.0
+        return max(PREDICTOR_REACH / predicted, MIN_CONTINUATION_STEP)
 
     def _stalled(self, xs: np.ndarray, failed: _Outcome, wrench: np.ndarray, done: float,
                  iterations: int, deadline: float) -> _Outcome:
