@@ -36,11 +36,12 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 
+from .fidelity import FidelitySolver
 from .node_io import fill_message, LatestMailbox, LogThread, OUTPUTS, type_name
 from .node_params import check_value, default_values, model_params, NodeSettings, SPECS
 from .params import DEFAULT_PARAMS_PATH, NODE_NAME, ParameterError
 from .result import SolveResult
-from .solver import check_wrench, TranslatorSolver
+from .solver import check_wrench
 
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
@@ -57,8 +58,10 @@ class TranslatorNode(Node):
         values = {name: self.declare_parameter(name, value, SPECS[name].descriptor(value)).value
                   for name, value in defaults.items()}
         self._settings = NodeSettings.from_values(values)
-        self.solver = TranslatorSolver(model_params(values),
-                                       time_limit_s=self._settings.solve_time_limit_s)
+        self.solver = FidelitySolver(model_params(values), fidelity=self._settings.fidelity,
+                                     max_position_error=self._settings.max_position_error,
+                                     max_angle_error_deg=self._settings.max_angle_error,
+                                     time_limit_s=self._settings.solve_time_limit_s)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
         self.received = self.rejected = self.solved = self.failed = 0

@@ -14,7 +14,8 @@ from typing import Any, Mapping, Optional, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-from .params import DEFAULT_PARAMS_PATH, NODE_ONLY_KEYS, ParameterError, read_params_file
+from .params import DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_ONLY_KEYS, ParameterError
+from .params import read_params_file
 from .params import TranslatorParams
 
 
@@ -83,8 +84,18 @@ _NODE = (
                   read_only=True, bounds=(0.01, 3600.0)),
 )
 
+_FIDELITY = (
+    ParameterSpec('fidelity', 'model level: full, rod, cc, linear, or auto (cheapest within '
+                  'max_position_error / max_angle_error)', read_only=True),
+    ParameterSpec('max_position_error', "m, end-disk position error budget of fidelity 'auto'",
+                  read_only=True, bounds=(0.0, 1.0)),
+    ParameterSpec('max_angle_error', "deg, bending-angle error budget of fidelity 'auto'",
+                  read_only=True, bounds=(0.0, 90.0)),
+)
+
 #: Every parameter translator_node declares, by name.
-SPECS: Mapping[str, ParameterSpec] = {spec.name: spec for spec in _MODEL + _NODE}
+SPECS: Mapping[str, ParameterSpec] = {spec.name: spec
+                                      for spec in _MODEL + _NODE + _FIDELITY}
 
 #: The model's keys (TranslatorParams fields), as opposed to the node-only ones.
 MODEL_KEYS = frozenset(spec.name for spec in _MODEL)
@@ -139,11 +150,14 @@ class NodeSettings:
     log_dir: str
     mcap_flush_messages: int
     mcap_flush_s: float
+    fidelity: str
+    max_position_error: float
+    max_angle_error: float
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> 'NodeSettings':
-        """Pick the node-only keys out of all parameter values."""
-        return cls(**{key: values[key] for key in NODE_ONLY_KEYS})
+        """Pick the node-only and fidelity keys out of all parameter values."""
+        return cls(**{key: values[key] for key in NODE_ONLY_KEYS | FIDELITY_KEYS})
 
 
 def model_params(values: Mapping[str, Any]) -> TranslatorParams:

@@ -269,7 +269,8 @@ def solve_diagnostic_values(result: SolveResult) -> dict:
               'residual_norm': float(result.residual_norm),
               'iterations': int(result.iterations),
               'solve_time_ms': 1e3 * float(result.solve_time_s),
-              'method': result.method}
+              'method': result.method,
+              'fidelity': getattr(result, 'fidelity', 'full')}
     compliance = getattr(result, 'compliance', None)
     if compliance is not None:
         values['stable'] = bool(compliance.stable)

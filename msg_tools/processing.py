@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from cdr_translator import SolveResult, TranslatorParams, TranslatorSolver
+from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.params import DEFAULT_PARAMS_PATH, read_params_file
 from cdr_translator.solver import check_wrench
 from msg_tools import messages
@@ -34,6 +35,9 @@ class InputSettings:
     max_force: float
     max_moment: float
     solve_time_limit_s: float
+    fidelity: str
+    max_position_error: float
+    max_angle_error: float
 
     @classmethod
     def from_params_file(cls, path: Union[str, Path, None] = None) -> 'InputSettings':
@@ -79,8 +83,8 @@ def in_end_disk_frame(frame_id: str, base_frame: str, end_disk_frame: str) -> bo
                      f'{end_disk_frame!r}')
 
 
-def solve_wrench(solver: TranslatorSolver, force: np.ndarray, moment: np.ndarray,
-                 end_disk: bool, rotation: np.ndarray, compliance: bool
+def solve_wrench(solver: Union[TranslatorSolver, FidelitySolver], force: np.ndarray,
+                 moment: np.ndarray, end_disk: bool, rotation: np.ndarray, compliance: bool
                  ) -> Tuple[SolveResult, int]:
     """
     Solve a base-frame wrench, or an end-disk-frame one as a follower load.
@@ -126,7 +130,10 @@ class WrenchProcessor:
                  compliance: bool = True, backbones: bool = False) -> None:
         """Build the solver (the node's time limit) for ``params``."""
         self.settings = settings
-        self.solver = TranslatorSolver(params, time_limit_s=settings.solve_time_limit_s)
+        self.solver = FidelitySolver(params, fidelity=settings.fidelity,
+                                     max_position_error=settings.max_position_error,
+                                     max_angle_error_deg=settings.max_angle_error,
+                                     time_limit_s=settings.solve_time_limit_s)
         self.compliance = compliance
         self.backbones = backbones
         self.rotation = np.eye(3)

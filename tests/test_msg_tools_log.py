@@ -160,7 +160,8 @@ def test_diagnostics_and_output_messages(solved, params):
     status = outputs[-1][2]['status'][0]
     values = {kv['key']: kv['value'] for kv in status['values']}
     assert status['level'] == messages.OK and values['converged'] == 'true'
-    assert values['skipped'] == '3' and float(values['residual_norm']) <= 1e-10
+    # the solver bounds the largest residual by 1e-10, so the norm of 90 by sqrt(90) times it
+    assert values['skipped'] == '3' and float(values['residual_norm']) <= 1e-9
     failing = TranslatorSolver(params, time_limit_s=0.0).solve([20.0, 5.0, 0.0])
     assert not failing.converged
     outputs = messages.output_messages(failing, STAMP, 'base')

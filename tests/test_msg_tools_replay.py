@@ -13,6 +13,7 @@ import sys
 import time
 
 from cdr_translator import TranslatorSolver
+from cdr_translator.params import DEFAULT_PARAMS_PATH
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from mcap_ros2.reader import read_ros2_messages
@@ -20,7 +21,7 @@ from msg_tools import messages, synth
 from msg_tools.__main__ import main
 from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points
-from msg_tools.processing import WrenchProcessor
+from msg_tools.processing import InputSettings, WrenchProcessor
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay, ReplayError
 import numpy as np
@@ -378,3 +379,18 @@ def test_live_node_recording_replays_to_the_same_poses(bag, topic, tmp_path):
     offline = _recorded_poses(tmp_path / 'offline.mcap', topic)
     assert live and set(live) <= set(offline)
     assert max(np.abs(live[stamp] - offline[stamp]).max() for stamp in live) < 1e-9
+
+
+def test_fidelity_setting_reaches_the_diagnostics(params, tmp_path):
+    """`fidelity: cc` in the params file: replay solves with it and the log says so."""
+    path = tmp_path / 'cc.yaml'
+    path.write_text(DEFAULT_PARAMS_PATH.read_text().replace('fidelity: full', 'fidelity: cc'))
+    settings = InputSettings.from_params_file(path)
+    assert settings.fidelity == 'cc'
+    processor = WrenchProcessor(params, settings, compliance=False)
+    outcome = processor.process(np.array([12.0, 0.0, 0.0]), np.zeros(3), '',
+                                {'sec': 1, 'nanosec': 0})
+    assert outcome.result.converged and outcome.result.fidelity == 'cc'
+    status = next(message for topic, _, message in outcome.outputs
+                  if topic == messages.DIAGNOSTICS_TOPIC)['status'][0]
+    assert {kv['key']: kv['value'] for kv in status['values']}['fidelity'] == 'cc'
