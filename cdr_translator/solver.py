@@ -30,6 +30,9 @@ from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
 
+#: A chord step that shrinks the residual by less than this rebuilds the Jacobian.
+CHORD_RATE = 0.25
+
 #: Largest nondimensional change of the unknowns a first continuation step may predict.
 PREDICTOR_REACH = 0.3
 
@@ -314,7 +317,7 @@ class TranslatorSolver:
                 lu = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             xs, rs, new_norm = trial
-            if not fresh and new_norm > 0.25 * norm:
+            if not fresh and new_norm > CHORD_RATE * norm:
                 lu = None  # chord steps converge too slowly; rebuild the Jacobian
             norm = new_norm
             fresh = False
