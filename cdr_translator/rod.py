@@ -44,6 +44,25 @@ def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
 
 
 @jit
+def rk4_stage_pose(p, rot, k_p, k_rot, dt, p_stage, rot_stage):
+    """Write the RK4 stage pose (p, rot) + dt (k_p, k_rot) into p_stage, rot_stage."""
+    for i in range(3):
+        p_stage[i] = p[i] + dt * k_p[i]
+        for j in range(3):
+            rot_stage[i, j] = rot[i, j] + dt * k_rot[i, j]
+
+
+@jit
+def rk4_advance_pose(p, rot, k_p, k_rot, h):
+    """Advance (p, rot) in place by one RK4 step of length h from the four stage slopes."""
+    for i in range(3):
+        p[i] += h / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
+        for j in range(3):
+            rot[i, j] += h / 6.0 * (k_rot[0, i, j] + 2.0 * k_rot[1, i, j]
+                                    + 2.0 * k_rot[2, i, j] + k_rot[3, i, j])
+
+
+@jit
 def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row):
     """
     Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
@@ -65,17 +84,11 @@ def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, fir
     for step in range(steps):
         pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, k_p[0], k_rot[0])
         for stage, weight in ((1, 0.5), (2, 0.5), (3, 1.0)):
-            for i in range(3):
-                p_stage[i] = p[i] + weight * h * k_p[stage - 1, i]
-                for j in range(3):
-                    rot_stage[i, j] = rot[i, j] + weight * h * k_rot[stage - 1, i, j]
+            rk4_stage_pose(p, rot, k_p[stage - 1], k_rot[stage - 1], weight * h, p_stage,
+                           rot_stage)
             pose_derivative(p_stage, rot_stage, n, m_start, p_start, inv_kse, inv_kbt,
                             k_p[stage], k_rot[stage])
-        for i in range(3):
-            p[i] += h / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
-            for j in range(3):
-                rot[i, j] += h / 6.0 * (k_rot[0, i, j] + 2.0 * k_rot[1, i, j]
-                                        + 2.0 * k_rot[2, i, j] + k_rot[3, i, j])
+        rk4_advance_pose(p, rot, k_p, k_rot, h)
         if record:
             points[first_row + step + 1, :] = p
     dx = p[0] - p_start[0]

@@ -30,6 +30,7 @@ import numpy as np
 
 from .cc import hole
 from .._jit import jit
+from ..rod import rk4_advance_pose, rk4_stage_pose
 
 #: Number of unknowns.
 SIZE = 7
@@ -167,17 +168,11 @@ def _shoot(x, data, frames, points):
                     break
                 _derivative(p, rot, tension, data, m0, k_p[0], k_rot[0], k_len[0])
                 for stage, weight in ((1, 0.5), (2, 0.5), (3, 1.0)):
-                    for i in range(3):
-                        p_stage[i] = p[i] + weight * h * k_p[stage - 1, i]
-                        for j in range(3):
-                            rot_stage[i, j] = rot[i, j] + weight * h * k_rot[stage - 1, i, j]
+                    rk4_stage_pose(p, rot, k_p[stage - 1], k_rot[stage - 1], weight * h,
+                                   p_stage, rot_stage)
                     _derivative(p_stage, rot_stage, tension, data, m0, k_p[stage],
                                 k_rot[stage], k_len[stage])
-                for i in range(3):
-                    p[i] += h / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
-                    for j in range(3):
-                        rot[i, j] += h / 6.0 * (k_rot[0, i, j] + 2.0 * k_rot[1, i, j]
-                                                + 2.0 * k_rot[2, i, j] + k_rot[3, i, j])
+                rk4_advance_pose(p, rot, k_p, k_rot, h)
                 for k in range(4):
                     lengths[k] += h / 6.0 * (k_len[0, k] + 2.0 * k_len[1, k]
                                              + 2.0 * k_len[2, k] + k_len[3, k])
