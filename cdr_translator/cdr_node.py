@@ -30,6 +30,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from . import cdr_messages
+from ._jit import timed_warm_up
 from .delta import DeltaRobot
 from .delta_params import CDR_NODE_NAME, CDR_NODE_ONLY_KEYS, check_sliders, DeltaParams
 from .node import check_parameters, open_log, run, SHUTDOWN_JOIN_S
@@ -125,8 +126,7 @@ class CdrNode(Node):
                                                                   reliable)
                                      for topic, message_class in CDR_OUTPUTS.items()}
         self._mailbox = LatestMailbox()
-        self.robot.solve(self._sliders, (0.0, 0.0, -1.0))  # loads the compiled kernels
-        self.robot.reset()
+        timed_warm_up(self._warm_up, self.get_logger().info)
         inputs = {cdr_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
                   cdr_messages.SLIDERS_TOPIC: JointState}
         topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
@@ -147,6 +147,11 @@ class CdrNode(Node):
             f'MCAP log {self.mcap_path or "off"}')
 
     # parameters ------------------------------------------------------------------------------
+    def _warm_up(self) -> None:
+        """Solve once at home (compiles or loads the kernels), then forget the solution."""
+        self.robot.solve(self._sliders, (0.0, 0.0, -1.0))
+        self.robot.reset()
+
     def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
         """Reject a change with the reason (descriptors have checked read-only and ranges)."""
         return check_parameters(self, CDR_SPECS, parameters, check_cdr_value)

@@ -7,6 +7,7 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
     python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
+    python -m cdr_translator compile [--params FILE]
 
 Exit codes: 0 converged, 3 not converged (the result is still printed), 2 bad input.
 """
@@ -17,10 +18,11 @@ import math
 import sys
 from typing import List, Optional
 
+from . import _jit
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .delta import DeltaResult, DeltaRobot
 from .delta_params import DeltaParams
-from .fidelity import FidelitySolver
+from .fidelity import FIDELITIES, FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
@@ -82,7 +84,10 @@ def _parser() -> argparse.ArgumentParser:
     delta.add_argument('--time-limit', type=float, default=30.0,
                        help='give up after this many seconds (default: %(default)s)')
     delta.add_argument('--json', action='store_true', help='print one JSON object')
-    for command in (solve, paper, delta):
+    compile_ = commands.add_parser(
+        'compile', help="compile the numba kernels into numba's cache (make setup's last "
+                        'step), so that no node or solve compiles them later')
+    for command in (solve, paper, delta, compile_):
         command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
                              help='ROS 2 params YAML (default: %(default)s)')
     return parser
@@ -188,6 +193,23 @@ def _paper_comparison(params: TranslatorParams) -> str:
     return '\n'.join(lines)
 
 
+def _compile_kernels(params: TranslatorParams) -> int:
+    """Solve once at every fidelity level (all kernels run), say what it compiled and where."""
+    def warm_up() -> None:
+        for fidelity in FIDELITIES:
+            FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
+
+    elapsed = _jit.timed_warm_up(warm_up, print)
+    missing = _jit.uncached_kernels()
+    if missing:
+        print(f'error: not cached: {", ".join(missing)}', file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    counts = _jit.kernel_counts()
+    print(f'all {len(_jit.KERNELS)} numba kernels are in the cache at {_jit.CACHE_LOCATION} '
+          f'({counts.compiled} signatures compiled, {counts.loaded} loaded, {elapsed:.1f} s)')
+    return EXIT_CONVERGED
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; return the exit code."""
     args = _parser().parse_args(argv)
@@ -196,6 +218,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         if args.command == 'paper':
             print(_paper_comparison(params))
             return EXIT_CONVERGED
+        if args.command == 'compile':
+            return _compile_kernels(params)
         if args.command == 'delta':
             robot = DeltaRobot(params, DeltaParams.from_yaml(args.params),
                                time_limit_s=args.time_limit)

@@ -36,6 +36,7 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 
+from ._jit import timed_warm_up
 from .fidelity import FidelitySolver
 from .node_io import fill_message, LatestMailbox, LogThread, OUTPUTS, type_name
 from .node_params import check_value, default_values, model_params, NodeSettings, SPECS
@@ -70,7 +71,7 @@ class TranslatorNode(Node):
                                                                   reliable)
                                      for topic, message_class in OUTPUTS.items()}
         self._mailbox = LatestMailbox()
-        self._warm_up()
+        timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
