@@ -163,17 +163,17 @@ class CdrNode(Node):
         self.robot.time_limit_s = self._settings.solve_time_limit_s
 
     # input -----------------------------------------------------------------------------------
-    def _log_input(self, index: int, data: bytes, info: dict) -> None:
+    def _log_input(self, index: int, data: bytes) -> None:
+        """Count and log an input as received (the EventsExecutor gives no message info)."""
         self.received += 1
         if self._log is not None:
             subscription = self._subscriptions[index]
             self._log.submit(subscription.topic_name, type_name(subscription.msg_type), data,
-                             info.get('received_timestamp') or time.time_ns(),
-                             info.get('source_timestamp'))
+                             time.time_ns())
 
-    def _on_wrench(self, data: bytes, info: dict) -> None:
+    def _on_wrench(self, data: bytes) -> None:
         """Log the payload as received; reject it with a diagnostic or solve with it."""
-        self._log_input(0, data, info)
+        self._log_input(0, data)
         force, moment, frame_id, stamp = messages.wrench_from_message(
             deserialize_message(data, WrenchStamped))
         settings = self._settings
@@ -190,9 +190,9 @@ class CdrNode(Node):
             self._payload = (force, moment)
             self._mailbox.put((stamp, self._sliders, force, moment))
 
-    def _on_sliders(self, data: bytes, info: dict) -> None:
+    def _on_sliders(self, data: bytes) -> None:
         """Log the slider positions as received; reject them with a diagnostic or solve."""
-        self._log_input(1, data, info)
+        self._log_input(1, data)
         message = deserialize_message(data, JointState)
         stamp = {'sec': message.header.stamp.sec, 'nanosec': message.header.stamp.nanosec}
         try:

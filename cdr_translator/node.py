@@ -7,9 +7,12 @@ with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``
 content). Wrenches are checked in the subscription callback (msg_tools.processing: the same
 checks, frames and follower-load solve as the offline replay) and handed to a solver thread
 through a one-slot mailbox: when they arrive faster than the solver, the newest wins and
-the others are counted as skipped. Every received wrench and every published message goes
-to an MCAP file through a log thread. This and node_params / node_io are the only modules
-that import rclpy or ROS message classes.
+the others are counted as skipped. The subscription's queue is ``wrench_queue_depth`` deep
+and an EventsExecutor (rclpy.experimental) spins it, so a 1 kHz sensor is taken in full.
+Outputs are built and serialized only for topics someone subscribes to (or all of them
+while logging), serialized once and the same bytes published and logged: every received
+wrench and every published message goes to an MCAP file through a log thread. This and
+node_params / node_io are the only modules that import rclpy or ROS message classes.
 """
 
 import datetime
@@ -29,11 +32,11 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 
 from ._jit import timed_warm_up
@@ -46,6 +49,11 @@ from .solver import check_wrench
 
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
+
+#: Python's thread switch interval in the node processes (s; Python's default is 5 ms): a
+#: thread woken by another (the solver by the subscription, the subscription while the log
+#: thread writes) gets the GIL within about this long.
+SWITCH_INTERVAL_S = 0.0005
 
 
 class TranslatorNode(Node):
@@ -75,9 +83,12 @@ class TranslatorNode(Node):
         self._log, self.mcap_path = self._open_log()
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
+        sensor = QoSProfile(depth=self._settings.wrench_queue_depth,
+                            reliability=qos_profile_sensor_data.reliability,
+                            durability=qos_profile_sensor_data.durability,
+                            history=qos_profile_sensor_data.history)
         self._subscription = self.create_subscription(
-            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, qos_profile_sensor_data,
-            raw=True)
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, sensor, raw=True)
         self.get_logger().info(
             f'ready: {self._subscription.topic_name} -> '
             f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
@@ -98,7 +109,10 @@ class TranslatorNode(Node):
     def _warm_up(self) -> None:
         """Solve once (compiles or loads the kernels) and build every output, then forget."""
         result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
-        self._output_messages(result, {'sec': 0, 'nanosec': 0}, True, True, self._counts())
+        for _, message in _filled(messages.output_messages(
+                result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
+                backbones_params=self.solver.params, extra_values=self._counts())):
+            serialize_message(message)
         self.solver.reset()
 
     def _open_log(self) -> Tuple[Optional[LogThread], str]:
@@ -110,13 +124,18 @@ class TranslatorNode(Node):
         return open_log(self._settings, 'translator', topics)
 
     # input -----------------------------------------------------------------------------------
-    def _on_wrench(self, data: bytes, info: dict) -> None:
-        """Log the wrench as received; reject it with a diagnostic or hand it to the solver."""
-        received_ns = info.get('received_timestamp') or time.time_ns()
+    def _on_wrench(self, data: bytes) -> None:
+        """
+        Log the wrench as received; reject it with a diagnostic or hand it to the solver.
+
+        The EventsExecutor passes no message info: the log time is taken here, and the
+        MCAP publish time equals it (it was the DDS source timestamp before).
+        """
+        received_ns = time.time_ns()
         self.received += 1
         if self._log is not None:
             self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
-                             received_ns, info.get('source_timestamp'))
+                             received_ns)
         force, moment, frame_id, stamp = messages.wrench_from_message(
             deserialize_message(data, WrenchStamped))
         settings = self._settings
@@ -127,7 +146,7 @@ class TranslatorNode(Node):
         except ValueError as error:
             self.rejected += 1
             self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
-            self._publish_all(_filled(messages.rejection_messages(
+            self._publish_all(self._filled(messages.rejection_messages(
                 stamp, f'rejected: {error}', self._counts())))
             return
         self._mailbox.put((stamp, force, moment, end_disk))
@@ -144,7 +163,7 @@ class TranslatorNode(Node):
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
                 self.get_logger().error(f'solver thread: {error!r}')
-                self._publish_all(_filled(messages.rejection_messages(
+                self._publish_all(self._filled(messages.rejection_messages(
                     item[0], f'internal error: {error!r}', self._counts())))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
@@ -179,18 +198,29 @@ class TranslatorNode(Node):
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
         """Fill the messages of one solve (msg_tools.messages defines their content)."""
-        return _filled(messages.output_messages(
+        return self._filled(messages.output_messages(
             result, stamp, self._settings.base_frame, compliance=want_compliance,
             backbones_params=self.solver.params if want_backbones else None,
             extra_values=extra))
 
+    def _wanted(self, topic: str) -> bool:
+        """Say whether an output is needed: logged, or someone subscribes to it."""
+        return self._log is not None or (
+            self._publishers_by_topic[topic].get_subscription_count() > 0)
+
+    def _filled(self, built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
+        """Fill the rclpy messages of the wanted outputs among (topic, type, dict) triples."""
+        return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built
+                if self._wanted(topic)]
+
     def _publish_all(self, topic_messages: List[Tuple[str, Any]]) -> None:
-        """Publish output messages and queue them for the MCAP log."""
+        """Serialize each output once; publish those bytes and queue them for the MCAP log."""
         for topic, message in topic_messages:
             publisher = self._publishers_by_topic[topic]
-            publisher.publish(message)
+            data = serialize_message(message)
+            publisher.publish(data)
             if self._log is not None:
-                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), message,
+                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), data,
                                  time.time_ns())
 
     # shutdown --------------------------------------------------------------------------------
@@ -270,6 +300,7 @@ def run(factory: Callable[[], Node], name: str, args: Optional[Sequence[str]] = 
     (which must stop its threads and finalize its log) and a clean shutdown.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
@@ -280,7 +311,7 @@ def run(factory: Callable[[], Node], name: str, args: Optional[Sequence[str]] = 
         print(f'{name}: {error}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = SingleThreadedExecutor()
+    executor = EventsExecutor()
     executor.add_node(node)
     try:
         while not stop.is_set() and rclpy.ok():

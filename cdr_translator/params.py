@@ -37,7 +37,7 @@ SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
     'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
-    'mcap_flush_messages', 'mcap_flush_s'))
+    'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth'))
 
 #: Keys of the same params file that choose the fidelity level and its error budget
 #: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).
