@@ -50,11 +50,6 @@ from .solver import check_wrench
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
 
-#: Python's thread switch interval in the node processes (s; Python's default is 5 ms): a
-#: thread woken by another (the solver by the subscription, the subscription while the log
-#: thread writes) gets the GIL within about this long.
-SWITCH_INTERVAL_S = 0.0005
-
 
 class TranslatorNode(Node):
     """The translator as a ROS 2 node; ``close()`` stops it and finalizes the MCAP log."""
@@ -300,7 +295,6 @@ def run(factory: Callable[[], Node], name: str, args: Optional[Sequence[str]] = 
     (which must stop its threads and finalize its log) and a clean shutdown.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    sys.setswitchinterval(SWITCH_INTERVAL_S)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
