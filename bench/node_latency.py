@@ -53,21 +53,29 @@ def stream(client: TranslatorClient, rate_hz: float, seconds: float) -> list:
     return stamps
 
 
-def measure(client: TranslatorClient, rate_hz: float, seconds: float) -> dict:
-    """Stream at one rate and return the counts and latency percentiles (ms)."""
+def cpu_seconds(pid: int) -> float:
+    """Return the CPU time (user + system, s) process ``pid`` has used so far (Linux)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) -> dict:
+    """Stream at one rate and return the counts, latencies (ms) and the node's CPU time (s)."""
     before = len(client.received[messages.END_DISK_POSE_TOPIC])
+    cpu_before = cpu_seconds(pid)
     stamps = stream(client, rate_hz, seconds)
     last = stamps[-1]
     answered = client.wait_for(
         lambda: client.messages_stamped(messages.DIAGNOSTICS_TOPIC, last), 30.0)
     time.sleep(0.2)
+    cpu = cpu_seconds(pid) - cpu_before
     poses = client.received[messages.END_DISK_POSE_TOPIC][before:]
     latencies = np.array([received - messages.stamp_to_ns(pose.header.stamp)
                           for pose, received in poses]) * 1e-6
     values = diagnostic_values(client.received[messages.DIAGNOSTICS_TOPIC][-1][0])
     return {'rate': rate_hz, 'sent': len(stamps), 'answered_last': answered,
             'received': int(values['received']), 'poses': len(poses),
-            'skipped': int(values['skipped']), 'latencies_ms': latencies}
+            'skipped': int(values['skipped']), 'latencies_ms': latencies, 'cpu_s': cpu}
 
 
 def main() -> None:
@@ -103,18 +111,25 @@ def main() -> None:
                 if not client.handshake(120.0):
                     raise SystemExit(f'node did not answer:\n{node.text()}')
                 print(f"{'rate Hz':>8} {'sent':>6} {'recv':>6} {'poses':>6} {'skipped':>8} "
-                      f"{'p50 ms':>7} {'p95 ms':>7} {'p99 ms':>7} {'max ms':>7}")
+                      f"{'p50 ms':>7} {'p95 ms':>7} {'p99 ms':>7} {'max ms':>7} "
+                      f"{'cpu ms/recv':>11}")
                 table: List[str] = []
                 received = skipped = 0
                 for rate in args.rates:
-                    row = measure(client, rate, args.seconds)
+                    row = measure(client, rate, args.seconds, node.process.pid)
                     p50, p95, p99 = np.percentile(row['latencies_ms'], [50, 95, 99])
-                    print(f"{rate:8.0f} {row['sent']:6d} {row['received'] - received:6d} "
+                    count = row['received'] - received
+                    # counts come from the diagnostic of the last wrench; '*': it never came
+                    # (lost on the way), so they are those of an earlier one
+                    mark = '' if row['answered_last'] else '*'
+                    cpu_ms = 1e3 * row['cpu_s'] / max(count, 1)
+                    print(f"{rate:8.0f} {row['sent']:6d} {count:6d}{mark} "
                           f"{row['poses']:6d} {row['skipped'] - skipped:8d} {p50:7.2f} "
-                          f"{p95:7.2f} {p99:7.2f} {row['latencies_ms'].max():7.2f}")
-                    table.append(f"| {rate:.0f} | {row['sent']} | {row['received'] - received} | "
+                          f"{p95:7.2f} {p99:7.2f} {row['latencies_ms'].max():7.2f} "
+                          f'{cpu_ms:11.2f}')
+                    table.append(f"| {rate:.0f} | {row['sent']} | {count}{mark} | "
                                  f"{row['poses']} | {row['skipped'] - skipped} | {p50:.2f} | "
-                                 f"{p99:.2f} | {row['latencies_ms'].max():.2f} |")
+                                 f"{p99:.2f} | {row['latencies_ms'].max():.2f} | {cpu_ms:.2f} |")
                     received, skipped = row['received'], row['skipped']
                 node.stop(signal.SIGINT)
                 print(node.text().strip().splitlines()[-1])
@@ -134,7 +149,8 @@ def _append_markdown(path: Path, args: argparse.Namespace, table: List[str]) -> 
         stream.write(f'\n### {args.label} ({when}, {setup}, {args.seconds:g} s per rate, '
                      f'load average {load})\n\n'
                      '| rate Hz | sent | received | answered | skipped | p50 ms | p99 ms | '
-                     'max ms |\n|---|---|---|---|---|---|---|---|\n' + '\n'.join(table) + '\n')
+                     'max ms | node CPU ms per received |\n'
+                     '|---|---|---|---|---|---|---|---|---|\n' + '\n'.join(table) + '\n')
 
 
 if __name__ == '__main__':

@@ -1,10 +1,9 @@
 """geometry.quaternion_xyzw against scipy's Rotation, which it replaces on the node's path."""
 
+from cdr_translator.geometry import quaternion_xyzw
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
-from cdr_translator.geometry import quaternion_xyzw
 
 
 def _scipy(matrix: np.ndarray) -> np.ndarray:
