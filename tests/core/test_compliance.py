@@ -1,0 +1,205 @@
+"""
+End-disk compliance: implicit differentiation vs finite differences, theory and Table III.
+
+Tolerances are relative to max |C| unless stated; C is in SI units (m/N, rad/(N m)).
+"""
+
+import json
+
+from cdr_translator import cli, TranslatorSolver
+from cdr_translator.compliance import analyse, frame_twist
+from cdr_translator.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
+from cdr_translator.studies.finite_difference import finite_difference_compliance
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+
+def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """Return the largest entry of |a - b| over the largest entry of |b|."""
+    return float(np.abs(a - b).max() / np.abs(b).max())
+
+
+@pytest.fixture(scope='module')
+def compliance_solver(params):
+    """Give these tests a solver of their own (its warm-start state is theirs)."""
+    return TranslatorSolver(params)
+
+
+@pytest.fixture(scope='module')
+def paper_cases(compliance_solver):
+    """Compliance analyses at the two Table III loads, keyed by the force in x (N)."""
+    return {case.force[0]: compliance_solver.solve(case.force, compliance=True).compliance
+            for case in TABLE_III}
+
+
+@pytest.mark.parametrize('force, moment', [
+    ((12.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+    ((3.0, -6.0, -4.0), (0.05, 0.0, -0.02)),
+    ((0.0, 0.0, 0.0), (0.0, 0.0, 0.1)),
+])
+def test_implicit_equals_central_differences_of_solves(params, compliance_solver, force,
+                                                       moment):
+    """(b) implicit differentiation agrees with (a) central differences to 1e-6."""
+    implicit = compliance_solver.solve(force, moment, compliance=True).compliance.matrix
+    reference = finite_difference_compliance(params, force, moment)
+    assert relative_difference(implicit, reference) <= 1e-6
+
+
+def test_compliance_after_a_warm_sequence_is_exact(params, compliance_solver):
+    """A stale stored factorization only preconditions: C is exact along a sequence too."""
+    for fx in np.linspace(0.0, 8.0, 5):
+        compliance_solver.solve((fx, 1.0, 0.0))
+    implicit = compliance_solver.solve((8.5, 1.0, 0.0), compliance=True).compliance.matrix
+    reference = finite_difference_compliance(params, (8.5, 1.0, 0.0))
+    assert relative_difference(implicit, reference) <= 1e-6
+
+
+@pytest.mark.parametrize('force', [(0.0, 0.0, 0.0), (0.0, 0.0, -8.0), (0.0, 0.0, 15.0)])
+def test_compliance_symmetric_under_axial_or_no_load(compliance_solver, force):
+    """
+    C = C^T when the preload is a dead force along the axis (or zero).
+
+    The structure is conservative: C = J K^-1 J^T with K the Hessian of the potential,
+    pairing [f; m] with [v; w]. (Under a lateral preload the model's C46/C64 pair differs
+    by about 3 %: see the README, 'Compliance and primary mobility'.)
+    """
+    matrix = compliance_solver.solve(force, compliance=True).compliance.matrix
+    assert relative_difference(matrix, matrix.T) <= 1e-7
+
+
+def test_zero_load_compliance_matches_linear_beam_estimates(params, compliance_solver):
+    """
+    Unloaded C against small-deflection estimates of the same structure.
+
+    l = 2 D is one joint, L_s = 2 l + L_m a secondary's length (it slides through the tube),
+    EI, EA, GJ of one backbone, r the pitch radius:
+    lateral: five rods bent at constant curvature in an S (end disk parallel),
+        C11 = l (l + L_m)^2 / (10 EI);
+    axial: primary over 2 l (the tube is rigid) parallel to four secondaries over L_s;
+    tilt: the PJ/DJ angle difference stretches two secondaries, k = 5 EI / (2 l) + 2 EA r^2 / L_s;
+    twist: four disk intervals in series, each the primary's GJ / D plus four secondaries as
+        guided beams 12 EI r^2 / D^3, in parallel with the four secondaries' own GJ / L_s.
+    """
+    matrix = compliance_solver.solve((0.0, 0.0, 0.0), compliance=True).compliance.matrix
+    ei = params.bending_stiffness
+    ea = params.youngs_modulus * params.area
+    gj = params.shear_modulus * 2.0 * params.second_moment
+    joint, spacing, radius = params.joint_length, params.disk_spacing, params.pitch_radius
+    secondary = 2.0 * joint + params.tube_length
+    lateral = joint * (joint + params.tube_length) ** 2 / (10.0 * ei)
+    axial = 1.0 / (ea / (2.0 * joint) + 4.0 * ea / secondary)
+    tilt = 1.0 / (5.0 * ei / (2.0 * joint) + 2.0 * ea * radius ** 2 / secondary)
+    interval = gj / spacing + 4.0 * 12.0 * ei * radius ** 2 / spacing ** 3
+    intervals = 2 * (params.spacers_per_joint + 1)
+    twist = 1.0 / (interval / intervals + 4.0 * gj / secondary)
+    estimates = [(0, lateral, 0.03), (1, lateral, 0.03), (2, axial, 0.01), (3, tilt, 0.01),
+                 (4, tilt, 0.01), (5, twist, 0.05)]
+    for index, estimate, tolerance in estimates:
+        assert matrix[index, index] == pytest.approx(estimate, rel=tolerance), index
+
+
+@pytest.mark.parametrize('case', TABLE_III, ids=lambda case: f'{case.force[0]:g}N')
+def test_table_iii_primary_mobility(paper_cases, case):
+    """Both paper cases: mobility = translation x, translation y, rotation z; stable."""
+    analysis = paper_cases[case.force[0]]
+    assert analysis.primary_mobility == PAPER_PRIMARY_MOBILITY
+    assert analysis.stable
+    assert analysis.labels == ('translation x', 'translation y', 'translation z',
+                               'rotation x', 'rotation y', 'rotation z')
+
+
+@pytest.mark.parametrize('case', TABLE_III, ids=lambda case: f'{case.force[0]:g}N')
+def test_table_iii_structure_and_arc_direction(paper_cases, case):
+    """
+    C_s has the paper's block pattern and the x-z eigenvector is the paper's to 0.02.
+
+    The x-z block is nearly rank one: the end disk moves along its arc, whose direction
+    depends on the bending angle only, so it is the best-defined quantity in Table III.
+    """
+    analysis = paper_cases[case.force[0]]
+    paper_pattern = np.abs(_paper_sparse(case)) > 0.0
+    assert np.array_equal(analysis.sparse_matrix != 0.0, paper_pattern)
+    direction = analysis.eigenvectors[[0, 2], 0]
+    assert np.allclose(direction, case.arc_direction, atol=0.02)
+
+
+def _paper_sparse(case) -> np.ndarray:
+    """Return the paper's C_s: its diagonal, x-z and rotation x-z couplings."""
+    pattern = np.diag(np.diag(np.array(case.compliance)))
+    for i, j in ((0, 2), (2, 0), (3, 5), (5, 3)):
+        pattern[i, j] = case.compliance[i][j]
+    return pattern
+
+
+@pytest.mark.parametrize('force, index', [
+    (12.0, 0), (12.0, 1), (12.0, 2), (12.0, 5), (20.0, 1),
+])
+def test_table_iii_diagonal_within_25_percent(paper_cases, force, index):
+    """
+    The diagonal terms that can match do, within 25 %.
+
+    Not tested, with the reason in the README: C55 (and C44), set by the stretching of two
+    secondaries, 2 EA r^2 / L_s, which the zero-load test confirms, is 4.7x the paper's;
+    at 20 N the paper's C11 and C33 fall 2.9x from 12 N while its Table II bending angles,
+    which this model reproduces, grow smoothly; C66 at 20 N rises 37 % in the paper.
+    """
+    case = next(case for case in TABLE_III if case.force[0] == force)
+    ours = paper_cases[force].matrix[index, index]
+    assert ours == pytest.approx(case.compliance[index][index], rel=0.25)
+
+
+def test_analysis_thresholds_are_validated():
+    """Out-of-range analysis parameters raise ValueError naming them."""
+    with pytest.raises(ValueError, match='sparsity_threshold'):
+        analyse(np.eye(6), 0.2, sparsity_threshold=1.5)
+    with pytest.raises(ValueError, match='mobility_ratio'):
+        analyse(np.eye(6), 0.2, mobility_ratio=0.0)
+
+
+def test_sparsity_threshold_zero_keeps_every_term(compliance_solver):
+    """With threshold 0, C_s is C itself."""
+    analysis = compliance_solver.solve((12.0, 0.0, 0.0), compliance=True,
+                                       sparsity_threshold=0.0).compliance
+    assert np.array_equal(analysis.sparse_matrix, analysis.matrix)
+
+
+def test_frame_twist_recovers_a_known_rotation_and_shift():
+    """frame_twist returns the displacement and the spatial rotation vector."""
+    before = np.eye(4)
+    before[:3, :3] = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix()
+    step = np.array([1e-3, -2e-3, 0.5e-3])
+    after = np.eye(4)
+    after[:3, :3] = Rotation.from_rotvec(step).as_matrix() @ before[:3, :3]
+    after[:3, 3] = [0.01, 0.0, -0.02]
+    assert np.allclose(frame_twist(before, after), np.r_[0.01, 0.0, -0.02, step], atol=1e-14)
+
+
+def test_cli_compliance_equals_central_differences_of_cli_poses(capsys):
+    """`solve --compliance --json` returns C equal to central differences of its own poses."""
+    def run(*arguments):
+        assert cli.main(['solve', *arguments, '--json']) == 0
+        return json.loads(capsys.readouterr().out)
+
+    data = run('--force', '12', '0', '0', '--compliance')
+    for key in ('compliance', 'compliance_eigenvalues', 'compliance_eigenvectors',
+                'primary_mobility', 'stable'):
+        assert key in data
+    assert list(data['primary_mobility']) == list(PAPER_PRIMARY_MOBILITY)
+    matrix = np.array(data['compliance'])
+    assert matrix.shape == (6, 6)
+    step = 1e-2
+    columns = []
+    for axis in range(6):
+        poses = []
+        for sign in (1.0, -1.0):
+            wrench = np.array([12.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+            wrench[axis] += sign * step * (1.0 if axis < 3 else 0.1)
+            out = run('--force', *map(str, wrench[:3]), '--moment', *map(str, wrench[3:]))
+            frame = np.eye(4)
+            frame[:3, :3] = Rotation.from_quat(out['end_disk_quaternion_xyzw']).as_matrix()
+            frame[:3, 3] = out['end_disk_position_m']
+            poses.append(frame)
+        columns.append(frame_twist(poses[1], poses[0])
+                       / (2.0 * step * (1.0 if axis < 3 else 0.1)))
+    assert relative_difference(np.column_stack(columns), matrix) <= 1e-5

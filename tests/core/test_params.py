@@ -1,0 +1,86 @@
+"""Parameter file reading and validation: every error names the key and the value."""
+
+import math
+
+from cdr_translator import ParameterError, TranslatorParams
+from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
+import pytest
+import yaml
+
+
+def write_params(tmp_path, **changes):
+    """Write the shipped params file with some values changed (None deletes a key)."""
+    document = yaml.safe_load(DEFAULT_PARAMS_PATH.read_text())
+    values = document[NODE_NAME]['ros__parameters']
+    for key, value in changes.items():
+        if value is None:
+            values.pop(key)
+        else:
+            values[key] = value
+    path = tmp_path / 'params.yaml'
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def test_shipped_file_loads(params):
+    """The one parameter file holds the paper's geometry."""
+    assert params.pitch_radius == 0.010
+    assert params.backbone_diameter == 0.0012
+    assert params.disk_spacing == 0.010
+    assert params.spacers_per_joint == 1
+    assert 0.02 <= params.tube_length <= 0.15
+    assert 40e9 <= params.youngs_modulus <= 90e9
+    assert math.isclose(params.shear_modulus,
+                        params.youngs_modulus / (2 * (1 + params.poisson_ratio)))
+
+
+@pytest.mark.parametrize('key, value, fragment', [
+    ('tube_length', 0.0, 'tube_length must be positive'),
+    ('disk_spacing', -0.01, 'disk_spacing must be positive'),
+    ('youngs_modulus', -1.0, 'youngs_modulus must be positive'),
+    ('poisson_ratio', 0.5, 'poisson_ratio must lie in'),
+    ('poisson_ratio', -1.0, 'poisson_ratio must lie in'),
+    ('spacers_per_joint', -1, 'spacers_per_joint must be an integer'),
+    ('spacers_per_joint', 1.5, 'spacers_per_joint must be an integer'),
+    ('steps_per_segment', 0, 'steps_per_segment must be an integer'),
+    ('pitch_radius', 0.001, 'pitch_radius'),
+    ('backbone_diameter', 0.02, 'backbone_diameter'),
+    ('tube_length', 'long', "tube_length must be a double, got string 'long'"),
+    ('tube_length', 1, r'tube_length must be a double, got integer 1 \(write 1\.0\)'),
+])
+def test_invalid_values_name_the_key(tmp_path, key, value, fragment):
+    """Each bad value is rejected with the key (and value) in the message."""
+    with pytest.raises(ParameterError, match=fragment):
+        TranslatorParams.from_yaml(write_params(tmp_path, **{key: value}))
+
+
+def test_a_partial_file_keeps_the_shipped_values(tmp_path, params):
+    """A key a file lacks keeps its shipped value (ROS 2 params files override key by key)."""
+    assert TranslatorParams.from_yaml(write_params(tmp_path, tube_length=None)) == params
+
+
+def test_unknown_key_is_named(tmp_path):
+    """A misspelt key is an error, not silently ignored."""
+    with pytest.raises(ParameterError, match=r'unknown translator_node parameter.*tube_lenght '
+                                             r'\(did you mean tube_length\?\)'):
+        TranslatorParams.from_yaml(write_params(tmp_path, tube_lenght=0.1))
+
+
+def test_missing_section_and_bad_yaml(tmp_path):
+    """A file without the ROS params section, or not YAML at all, is a clear error."""
+    path = tmp_path / 'other.yaml'
+    path.write_text('some_node:\n  ros__parameters: {}\n')
+    with pytest.raises(ParameterError, match='has no section for /translator_node'):
+        TranslatorParams.from_yaml(path)
+    path.write_text('translator_node: [unclosed\n')
+    with pytest.raises(ParameterError, match='not valid YAML'):
+        TranslatorParams.from_yaml(path)
+    with pytest.raises(ParameterError, match='cannot read'):
+        TranslatorParams.from_yaml(tmp_path / 'absent.yaml')
+
+
+def test_with_changes_validates(params):
+    """Copies are validated too."""
+    assert params.with_changes(spacers_per_joint=3).spacers_per_joint == 3
+    with pytest.raises(ParameterError, match='poisson_ratio'):
+        params.with_changes(poisson_ratio=0.7)
