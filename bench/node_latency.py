@@ -32,10 +32,9 @@ import tempfile
 import time
 from typing import List
 
-from cdr_translator.node_client import diagnostic_values, isolated_ros_env, MODULE_COMMAND
-from cdr_translator.node_client import NodeProcess
-from cdr_translator.node_client import TranslatorClient
-from msg_tools import messages
+from cdr_translator.interface import messages
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, MODULE_COMMAND
+from cdr_translator.ros.client import NodeProcess, TranslatorClient
 import numpy as np
 
 
@@ -98,7 +97,7 @@ def main() -> None:
     node_env, command = dict(env), MODULE_COMMAND
     if args.node_python:
         node_env.pop('PYTHONPATH', None)
-        command = (args.node_python, '-m', 'cdr_translator.node')
+        command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout
     with tempfile.TemporaryDirectory() as folder:
         ros_args = ['-p', 'log_to_mcap:=false'] if args.no_log else [
             '-p', f'mcap_path:={Path(folder) / "bench.mcap"}']

@@ -28,6 +28,9 @@ _interpreting = False
 _KERNEL_MODULES = ('cdr_translator.rod', 'cdr_translator.model')
 _interpreted_cache: Dict[str, ModuleType] = {}
 
+#: numba's run-time configuration (CACHE_DIR is read when a cached kernel is defined).
+_NUMBA_CONFIG: Any = numba.config
+
 #: Every compiled kernel (numba dispatcher) created by ``jit``, in definition order.
 KERNELS: List[Any] = []
 
@@ -59,13 +62,13 @@ def configure_cache(package_dir: Path = Path(__file__).resolve().parent) -> str:
     ``__pycache__`` folders when they are writable (numba's default), else the per-user
     folder of ``user_cache_dir`` (numba.config.CACHE_DIR is set to it for this process).
     """
-    if numba.config.CACHE_DIR:
-        return str(numba.config.CACHE_DIR)
+    if _NUMBA_CONFIG.CACHE_DIR:
+        return str(_NUMBA_CONFIG.CACHE_DIR)
     folders = [package_dir] + [path.parent for path in package_dir.glob('*/__init__.py')]
     if all(_writable(folder / '__pycache__') for folder in folders):
         return str(package_dir / '__pycache__')
-    numba.config.CACHE_DIR = str(user_cache_dir())
-    return numba.config.CACHE_DIR
+    _NUMBA_CONFIG.CACHE_DIR = str(user_cache_dir())
+    return str(_NUMBA_CONFIG.CACHE_DIR)
 
 
 #: Where the compiled kernels are cached (see configure_cache).
