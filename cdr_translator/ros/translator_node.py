@@ -4,15 +4,15 @@ translator_node: wrenches in, the translator's loaded shape out, every run logge
 Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
 ``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
-defines their content). Wrenches are checked in the subscription callback
-(cdr_translator.interface.processing: the same checks, frames and follower-load solve as the
-offline replay) and handed to a solver thread through a one-slot mailbox: when they arrive
-faster than the solver, the newest wins and the others are counted as skipped. The
-subscription's queue is ``wrench_queue_depth`` deep and an EventsExecutor
-(rclpy.experimental, runtime.run) spins it, so a 1 kHz sensor is taken in full. Outputs are
-built only for topics someone subscribes to (all of them while logging), serialized once,
-and the same bytes published and logged: every received wrench and every published message
-goes to an MCAP file through a log thread. Only cdr_translator.ros imports rclpy or ROS
+defines their content). The subscription callback only counts and logs a wrench and hands
+its bytes to a solver thread through a one-slot mailbox: when they arrive faster than the
+solver, the newest wins and the others are counted as skipped. The solver thread decodes
+and checks the wrench it takes (cdr_translator.interface.processing: the same checks,
+frames and follower-load solve as the offline replay). The subscription's queue is
+``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
+it. Outputs are built only for topics someone subscribes to (all of them while logging),
+serialized once, and the same bytes published and logged: every received wrench and every
+published message goes to an MCAP file through a log thread. Only cdr_translator.ros imports rclpy or ROS
 message classes.
 """
 
@@ -124,45 +124,54 @@ class TranslatorNode(Node):
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes) -> None:
         """
-        Log the wrench as received; reject it with a diagnostic or hand it to the solver.
+        Count and log the wrench as received, and leave its bytes for the solver thread.
 
-        The EventsExecutor passes no message info: the log time is taken here, and the
-        MCAP publish time equals it (it was the DDS source timestamp before).
+        Nothing more happens here: decoding and checking wait until the solver takes the
+        wrench, so one that a newer wrench replaces first (latest wins) costs no more. The
+        EventsExecutor passes no message info: the log time is taken here, and the MCAP
+        publish time equals it (it was the DDS source timestamp before).
         """
         received_ns = time.time_ns()
         self.received += 1
         if self._log is not None:
             self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
                              received_ns)
-        force, moment, frame_id, stamp = messages.wrench_from_message(
-            deserialize_message(data, WrenchStamped))
+        self._mailbox.put(data)
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: check the newest wrench, then solve it, publish and log the outputs."""
+        while True:
+            data = self._mailbox.take()
+            if data is None:
+                return
+            stamp = {'sec': 0, 'nanosec': 0}
+            try:
+                force, moment, frame_id, stamp = messages.wrench_from_message(
+                    deserialize_message(data, WrenchStamped))
+                end_disk = self._checked(force, moment, frame_id, stamp)
+                if end_disk is not None:
+                    self._process(stamp, force, moment, end_disk)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish_all(self._filled(messages.rejection_messages(
+                    stamp, f'internal error: {error!r}', self._counts())))
+
+    def _checked(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
+                 stamp: dict) -> Optional[bool]:
+        """Return whether the wrench is in the end-disk frame; None (and a diagnostic) if bad."""
         settings = self._settings
         try:
             check_wrench(force, moment)
             check_magnitude(force, moment, settings.max_force, settings.max_moment)
-            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+            return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
         except ValueError as error:
             self.rejected += 1
             self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
             self._publish_all(self._filled(messages.rejection_messages(
                 stamp, f'rejected: {error}', self._counts())))
-            return
-        self._mailbox.put((stamp, force, moment, end_disk))
-
-    # solving ---------------------------------------------------------------------------------
-    def _work(self) -> None:
-        """Solver thread: solve the newest wrench, publish and log what it gives."""
-        while True:
-            item = self._mailbox.take()
-            if item is None:
-                return
-            try:
-                self._process(*item)
-            except Exception as error:  # noqa: B902 - a bug must not silence the node
-                self.failed += 1
-                self.get_logger().error(f'solver thread: {error!r}')
-                self._publish_all(self._filled(messages.rejection_messages(
-                    item[0], f'internal error: {error!r}', self._counts())))
+            return None
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
                  end_disk: bool) -> None:
