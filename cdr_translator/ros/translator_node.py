@@ -12,8 +12,8 @@ frames and follower-load solve as the offline replay). The subscription's queue 
 ``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
 serialized once, and the same bytes published and logged: every received wrench and every
-published message goes to an MCAP file through a log thread. Only cdr_translator.ros imports rclpy or ROS
-message classes.
+published message goes to an MCAP file through a log thread. Only cdr_translator.ros
+imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
