@@ -1,0 +1,1 @@
+"""The Continuum Delta Robot: three translator legs and a platform (statics, inverse, atlas)."""
