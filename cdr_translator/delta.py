@@ -150,8 +150,9 @@ class DeltaResult:
         if self.platform_compliance is None:
             return np.full(3, np.nan), np.full(3, np.nan)
         matrix = self.platform_compliance
-        return tuple(np.linalg.eigvalsh(0.5 * (block + block.T))
-                     for block in (matrix[:3, :3], matrix[3:, 3:]))
+        translation, rotation = matrix[:3, :3], matrix[3:, 3:]
+        return (np.linalg.eigvalsh(0.5 * (translation + translation.T)),
+                np.linalg.eigvalsh(0.5 * (rotation + rotation.T)))
 
     @property
     def leg_axial_forces(self) -> np.ndarray:

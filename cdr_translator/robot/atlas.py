@@ -151,12 +151,14 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
 
 def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
               workers: Optional[int] = None, scheduler: Optional[str] = None,
-              progress: bool = True) -> dict:
+              progress: bool = True, client=None) -> dict:
     """
     Compute the missing chunks of the atlas ``spec`` into the Zarr store ``out``.
 
-    Return a summary: chunks total / already done / computed, samples computed, wall time,
-    samples per second, and the number of workers used.
+    The chunks run on ``client`` (a distributed.Client, left open) if given, else on the
+    cluster at ``scheduler``, else on a new LocalCluster of ``workers`` processes. Return a
+    summary: chunks total / already done / computed, samples computed, wall time (including
+    starting a cluster), samples per second, and the number of workers used.
     """
     chunk_size = chunk_size if chunk_size is not None else spec.grid ** 2
     bounds = chunk_bounds(spec.size, chunk_size)
@@ -170,7 +172,10 @@ def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
     from distributed import as_completed
     from tqdm import tqdm
     started = time.perf_counter()
-    client, cluster = _client(workers, scheduler)
+    owned = client is None
+    cluster = None
+    if owned:
+        client, cluster = _client(workers, scheduler)
     try:
         count = max(1, len(client.scheduler_info(n_workers=-1)['workers']))
         summary['workers'] = count
@@ -203,7 +208,8 @@ def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
             submit()
         bar.close()
     finally:
-        client.close()
+        if owned:
+            client.close()
         if cluster is not None:
             cluster.close()
     elapsed = time.perf_counter() - started

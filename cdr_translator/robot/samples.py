@@ -177,8 +177,9 @@ def solve_chunk(spec: AtlasSpec, start: int, stop: int) -> Dict[str, np.ndarray]
     """
     inputs = spec.inputs(start, stop)
     out = empty_results(stop - start)
-    variant = -1
-    robot = None
+    variant = int(inputs['variant'][0]) if stop > start else 0
+    robot = _robot(spec.params_files[variant], spec.time_limit_s)
+    robot.reset()
     rows = zip(inputs['sliders'], inputs['payload'], inputs['variant'])
     for row, (sliders, payload, which) in enumerate(rows):
         if which != variant:
