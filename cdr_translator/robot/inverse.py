@@ -222,7 +222,8 @@ class InverseSolver:
             step = lsq_linear(slope, -error, bounds=(-stroke - sliders, stroke - sliders),
                               method='bvls', tol=1e-14).x
             scale, accepted = 1.0, None
-            for _ in range(12):
+            predicted = float(np.linalg.norm(slope @ step + error))
+            for _ in range(12 if distance - predicted >= STALL_TOLERANCE else 0):
                 trial_sliders = np.clip(sliders + scale * step, -stroke, stroke)
                 trial = forward(trial_sliders)
                 solves += 1
