@@ -121,11 +121,11 @@ def _inverse_timing() -> dict:
         path = [forward.solve(sliders + step * direction, GRAVITY_1KG).platform_position
                 for step in range(6)]
         robot.reset()
-        result = robot.inverse(path[0], GRAVITY_1KG)
+        result = robot.inverse(path[0].tolist(), GRAVITY_1KG)
         cold.append(result.solve_time_s)
         errors.append(result.position_error)
         for target in path[1:]:
-            result = robot.inverse(target, GRAVITY_1KG)
+            result = robot.inverse(target.tolist(), GRAVITY_1KG)
             warm.append(result.solve_time_s)
             warm_solves.append(result.forward_solves)
             errors.append(result.position_error)

@@ -112,12 +112,13 @@ def inverse_output_messages(result: InverseResult, stamp: Mapping[str, int], fra
     is not stable, ERROR (no command) when the target is unreachable or the solve failed.
     """
     built = []
-    reached = result.converged and result.reachable and result.forward is not None
-    if reached:
+    forward = result.forward
+    reached = result.converged and result.reachable and forward is not None
+    if reached and forward is not None:
         built = [(SLIDER_COMMAND_TOPIC, messages.JOINT_STATE_TYPE,
                   slider_command_message(result, stamp, frame_id)),
                  (PREDICTED_POSE_TOPIC, messages.POSE_TYPE,
-                  platform_pose_message(result.forward, stamp, frame_id))]
+                  platform_pose_message(forward, stamp, frame_id))]
     values = {'converged': bool(result.converged), 'reachable': bool(result.reachable),
               'position_error_m': float(result.position_error),
               'platform_rotation_deg': float(np.degrees(result.platform_rotation_angle)),

@@ -21,7 +21,7 @@ import argparse
 import json
 import math
 import sys
-from typing import List, Optional, Tuple
+from typing import Any, Callable, List, Optional, Tuple, Union
 
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .delta import DeltaResult, DeltaRobot
@@ -268,6 +268,9 @@ def _paper_comparison(params: TranslatorParams) -> str:
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; return the exit code."""
     args = _parser().parse_args(argv)
+    result: Any  # SolveResult, DeltaResult or InverseResult, printed by its table
+    table: Callable[[Any], str]
+    solver: Union[TranslatorSolver, FidelitySolver]
     if args.command == 'atlas':
         from .robot.atlas import run_cli  # Dask, xarray and zarr only for this command
         return run_cli(args)

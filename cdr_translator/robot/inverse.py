@@ -195,7 +195,7 @@ class InverseSolver:
 
         def forward(at: np.ndarray) -> 'DeltaResult':
             last[0] = at
-            return robot.solve(at, payload_force, payload_moment, offset,
+            return robot.solve(at.tolist(), payload_force, payload_moment, offset.tolist(),
                                warm_start=warm_start or solves > 0, compliance=True)
 
         solves = 0
@@ -251,7 +251,7 @@ class InverseSolver:
             solves += 1
         binding = _binding(sliders, stroke)
         reachable = distance <= self.tolerance
-        if reachable:
+        if reachable and result.input_sensitivity is not None:
             self._previous = (goal, sliders.copy(), result.input_sensitivity[:3, :3].copy())
         elif converged:
             limits = ', '.join(f'{name} stroke limit ({"+" if "upper" in name else "-"}'

@@ -78,12 +78,12 @@ class AtlasSpec:
         from ..delta_params import DeltaParams
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
             raise ValueError(f'grid must be an integer of at least 2, got {grid!r}')
-        checked = []
+        checked: List[Tuple[float, float, float]] = []
         for payload in payloads:
             array = np.asarray(payload, dtype=float)
             if array.shape != (3,) or not np.all(np.isfinite(array)):
                 raise ValueError(f'payload must be 3 finite force components (N), got {payload}')
-            checked.append(tuple(float(v) for v in array))
+            checked.append((float(array[0]), float(array[1]), float(array[2])))
         if not checked:
             raise ValueError('at least one payload is needed')
         files = tuple(str(Path(path).resolve()) for path in params_files)
@@ -134,7 +134,7 @@ def serpentine(grid: int) -> np.ndarray:
 
     Slider 1 runs fastest, back and forth; consecutive rows differ by one step of one index.
     """
-    rows = []
+    rows: List[Tuple[int, int, int]] = []
     for k in range(grid):
         plane = []
         for j in range(grid):
