@@ -27,8 +27,8 @@ import tempfile
 import time
 from typing import List
 
-from cdr_translator.delta import DeltaRobot
 from cdr_translator.robot.atlas import plot_atlas, run_atlas
+from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import AtlasSpec, chunk_bounds, solve_chunk, \
     workspace_volumes
 import numpy as np

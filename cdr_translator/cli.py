@@ -24,12 +24,11 @@ import sys
 from typing import Any, Callable, List, Optional, Tuple, Union
 
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
-from .delta import DeltaResult, DeltaRobot
-from .delta_params import DeltaParams
 from .fidelity import FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
+from .robot.delta import DeltaResult, DeltaRobot
 from .robot.inverse import InverseResult
 from .solver import METHODS, TranslatorSolver
 
@@ -280,8 +279,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             print(_paper_comparison(params))
             return EXIT_CONVERGED
         if args.command in ('delta', 'delta-ik'):
-            robot = DeltaRobot(params, DeltaParams.from_yaml(args.params),
-                               time_limit_s=args.time_limit)
+            robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
             if args.command == 'delta':
                 result = robot.solve(args.sliders, args.payload, args.payload_moment,
                                      args.payload_offset, compliance=True)

@@ -29,7 +29,7 @@ import os
 from pathlib import Path
 import sys
 import time
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -324,9 +324,3 @@ def run_cli(args: argparse.Namespace) -> int:
         summary['plots'] = [str(path) for path in plot_atlas(out)]
     print(json.dumps(summary))
     return EXIT_CONVERGED if summary['converged'] == spec.size else EXIT_NOT_CONVERGED
-
-
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run ``python -m cdr_translator atlas ...`` (for benches and tests)."""
-    from ..cli import main as cli_main
-    return cli_main(['atlas', *(argv or [])])

@@ -23,16 +23,17 @@ prediction (dp/dq)^-1 (target - previous target).
 from dataclasses import dataclass
 import math
 import time
-from typing import Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import lsq_linear
 
 from .. import geometry
 from ..solver import check_wrench
 
 if TYPE_CHECKING:  # pragma: no cover - imports for type hints only (no import cycle)
-    from ..delta import DeltaResult, DeltaRobot
+    from .delta import DeltaResult, DeltaRobot
 
 #: Default largest distance of the platform origin from the target that counts as reached (m).
 POSITION_TOLERANCE = 1e-9
@@ -118,7 +119,7 @@ class InverseResult:
         return data
 
 
-def check_target(target: Sequence[float]) -> np.ndarray:
+def check_target(target: ArrayLike) -> np.ndarray:
     """Return the target position (3,), m; ValueError naming a bad value."""
     array = np.asarray(target, dtype=float)
     if array.shape != (3,):
@@ -167,13 +168,15 @@ class InverseSolver:
         """Forget the path: the next solve starts from the sliders at home."""
         self._previous = None
 
-    def solve(self, target: Sequence[float], payload_force: Sequence[float] = (0.0, 0.0, 0.0),
-              payload_moment: Sequence[float] = (0.0, 0.0, 0.0),
-              payload_offset: Sequence[float] = (0.0, 0.0, 0.0),
+    def solve(self, target: ArrayLike, payload_force: ArrayLike = (0.0, 0.0, 0.0),
+              payload_moment: ArrayLike = (0.0, 0.0, 0.0),
+              payload_offset: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True) -> InverseResult:
         """Slider positions putting the platform origin at ``target`` (m, {w}) under a payload."""
         goal = check_target(target)
-        check_wrench(payload_force, payload_moment)
+        wrench = check_wrench(np.asarray(payload_force, dtype=float).tolist(),
+                              np.asarray(payload_moment, dtype=float).tolist())
+        force, moment = wrench[:3].tolist(), wrench[3:].tolist()
         offset = np.asarray(payload_offset, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
             raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
@@ -195,7 +198,7 @@ class InverseSolver:
 
         def forward(at: np.ndarray) -> 'DeltaResult':
             last[0] = at
-            return robot.solve(at.tolist(), payload_force, payload_moment, offset.tolist(),
+            return robot.solve(at.tolist(), force, moment, offset.tolist(),
                                warm_start=warm_start or solves > 0, compliance=True)
 
         solves = 0

@@ -8,8 +8,9 @@ import subprocess
 import sys
 import time
 
-from cdr_translator.delta import DeltaRobot
-from cdr_translator.robot.atlas import load_results, main, run_atlas
+from cdr_translator.cli import main as cli_main
+from cdr_translator.robot.atlas import load_results, run_atlas
+from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import AtlasSpec, serpentine
 import numpy as np
 import pytest
@@ -17,6 +18,11 @@ import zarr
 
 ROOT = Path(__file__).resolve().parents[2]
 GRAVITY_1KG = (0.0, 0.0, -9.81)
+
+
+def main(argv) -> int:
+    """Run ``python -m cdr_translator atlas ARGV`` in this process; return the exit code."""
+    return cli_main(['atlas', *argv])
 
 
 def _environment() -> dict:

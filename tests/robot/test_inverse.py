@@ -3,7 +3,7 @@
 import json
 
 from cdr_translator.cli import main
-from cdr_translator.delta import DeltaRobot
+from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
 import pytest
 
