@@ -1,5 +1,6 @@
 """cdr_node: its message dicts without ROS, then the node over real DDS (own domain)."""
 
+from contextlib import contextmanager
 import math
 import os
 import signal
@@ -113,13 +114,20 @@ class Client:
                 if (message.header.stamp.sec, message.header.stamp.nanosec)
                 == (stamp['sec'], stamp['nanosec'])]
 
-    def send_until_answered(self, publish, timeout_s):
-        """Publish (best effort) every 0.25 s until a diagnostic answers; return the stamp."""
+    def send_until_answered(self, publish, timeout_s, period_s=0.25, same_stamp=False):
+        """
+        Publish (best effort) every ``period_s`` until a diagnostic answers; return the stamp.
+
+        Each publication gets a new stamp, or (``same_stamp``, for solves slower than the
+        period) they all carry the first one.
+        """
         deadline = time.monotonic() + timeout_s
+        stamp = messages.stamp_from_ns(time.time_ns())
         while time.monotonic() < deadline:
-            stamp = messages.stamp_from_ns(time.time_ns())
+            if not same_stamp:
+                stamp = messages.stamp_from_ns(time.time_ns())
             publish(stamp)
-            answer_by = time.monotonic() + 0.25
+            answer_by = time.monotonic() + period_s
             while time.monotonic() < answer_by:
                 self.executor.spin_once(timeout_sec=0.05)
                 if self.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp):
@@ -149,19 +157,6 @@ class Client:
         message.point.x, message.point.y, message.point.z = (float(v) for v in target)
         self.target.publish(message)
 
-    def send_same_until_answered(self, publish, timeout_s, period_s=1.0):
-        """Publish one stamp every ``period_s`` until a diagnostic answers (slow solves)."""
-        stamp = messages.stamp_from_ns(time.time_ns())
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            publish(stamp)
-            answer_by = time.monotonic() + period_s
-            while time.monotonic() < answer_by:
-                self.executor.spin_once(timeout_sec=0.05)
-                if self.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp):
-                    return stamp
-        raise AssertionError(f'no answer in {timeout_s} s')
-
     def wait_for(self, topic, stamp, timeout_s):
         """Spin until a message of ``topic`` stamped ``stamp`` came; return it."""
         deadline = time.monotonic() + timeout_s
@@ -178,6 +173,42 @@ class Client:
         rclpy.try_shutdown(context=self.context)
 
 
+@contextmanager
+def node_session(tmp_path):
+    """
+    Start cdr_node (MCAP log in ``tmp_path``) in its own ROS domain and a Client for it.
+
+    Yield (node, client, mcap path); afterwards close the client, kill the node if it still
+    runs and restore the environment.
+    """
+    env = isolated_ros_env()
+    saved = {key: os.environ.get(key) for key in env}
+    os.environ.update(env)
+    mcap = tmp_path / 'cdr.mcap'
+    node = NodeProcess(['-p', f'mcap_path:={mcap}'], env, tmp_path / 'node.log', COMMAND)
+    client = None
+    try:
+        client = Client()
+        yield node, client, mcap
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def topic_counts(mcap):
+    """Return {topic: message count} of a finalized MCAP file."""
+    with open(mcap, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    counts = summary.statistics.channel_message_counts
+    return {summary.channels[channel].topic: count for channel, count in counts.items()}
+
+
 def diagnostic(client, stamp):
     """Return (level, message, values) of the (last) diagnostic answering ``stamp``."""
     status = client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp)[-1].status[0]
@@ -187,14 +218,7 @@ def diagnostic(client, stamp):
 
 def test_node_round_trip(tmp_path, solved):
     """Sliders then a payload in; the pose equals the library's; bad input; clean SIGINT."""
-    env = isolated_ros_env()
-    saved = {key: os.environ.get(key) for key in env}
-    os.environ.update(env)
-    mcap = tmp_path / 'cdr.mcap'
-    node = NodeProcess(['-p', f'mcap_path:={mcap}'], env, tmp_path / 'node.log', COMMAND)
-    client = None
-    try:
-        client = Client()
+    with node_session(tmp_path) as (node, client, mcap):
         client.send_until_answered(
             lambda stamp: client.publish_sliders((0.002, 0.01, -0.005), stamp,
                                                  ('slider_3', 'slider_1', 'slider_2')),
@@ -224,22 +248,9 @@ def test_node_round_trip(tmp_path, solved):
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and "'elsewhere' is not the world frame" in text
         assert node.stop(signal.SIGINT) == 0, node.text()
-    finally:
-        if client is not None:
-            client.close()
-        node.kill()
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-    with open(mcap, 'rb') as stream:
-        summary = make_reader(stream).get_summary()
-    topics = {channel.topic for channel in summary.channels.values()}
+    by_topic = topic_counts(mcap)
     assert {'/sliders', '/platform_wrench', '/platform_pose', '/leg_bending_angles',
-            '/leg_tip_wrenches', '/diagnostics'} <= topics
-    counts = summary.statistics.channel_message_counts
-    by_topic = {summary.channels[channel].topic: count for channel, count in counts.items()}
+            '/leg_tip_wrenches', '/diagnostics'} <= set(by_topic)
     assert by_topic['/platform_pose'] >= 2 and by_topic['/sliders'] >= 2
 
 
@@ -279,18 +290,12 @@ def test_node_inverse_round_trip(tmp_path):
     payload = (0.5, -0.5, -9.81)
     true_sliders = np.array([0.008, -0.004, 0.012])
     target = DeltaRobot().solve(true_sliders, payload).platform_position
-    env = isolated_ros_env()
-    saved = {key: os.environ.get(key) for key in env}
-    os.environ.update(env)
-    mcap = tmp_path / 'cdr.mcap'
-    node = NodeProcess(['-p', f'mcap_path:={mcap}'], env, tmp_path / 'node.log', COMMAND)
-    client = None
-    try:
-        client = Client()
+    with node_session(tmp_path) as (node, client, mcap):
         client.send_until_answered(lambda stamp: client.publish_wrench(payload, stamp),
                                    START_TIMEOUT_S)
-        stamp = client.send_same_until_answered(
-            lambda stamp: client.publish_target(target, stamp, 'cdr_base'), ANSWER_TIMEOUT_S)
+        stamp = client.send_until_answered(
+            lambda stamp: client.publish_target(target, stamp, 'cdr_base'), ANSWER_TIMEOUT_S,
+            period_s=1.0, same_stamp=True)
         command = client.wait_for(cdr_messages.SLIDER_COMMAND_TOPIC, stamp, ANSWER_TIMEOUT_S)
         predicted = client.wait_for(cdr_messages.PREDICTED_POSE_TOPIC, stamp, ANSWER_TIMEOUT_S)
         assert list(command.name) == list(cdr_messages.SLIDER_NAMES)
@@ -306,9 +311,9 @@ def test_node_inverse_round_trip(tmp_path):
         reached = [pose.pose.position.x, pose.pose.position.y, pose.pose.position.z]
         assert np.linalg.norm(np.array(reached) - target) < 1e-6
         # unreachable: an ERROR naming the binding limits, no command
-        far = client.send_same_until_answered(
+        far = client.send_until_answered(
             lambda stamp: client.publish_target((0.0, 0.0, -0.3), stamp), ANSWER_TIMEOUT_S,
-            period_s=5.0)
+            period_s=5.0, same_stamp=True)
         level, text, values = diagnostic(client, far)
         assert level == messages.ERROR and 'unreachable' in text and 'stroke limit' in text
         assert values['reachable'] == 'false'
@@ -319,18 +324,6 @@ def test_node_inverse_round_trip(tmp_path):
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and 'target y coordinate is nan' in text
         assert node.stop(signal.SIGINT) == 0, node.text()
-    finally:
-        if client is not None:
-            client.close()
-        node.kill()
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-    with open(mcap, 'rb') as stream:
-        summary = make_reader(stream).get_summary()
-    counts = summary.statistics.channel_message_counts
-    by_topic = {summary.channels[channel].topic: count for channel, count in counts.items()}
+    by_topic = topic_counts(mcap)
     assert by_topic['/target_position'] >= 3
     assert by_topic['/slider_command'] >= 1 and by_topic['/predicted_platform_pose'] >= 1
