@@ -3,7 +3,7 @@ Run the whole hard-case suite and write its report and the summary in docs/hard_
 
 Usage: python -m bench.hard_cases [--quick] [--no-docs]
 
-Every case of ``cdr_translator.hard_cases`` (``--quick``: only those ``make test`` runs) is
+Every case of ``cdr_translator.studies.hard_cases`` (``--quick``: only those ``make test`` runs) is
 solved, each converged state verified independently and, if only its discretization is too
 coarse, re-solved on a finer grid; the axial buckling load is found and compared with the
 Euler estimate. The whole report (per-case table and summary) goes to
@@ -16,7 +16,8 @@ from pathlib import Path
 import platform
 import time
 
-from cdr_translator import hard_cases, TranslatorParams
+from cdr_translator import TranslatorParams
+from cdr_translator.studies import hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / 'bench' / 'results' / 'hard_cases.md'

@@ -19,6 +19,12 @@ SOLVE_MARKER = '<!-- docs-test: readme-solve -->'
 FENCE = re.compile(r'^```.*?^```', re.MULTILINE | re.DOTALL)
 LINK = re.compile(r'!?\[[^\]]*\]\(([^)\s]+)\)')
 HEADING = re.compile(r'^#{1,6}\s+(.*?)\s*#*\s*$', re.MULTILINE)
+#: A repository path named in the docs (`cdr_translator/ros/runtime.py`, `config/...yaml`).
+CODE_PATH = re.compile(r'`((?:cdr_translator|msg_tools|bench|scripts|config|launch|tests)/'
+                       r'[\w/.-]*\w\.(?:py|yaml|md|mcap|png|json))`')
+#: A dotted name in the package (`cdr_translator.studies.hard_cases.stability`).
+DOTTED = re.compile(r'`((?:cdr_translator|msg_tools)(?:\.\w+)+)`')
+DEFINED = re.compile(r'^\s*(?:def|class)\s+(\w+)|^(\w+)\s*[:=]', re.MULTILINE)
 
 
 def _prose(text: str) -> str:
@@ -70,6 +76,34 @@ def test_relative_links_resolve(path):
         assert target.exists(), f'{path.name}: broken link {file_part}'
         if fragment and target.suffix == '.md':
             assert fragment in _anchors(target), f'{path.name}: no #{fragment} in {target.name}'
+
+
+def _names_defined(path: Path) -> set:
+    """Return the names a module defines (def, class, or a top-level assignment)."""
+    pairs = DEFINED.findall(path.read_text(encoding='utf-8'))
+    return {name for pair in pairs for name in pair if name}
+
+
+def _resolves(dotted: str) -> bool:
+    """Tell whether a dotted name is a module, package or a name one of them defines."""
+    parts = dotted.split('.')
+    for cut in range(len(parts), 0, -1):
+        base = ROOT.joinpath(*parts[:cut])
+        module = base / '__init__.py' if base.is_dir() else base.with_suffix('.py')
+        if module.is_file():
+            rest = parts[cut:]
+            return not rest or (len(rest) <= 2 and rest[0] in _names_defined(module))
+    return False
+
+
+@pytest.mark.parametrize('path', [README] + DOCS, ids=lambda path: path.name)
+def test_code_paths_and_names_exist(path):
+    """Files and dotted names the docs cite are in the repository (no stale module paths)."""
+    text = path.read_text(encoding='utf-8')
+    for cited in CODE_PATH.findall(text):
+        assert (ROOT / cited).exists(), f'{path.name} cites {cited}, which does not exist'
+    for cited in DOTTED.findall(text):
+        assert _resolves(cited), f'{path.name} cites {cited}, which does not resolve'
 
 
 def test_every_doc_is_listed_in_the_index():
