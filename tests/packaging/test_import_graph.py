@@ -74,7 +74,7 @@ def imported(module: str, path: Path) -> Iterator[str]:
 
 @pytest.fixture(scope='module')
 def graph() -> Dict[str, Set[str]]:
-    """Module -> the project modules it imports."""
+    """Map each module to the project modules it imports."""
     names = module_names()
     # a module's own packages are imported before it anyway: an edge to one is no cycle
     return {module: {name for name in imported(module, path) if name in names
@@ -112,7 +112,7 @@ def test_no_import_cycles(graph):
 
 
 def test_layers_point_one_way(graph):
-    """core <- fidelity, robot <- studies <- interface <- ros <- cli; aliases aside."""
+    """Check core <- fidelity, robot <- studies <- interface <- ros <- cli (aliases aside)."""
     wrong = [f'{module} -> {target}' for module, targets in graph.items()
              if module.startswith('cdr_translator') and module not in ALIASES
              for target in targets
@@ -129,7 +129,7 @@ def test_msg_tools_core_is_independent_of_cdr_translator(graph):
 
 
 def test_only_the_ros_subpackage_imports_ros():
-    """rclpy and message packages appear only under cdr_translator/ros."""
+    """Check that rclpy and message packages appear only under cdr_translator/ros."""
     wrong = []
     for module, path in module_names().items():
         if module.startswith('cdr_translator.ros') or module in ALIASES:
