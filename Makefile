@@ -26,7 +26,7 @@ $(STAMP): requirements.txt setup.py setup.cfg
 test: setup
 	$(VPY) -m pytest tests
 
-# The whole hard-case suite (about a minute): bench/results/hard_cases.md and the README table.
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
 

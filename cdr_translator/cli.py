@@ -65,7 +65,7 @@ def _parser() -> argparse.ArgumentParser:
                        help='an eigen-twist at least this fraction of the most compliant one '
                             'is a primary mobility (default: %(default)s)')
     solve.add_argument('--fidelity', choices=('full', 'rod', 'cc', 'auto'), default='full',
-                       help='model level (README "Speed against error"); auto: the cheapest '
+                       help='model level (docs/performance.md); auto: the cheapest '
                             'level within --max-position-error and --max-angle-error')
     solve.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
                        help='error budget of --fidelity auto: end-disk position, m')
