@@ -10,7 +10,7 @@ KERNELS := $(VENV)/.kernels-stamp
 KERNEL_SOURCES := cdr_translator/_jit.py cdr_translator/rod.py cdr_translator/model.py \
 	$(wildcard cdr_translator/fidelity/*.py)
 
-.PHONY: setup test demo clean clean-kernels bags hard-cases bench
+.PHONY: setup test demo clean clean-kernels bags hard-cases bench atlas-scale
 
 setup: $(STAMP) $(KERNELS)
 
@@ -36,7 +36,7 @@ $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 test: setup
 	$(VPY) -m pytest tests
 
-# The whole hard-case suite (about a minute): bench/results/hard_cases.md and the README table.
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
@@ -44,6 +44,12 @@ hard-cases: setup
 # 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
+
+# Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
+# `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
+# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/robot.md).
+atlas-scale: setup
+	$(VPY) -m bench.atlas_scale
 
 # Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup
