@@ -242,7 +242,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
         if table:
             table.writerow(CSV_COLUMNS)
         with McapLog(output_path, flush_every_messages=flush_every_messages,
-                     flush_every_s=flush_every_s) as log:
+                     flush_every_s=flush_every_s, if_exists='overwrite') as log:
             for topic in chosen:
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             try:
