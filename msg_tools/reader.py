@@ -40,7 +40,7 @@ READ_ERRORS = (McapError, struct.error, zstandard.ZstdError, ValueError, Runtime
 
 #: Messages remembered (as small fingerprints) to recognize a duplicate outside a copied
 #: chunk; about 100 bytes each.
-DUPLICATE_WINDOW = 65536
+DUPLICATE_WINDOW = 16384
 
 
 class Duplicates:
@@ -51,9 +51,9 @@ class Duplicates:
     an earlier one. Memory: one fingerprint per distinct chunk plus ``window`` messages.
     """
 
-    def __init__(self, window: int = DUPLICATE_WINDOW) -> None:
-        """Start with nothing seen."""
-        self.window = window
+    def __init__(self, window: Optional[int] = None) -> None:
+        """Start with nothing seen; ``window`` defaults to ``DUPLICATE_WINDOW``."""
+        self.window = DUPLICATE_WINDOW if window is None else window
         self._chunks: Set[Tuple[int, int, int, int, int]] = set()
         self._recent: Set[Tuple[int, int, int, int, int]] = set()
         self._order: Deque[Tuple[int, int, int, int, int]] = deque()

@@ -62,7 +62,7 @@ EXIT_CODES: Dict[int, str] = {
 }
 
 #: Most points kept in ``Series`` (thinned by halves beyond that).
-SERIES_LIMIT = 10_000
+SERIES_LIMIT = 5_000
 #: Most per-message warnings kept (the rest are counted).
 WARNING_LIMIT = 20
 
@@ -89,7 +89,7 @@ class Series:
     position: List[List[float]] = field(default_factory=list)
     index: List[int] = field(default_factory=list)
     wrench: List[np.ndarray] = field(default_factory=list)
-    limit: int = SERIES_LIMIT
+    limit: int = field(default_factory=lambda: SERIES_LIMIT)
     keep: Collection[int] = ()
     stride: int = 1
 
