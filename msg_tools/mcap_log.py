@@ -74,18 +74,21 @@ IF_EXISTS = ('fail', 'overwrite', 'rename')
 _MAX_RENAME = 9999
 
 
-def lock_holder(path: Union[str, Path]) -> str:
+def _flock_holder(path: Union[str, Path]) -> Optional[str]:
     """
-    Describe the process holding a ``flock`` on ``path`` ('PID 123: command line').
+    Return who holds a ``flock`` on ``path`` ('PID 123: command line'), None if nobody.
 
-    Read from /proc/locks (Linux); 'holder unknown' where that cannot tell.
+    Read from /proc/locks (Linux) without taking any lock, so looking never makes a real
+    writer fail; without /proc/locks, a shared lock is tried for an instant instead.
     """
     try:
         status = os.stat(path)
         with open('/proc/locks') as locks:
             lines = locks.read().splitlines()
+    except FileNotFoundError:
+        return _probe(path)
     except OSError:
-        return 'holder unknown'
+        return None
     device = f'{os.major(status.st_dev):02x}:{os.minor(status.st_dev):02x}:{status.st_ino}'
     for line in lines:
         fields = line.split()
@@ -102,11 +105,16 @@ def lock_holder(path: Union[str, Path]) -> str:
         except OSError:
             text = ''
         return f'PID {pid}: {text[:160]}' if text else f'PID {pid}'
-    return 'holder unknown'
+    return None
 
 
-def _locked_by_other(path: Path) -> Optional[str]:
-    """Return the holder of an exclusive lock on ``path``, None when nobody holds one."""
+def lock_holder(path: Union[str, Path]) -> str:
+    """Describe the holder of the lock on ``path`` ('holder unknown' when it cannot tell)."""
+    return _flock_holder(path) or 'holder unknown'
+
+
+def _probe(path: Union[str, Path]) -> Optional[str]:
+    """Try a shared lock on ``path`` for an instant: 'holder unknown' if it is held."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
     except OSError:
@@ -114,7 +122,7 @@ def _locked_by_other(path: Path) -> Optional[str]:
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
-        return lock_holder(path)
+        return 'holder unknown'
     finally:
         os.close(fd)
     return None
@@ -155,7 +163,7 @@ def open_exclusive(path: Union[str, Path], if_exists: str = 'fail') -> Tuple[int
             fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
         except FileExistsError:
             if if_exists == 'fail':
-                holder = _locked_by_other(candidate)
+                holder = _flock_holder(candidate)
                 if holder is not None:
                     raise LogFileBusyError(candidate, holder) from None
                 raise LogFileExistsError(candidate) from None
@@ -279,7 +287,7 @@ class McapLog:
         self._written = self._pending = self._lost = self._errors = 0
         self._file_written = 0
         self._committed_offset = 0
-        self._message = ''
+        self._message = self._failure = ''
         self._failing = False
         self._next_retry = 0.0
         self._unflushed = 0
@@ -397,9 +405,10 @@ class McapLog:
         self._unflushed = 0
         kept = ('it was removed' if removed else
                 f'it is readable up to byte {self._committed_offset}')
-        self._message = (f'writing {self.path} failed: {_error_text(error)}; {lost} records '
+        self._failure = (f'writing {self.path} failed: {_error_text(error)}; {lost} records '
                          f'lost ({self._lost} in all); {kept}; trying a new file every '
                          f'{self._retry_s:g} s')
+        self._message = self._failure
         self._next_retry = time.monotonic() + self._retry_s
 
     def _resume(self) -> bool:
@@ -409,7 +418,7 @@ class McapLog:
         if self._closed or time.monotonic() < self._next_retry:
             return False
         self._next_retry = time.monotonic() + self._retry_s
-        failed = self._message
+        failed = self._failure
         try:
             fd, path = open_exclusive(self.requested_path, 'rename')
         except OSError:

@@ -20,6 +20,7 @@ the data-section CRC of the DataEnd record (an extra streaming pass for an index
 from collections import deque
 from dataclasses import dataclass, field
 import io
+import itertools
 from pathlib import Path
 import struct
 from typing import Callable, Deque, Dict, Iterable, Iterator, List, Optional, Set, Tuple, Union
@@ -27,8 +28,9 @@ import zlib
 
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
-from mcap.stream_reader import breakup_chunk, CRCValidationError, StreamReader
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.stream_reader import CRCValidationError, get_chunk_data_stream, StreamReader
 from mcap_ros2.decoder import DecoderFactory
 import zstandard
 
@@ -41,6 +43,29 @@ READ_ERRORS = (McapError, struct.error, zstandard.ZstdError, ValueError, Runtime
 #: Messages remembered (as small fingerprints) to recognize a duplicate outside a copied
 #: chunk; about 100 bytes each.
 DUPLICATE_WINDOW = 16384
+
+
+def chunk_records(chunk: Chunk) -> Iterator[McapRecord]:
+    """
+    Yield the schema, channel and message records of ``chunk`` one at a time.
+
+    mcap's ``breakup_chunk`` without its list: the chunk is decompressed and its CRC
+    checked at the first ``next()`` (errors there mean the whole chunk is unreadable), then
+    records are parsed as they are consumed, so memory holds one chunk's bytes, not one
+    object per message of it.
+    """
+    stream, length = get_chunk_data_stream(chunk, validate_crc=True)
+    readers = {Opcode.CHANNEL: lambda size: Channel.read(stream),
+               Opcode.MESSAGE: lambda size: Message.read(stream, size),
+               Opcode.SCHEMA: lambda size: Schema.read(stream)}
+    while stream.count < length:
+        opcode = stream.read1()
+        size = stream.read8()
+        read = readers.get(opcode)
+        if read is None:
+            stream.read(size)
+        else:
+            yield read(size)
 
 
 class Duplicates:
@@ -241,13 +266,14 @@ class McapSource:
                 chunk = next(StreamReader(stream, skip_magic=True, emit_chunks=True).records)
                 if not isinstance(chunk, Chunk):
                     raise McapError(f'found a {type(chunk).__name__} record')
-                records = breakup_chunk(chunk, validate_crc=True)
+                records = chunk_records(chunk)
+                first = next(records, None)   # decompressed and CRC-checked here
             except READ_ERRORS as error:
                 self.report.problems.append(
                     f'chunk at byte {index.chunk_start_offset} unreadable '
                     f'({_error_text(error)}): its messages are lost')
                 continue
-            yield from self._records(records, self.duplicates.chunk_seen(chunk))
+            yield from self._chunk(index.chunk_start_offset, chunk, first, records)
 
     def _check_data_section(self, stream: io.BufferedReader) -> None:
         """Stream the records up to DataEnd with CRCs on; set ``data_crc`` and report."""
@@ -294,14 +320,15 @@ class McapSource:
             end = stream.tell()
             if isinstance(record, Chunk):
                 try:
-                    chunk_records = breakup_chunk(record, validate_crc=True)
+                    inside = chunk_records(record)
+                    first = next(inside, None)   # decompressed and CRC-checked here
                 except READ_ERRORS as error:
                     self.report.problems.append(
                         f'chunk at byte {position} unreadable ({_error_text(error)}): '
                         f'its messages are lost')
                     position = end
                     continue
-                yield from self._records(chunk_records, self.duplicates.chunk_seen(record))
+                yield from self._chunk(position, record, first, inside)
             elif isinstance(record, DataEnd):
                 if self.check_data_crc:
                     self.data_crc = 'valid' if record.data_section_crc else 'absent'
@@ -310,6 +337,18 @@ class McapSource:
             position = end
 
     # shared -------------------------------------------------------------------------------
+    def _chunk(self, offset: int, chunk: Chunk, first: Optional[McapRecord],
+               records: Iterator[McapRecord]) -> Iterator[RawMessage]:
+        """Yield the messages of a CRC-checked chunk; a record that does not parse ends it."""
+        if first is None:
+            return
+        copied = self.duplicates.chunk_seen(chunk)
+        try:
+            yield from self._records(itertools.chain([first], records), copied)
+        except READ_ERRORS as error:
+            self.report.problems.append(f'chunk at byte {offset}: a record does not parse '
+                                        f'({_error_text(error)}); the rest of it is lost')
+
     def _wanted(self, channel_id: int) -> bool:
         """Tell whether messages of ``channel_id`` pass the topic filter."""
         if self.topics is None:
