@@ -23,7 +23,7 @@ import tempfile
 import time
 from typing import Dict, List, Sequence, Tuple
 
-from msg_tools import messages
+from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
 from msg_tools.synth import DEFAULT_START_NS
 

@@ -5,7 +5,9 @@ import math
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-import yaml
+from .checks import check_integer, check_number
+from .errors import ParameterError
+from .params_file import layered_values, section_values
 
 #: The node name under which the parameters sit in the ROS 2 params file.
 NODE_NAME = 'translator_node'
@@ -33,6 +35,11 @@ DEFAULT_PARAMS_PATH = _shipped_params_path()
 #: Secondary backbones sit at these angles on the pitch circle (secondary 1 on +x).
 SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 
+#: Upper bounds of the discretization, enforced by the library and both nodes alike: past
+#: them a solve cannot meet any time limit (cost and memory grow with both).
+MAX_SPACERS_PER_JOINT = 64
+MAX_STEPS_PER_SEGMENT = 1024
+
 #: Keys of the same params file that belong to the ROS node, not to the model.
 NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
@@ -44,34 +51,29 @@ NODE_ONLY_KEYS: frozenset = frozenset((
 FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_angle_error'))
 
 
-class ParameterError(ValueError):
-    """A parameter is missing, unknown or has an impossible value."""
-
-
 def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH,
                      section: str = NODE_NAME) -> dict:
     """
-    Return the ``<section>: ros__parameters:`` mapping of a ROS 2 params file.
+    Return the parameters a ROS 2 params file gives node ``section`` (root namespace).
 
-    ``section`` is a node name: ``translator_node`` (default) or ``cdr_node`` (the delta
-    robot's geometry). Model and node-only keys alike, unvalidated; ParameterError if the
-    file cannot be read.
+    Every section that applies (``/**``, ``section``, ``/section``, ...) merged in file order,
+    unvalidated; ParameterError if the file cannot be read or none of it applies.
     """
-    path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise ParameterError(f'cannot read parameter file {path}: {error}') from error
-    except yaml.YAMLError as error:
-        raise ParameterError(f'{path} is not valid YAML: {error}') from error
-    try:
-        values = document[section]['ros__parameters']
-    except (TypeError, KeyError):
-        raise ParameterError(
-            f'{path} has no {section}: ros__parameters: section') from None
-    if not isinstance(values, Mapping):
-        raise ParameterError(f'{path}: {section}.ros__parameters must be a mapping')
-    return dict(values)
+    values = section_values(path, section)
+    if not values:
+        raise ParameterError(f'{path} has no section for {section} ({section}: or /**: '
+                             'with ros__parameters:)')
+    return values
+
+
+def translator_values(path: Union[str, Path, None] = None) -> dict:
+    """
+    Every translator_node parameter: the shipped file, then ``path`` key by key.
+
+    ROS 2 params-file semantics (cdr_translator.params_file): an unknown key or a value of
+    the wrong ROS type is a ParameterError naming it.
+    """
+    return layered_values(NODE_NAME, [path], DEFAULT_PARAMS_PATH)
 
 
 @dataclass(frozen=True)
@@ -97,23 +99,15 @@ class TranslatorParams:
     def __post_init__(self) -> None:
         """Validate every field; raise ParameterError naming the offending key."""
         for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
-                     'youngs_modulus', 'poisson_ratio'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ParameterError(f'{name} must be a number, got {value!r}')
-            if not math.isfinite(value):
-                raise ParameterError(f'{name} must be finite, got {value!r}')
-        for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
                      'youngs_modulus'):
-            if getattr(self, name) <= 0.0:
-                raise ParameterError(f'{name} must be positive, got {getattr(self, name)!r}')
-        if not -1.0 < self.poisson_ratio < 0.5:
-            raise ParameterError(
-                f'poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio!r}')
-        for name, lowest in (('spacers_per_joint', 0), ('steps_per_segment', 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
-                raise ParameterError(f'{name} must be an integer >= {lowest}, got {value!r}')
+            check_number(name, getattr(self, name), low=0.0, low_open=True,
+                         error=ParameterError)
+        check_number('poisson_ratio', self.poisson_ratio, low=-1.0, high=0.5, low_open=True,
+                     high_open=True, error=ParameterError)
+        check_integer('spacers_per_joint', self.spacers_per_joint, low=0,
+                      high=MAX_SPACERS_PER_JOINT, error=ParameterError)
+        check_integer('steps_per_segment', self.steps_per_segment, low=1,
+                      high=MAX_STEPS_PER_SEGMENT, error=ParameterError)
         if self.pitch_radius < self.backbone_diameter:
             # Secondary holes would overlap the central primary backbone.
             raise ParameterError(
@@ -177,8 +171,13 @@ class TranslatorParams:
 
     @classmethod
     def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'TranslatorParams':
-        """Read a ROS 2 params file (``translator_node: ros__parameters: {...}``)."""
-        return cls.from_mapping(read_params_file(path))
+        """
+        Read a ROS 2 params file over the shipped one, key by key (``translator_values``).
+
+        A partial file, a ``/**:`` section and the node's name all work as in the node.
+        """
+        values = translator_values(path)
+        return cls.from_mapping({field.name: values[field.name] for field in fields(cls)})
 
     def with_changes(self, **changes: Any) -> 'TranslatorParams':
         """Return a validated copy with some fields changed."""

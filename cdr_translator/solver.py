@@ -22,6 +22,7 @@ from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from threadpoolctl import ThreadpoolController
 
 from ._jit import interpreted_kernels
+from .checks import check_vector
 from .compliance import compliance_analysis
 from .params import TranslatorParams
 from .problem import Problem, RESIDUAL_KINDS
@@ -57,24 +58,15 @@ class _Outcome:
 
 
 def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
-    """Return the 6-vector [force; moment]; ValueError naming a non-finite component."""
-    wrench = np.empty(6)
-    for name, values, offset in (('force', force, 0), ('moment', moment, 3)):
-        array = np.asarray(values, dtype=float)
-        if array.shape != (3,):
-            raise ValueError(f'{name} must have 3 components, got shape {array.shape}')
-        for axis, value in zip('xyz', array):
-            if not math.isfinite(value):
-                raise ValueError(f'{name} {axis} component is {value}: a wrench must be finite')
-        wrench[offset:offset + 3] = array
-    return wrench
+    """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
+    return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 
 
 #: The BLAS libraries loaded in this process (numpy's and scipy's OpenBLAS)
 _BLAS = ThreadpoolController()
 
 
-def _one_blas_thread(method: Callable) -> Callable:
+def one_blas_thread(method: Callable) -> Callable:
     """
     Run ``method`` with BLAS limited to one thread (about 8 us to switch).
 
@@ -151,7 +143,7 @@ class TranslatorSolver:
                           np.concatenate([result.force, result.moment]))
         self._lu = None
 
-    @_one_blas_thread
+    @one_blas_thread
     def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:

@@ -10,7 +10,8 @@ per chunk: the MCAP writer keeps one chunk index per 1000 output records for the
 
 import tracemalloc
 
-from msg_tools import messages, reader, replay as replay_module
+from cdr_translator.interface import messages
+from msg_tools import reader, replay as replay_module
 from msg_tools.info import describe
 from msg_tools.mcap_log import McapLog
 from msg_tools.replay import replay

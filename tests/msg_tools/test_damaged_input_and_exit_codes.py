@@ -7,7 +7,8 @@ import sys
 
 from mcap.reader import make_reader
 from mcap.writer import Writer
-from msg_tools import messages, replay as replay_module, synth
+from cdr_translator.interface import messages
+from msg_tools import replay as replay_module, synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
 from msg_tools.mcap_log import _FileSink, McapLog

@@ -8,7 +8,7 @@ import sys
 import threading
 import time
 
-from msg_tools import messages
+from cdr_translator.interface import messages
 from msg_tools.errors import LogFileBusyError, LogFileExistsError
 from msg_tools.mcap_log import _FileSink, McapLog
 from msg_tools.reader import McapSource
@@ -179,7 +179,7 @@ def test_file_size_limit_is_a_real_write_error(tmp_path):
     """RLIMIT_FSIZE (EFBIG from the kernel): the file ends at its last complete chunk."""
     script = '''
 import resource, signal, sys
-from msg_tools import messages
+from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 resource.setrlimit(resource.RLIMIT_FSIZE, (20000, resource.RLIM_INFINITY))
