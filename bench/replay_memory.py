@@ -7,8 +7,9 @@ Writes one WrenchStamped file per count (the CDR of a few messages, the stamp pa
 message, 100 Hz): every ``--solve-every``-th wrench is a valid 0.5-5 N force (a sawtooth
 of 10 levels, solved warm-started); the others exceed max_force and are rejected with an
 ERROR diagnostic, so every message is read, decoded, checked, answered and written while
-the run fits in minutes (a solve costs about 3 ms on this shared machine). Then it runs ``python -m msg_tools replay --no-compliance`` and
-``python -m msg_tools info`` on each in a child process of its own and reads the child's
+the run fits in minutes (a solve costs about 3 ms on this shared machine). Then it runs
+``python -m msg_tools replay --no-compliance`` and ``python -m msg_tools info`` on each in
+a child process of its own and reads the child's
 peak RSS from ``os.wait4``. Writes bench/results/replay_memory.md (issue 14: growth from
 10 k to 1 M messages must stay within 20 MB).
 """

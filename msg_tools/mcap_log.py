@@ -30,7 +30,8 @@ import os
 from pathlib import Path
 import threading
 import time
-from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Tuple, Union
+from typing import (Any, Callable, cast, Dict, IO, Iterator, List, Mapping, Optional, Tuple,
+                    Union)
 
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
@@ -313,7 +314,7 @@ class McapLog:
         """Begin an MCAP in the locked file ``fd`` (caller holds the lock or constructs)."""
         self._fd: Optional[int] = fd
         self._sink: Optional[_FileSink] = _FileSink(fd)
-        writer = Writer(self._sink, chunk_size=self._chunk_size,
+        writer = Writer(cast(IO[Any], self._sink), chunk_size=self._chunk_size,
                         compression=CompressionType.ZSTD, enable_data_crcs=True)
         self._writer: Optional[Writer] = writer
         self._files.append(str(self.path))

@@ -27,8 +27,8 @@ from typing import Callable, Deque, Dict, Iterable, Iterator, List, Optional, Se
 import zlib
 
 from mcap.exceptions import McapError
-from mcap.reader import SeekingReader
 from mcap.opcode import Opcode
+from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
 from mcap.stream_reader import CRCValidationError, get_chunk_data_stream, StreamReader
 from mcap_ros2.decoder import DecoderFactory
@@ -55,9 +55,10 @@ def chunk_records(chunk: Chunk) -> Iterator[McapRecord]:
     object per message of it.
     """
     stream, length = get_chunk_data_stream(chunk, validate_crc=True)
-    readers = {Opcode.CHANNEL: lambda size: Channel.read(stream),
-               Opcode.MESSAGE: lambda size: Message.read(stream, size),
-               Opcode.SCHEMA: lambda size: Schema.read(stream)}
+    readers: Dict[int, Callable[[int], McapRecord]] = {
+        Opcode.CHANNEL: lambda size: Channel.read(stream),
+        Opcode.MESSAGE: lambda size: Message.read(stream, size),
+        Opcode.SCHEMA: lambda size: Schema.read(stream)}
     while stream.count < length:
         opcode = stream.read1()
         size = stream.read8()
@@ -230,13 +231,14 @@ class McapSource:
             return (dict(summary.channels), dict(summary.schemas),
                     dict(statistics.channel_message_counts), span)
         counts: Dict[int, int] = {}
-        start = end = None
+        start: Optional[int] = None
+        end: Optional[int] = None
         for message in self.messages():
             counts[message.channel.id] = counts.get(message.channel.id, 0) + 1
             start = message.log_time_ns if start is None else min(start, message.log_time_ns)
             end = message.log_time_ns if end is None else max(end, message.log_time_ns)
         return (dict(self.channels), dict(self.schemas), counts,
-                (start, end) if start is not None else None)
+                (start, end) if start is not None and end is not None else None)
 
     # indexed ------------------------------------------------------------------------------
     def _summary(self, stream: io.BufferedReader):

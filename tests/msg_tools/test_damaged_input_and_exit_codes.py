@@ -5,9 +5,9 @@ from pathlib import Path
 import subprocess
 import sys
 
+from cdr_translator.interface import messages
 from mcap.reader import make_reader
 from mcap.writer import Writer
-from cdr_translator.interface import messages
 from msg_tools import replay as replay_module, synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
@@ -195,6 +195,7 @@ def test_unwritable_output_exits_2_before_reading(tmp_path, where, monkeypatch, 
         extra = ['--plot', str(tmp_path / 'file' / 'p.png')]
 
     class Unread:
+
         def __init__(self, *args, **kwargs):
             raise AssertionError('the input was read before the outputs were checked')
 

@@ -177,7 +177,7 @@ def test_flush_thread_error_is_an_event_not_a_traceback(tmp_path, monkeypatch):
 
 def test_file_size_limit_is_a_real_write_error(tmp_path):
     """RLIMIT_FSIZE (EFBIG from the kernel): the file ends at its last complete chunk."""
-    script = '''
+    script = """
 import resource, signal, sys
 from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
@@ -191,7 +191,7 @@ for k in range(2000):
 status = log.close()
 print(status.written, status.lost, status.errors)
 print(status.message)
-'''
+"""
     path = tmp_path / 'small.mcap'
     process = subprocess.run([sys.executable, '-c', script, str(path)], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)
