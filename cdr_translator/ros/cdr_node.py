@@ -211,8 +211,11 @@ class CdrNode(Node):
         self._worker.join(SHUTDOWN_JOIN_S)
         if self._log is not None:
             self._log.close()
-            self.get_logger().info(f'MCAP log {self.mcap_path} closed: {self._log.written} '
-                                   f'records ({self._log.errors} failed)')
+            complete, line = self._log.closing_line()
+            if complete:
+                self.get_logger().info(line)
+            else:
+                self.get_logger().error(line)
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:

@@ -27,8 +27,8 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from .parameters import descriptor, ros_parameter_sources, SPECS
-from .runtime import check_parameters, fill_message, LatestMailbox, LogThread, open_log, OUTPUTS
-from .runtime import run, SHUTDOWN_JOIN_S, type_name
+from .runtime import check_parameters, fill_message, LatestMailbox, LogThread, LogWatch
+from .runtime import open_log, OUTPUTS, run, SHUTDOWN_JOIN_S, type_name
 from ..fidelity import FidelitySolver
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
@@ -36,6 +36,12 @@ from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
 from ..solver import check_wrench
+
+
+#: How often the MCAP log's health is checked (an ERROR diagnostic while it fails).
+LOG_CHECK_PERIOD_S = 1.0
+#: DiagnosticStatus name of the MCAP log's health.
+LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
 
 
 class TranslatorNode(Node):
@@ -74,6 +80,9 @@ class TranslatorNode(Node):
         self._mailbox = LatestMailbox()
         self._warm_up()
         self._log, self.mcap_path = self._open_log()
+        self._log_watch = LogWatch(self._log) if self._log is not None else None
+        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
+                           if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._subscription = self.create_subscription(
@@ -109,6 +118,23 @@ class TranslatorNode(Node):
         topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
         return open_log(self._settings, 'translator', topics)
+
+    def _check_log(self) -> None:
+        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
+        if self._log_watch is None:
+            return
+        found = self._log_watch.check()
+        if found is None:
+            return
+        level, text, values = found
+        if level == messages.ERROR:
+            self.get_logger().error(text, throttle_duration_sec=10.0)
+        else:
+            self.get_logger().warning(text)
+        self._publish_all(_filled([(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
+                                    messages.diagnostics_message(
+                                        messages.stamp_from_ns(time.time_ns()), level, text,
+                                        {**values, **self._counts()}, name=LOG_DIAGNOSTIC))]))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes, info: dict) -> None:
@@ -174,8 +200,13 @@ class TranslatorNode(Node):
     # output ----------------------------------------------------------------------------------
     def _counts(self) -> Dict[str, int]:
         """Return the running message counts reported with every diagnostic."""
-        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+        counts = {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                  'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+        log = getattr(self, '_log', None)
+        if log is not None:
+            status = log.status()
+            counts['log_records_lost'] = status.lost + log.errors
+        return counts
 
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
@@ -200,15 +231,21 @@ class TranslatorNode(Node):
         self.destroy_subscription(self._subscription)
         self._mailbox.close()
         self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log_timer is not None:
+            self.destroy_timer(self._log_timer)
         if self._log is not None:
-            self._log.close()
             log = self._log
-            self.get_logger().info(
-                f'MCAP log {self.mcap_path} closed: {log.written} records ({log.errors} '
-                f'failed); handing a record to the log thread took '
-                f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
-                f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
-                f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record')
+            log.close()
+            complete, line = log.closing_line()
+            text = (f'{line}; handing a record to the log thread took '
+                    f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
+                    f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
+                    f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record; '
+                    f'{log.reordered} log times held back to keep each channel in order')
+            if complete:
+                self.get_logger().info(text)
+            else:
+                self.get_logger().error(text)
 
 
 def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:

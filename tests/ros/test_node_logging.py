@@ -1,0 +1,175 @@
+"""
+translator_node's MCAP log (issue 14): one writer per file, write errors as diagnostics,
+a clean shutdown that states what was written and lost, log times in order per channel.
+
+Each test runs the node as a child process in this module's own ROS_DOMAIN_ID (localhost
+discovery); every wait is bounded.
+"""
+
+import os
+from pathlib import Path
+import re
+import signal
+import sys
+
+from cdr_translator.interface import messages
+from cdr_translator.params import NODE_NAME
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
+from cdr_translator.ros.client import MODULE_COMMAND, TranslatorClient
+from mcap.reader import make_reader
+from msg_tools.reader import McapSource
+import pytest
+
+START_TIMEOUT_S = 120.0
+ANSWER_TIMEOUT_S = 30.0
+POSE = messages.END_DISK_POSE_TOPIC
+DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
+LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
+CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost')
+
+#: The node under RLIMIT_FSIZE (the kernel's EFBIG once a file reaches the limit; SIGXFSZ
+#: ignored so that it is an error, not a kill): a real write error without root.
+LIMITED_COMMAND = (sys.executable, '-c', (
+    'import resource, runpy, signal, sys\n'
+    'signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n'
+    'resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, resource.RLIM_INFINITY))\n'
+    'sys.argv = ["translator_node"] + sys.argv[1:]\n'
+    'runpy.run_module("cdr_translator.ros.translator_node", run_name="__main__")\n'))
+
+
+@pytest.fixture(scope='module', autouse=True)
+def ros_env():
+    """Give this test module its own DDS domain, limited to this machine."""
+    env = isolated_ros_env()
+    keys = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
+    saved = {key: os.environ.get(key) for key in keys}
+    os.environ.update(env)
+    yield env
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
+
+
+class Node:
+    """A node process with its MCAP at ``mcap`` and a connected client; torn down on exit."""
+
+    def __init__(self, tmp_path: Path, env, mcap: Path, ros_args=(), command=MODULE_COMMAND,
+                 name='node'):
+        self.mcap = mcap
+        self.node = NodeProcess(['-p', f'mcap_path:={mcap}', *ros_args], env,
+                                tmp_path / f'{name}.log', command)
+        self.client = None
+        try:
+            self.client = TranslatorClient((POSE, DIAGNOSTICS))
+            assert self.client.handshake(START_TIMEOUT_S), self.node.text()
+        except BaseException:
+            self.__exit__()
+            raise
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        if self.client is not None:
+            self.client.close()
+        self.node.kill()
+
+    def answered(self, topic, stamp) -> bool:
+        """Wait for the message of ``topic`` stamped ``stamp``."""
+        return self.client.wait_for(lambda: self.client.messages_stamped(topic, stamp),
+                                    ANSWER_TIMEOUT_S)
+
+    def log_diagnostics(self):
+        """Return the /diagnostics statuses about the MCAP log received so far."""
+        return [message.status[0] for message, _ in self.client.received[DIAGNOSTICS]
+                if message.status[0].name == LOG_DIAGNOSTIC]
+
+
+def _closing(text):
+    """Return (written, lost) of the node's closing MCAP log line."""
+    found = CLOSED.findall(text)
+    assert len(found) == 1, text
+    return tuple(map(int, found[0]))
+
+
+def test_second_node_on_the_same_path_stops_at_start(tmp_path, ros_env):
+    """Two legs given one mcap_path: the second exits 2 naming the file and the first's PID."""
+    path = tmp_path / 'leg.mcap'
+    with Node(tmp_path, ros_env, path, name='first') as first:
+        with NodeProcess(['-p', f'mcap_path:={path}'], ros_env, tmp_path / 'second.log') as second:
+            assert second.process.wait(START_TIMEOUT_S) == 2, second.text()
+            text = second.text()
+            assert f'{path} is being written by another writer (PID {first.node.process.pid}' \
+                in text and 'Traceback' not in text
+        stamp = first.client.publish((5.0, 0.0, 0.0))
+        assert first.answered(POSE, stamp)
+        assert first.node.stop(signal.SIGINT) == 0
+        written, lost = _closing(first.node.text())
+    source = McapSource(path)
+    assert sum(1 for _ in source.messages()) == written and lost == 0
+    assert source.report.complete
+    # the finished log is not overwritten by a later run either
+    with NodeProcess(['-p', f'mcap_path:={path}'], ros_env, tmp_path / 'third.log') as third:
+        assert third.process.wait(START_TIMEOUT_S) == 2, third.text()
+        assert 'already exists' in third.text()
+
+
+def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_env):
+    """The MCAP file hits the file-size limit: ERROR diagnostic, poses go on, exit 0."""
+    path = tmp_path / 'run.mcap'
+    with Node(tmp_path, ros_env, path, ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
+                                         '-p', 'mcap_flush_messages:=20'],
+              command=LIMITED_COMMAND) as run:
+        stamps = []
+        for index in range(1500):
+            stamps.append(run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0)))
+            assert run.answered(POSE, stamps[-1]), run.node.text()
+            if any(status.level == bytes([messages.ERROR]) for status in run.log_diagnostics()):
+                break
+        errors = [status for status in run.log_diagnostics()
+                  if status.level == bytes([messages.ERROR])]
+        assert errors, run.node.text()
+        assert 'File too large' in errors[0].message
+        values = {pair.key: pair.value for pair in errors[0].values}
+        assert int(values['records_lost']) > 0 and int(values['received']) > 0
+        for force in (3.0, 4.0, 5.0):   # still solving and publishing
+            stamp = run.client.publish((force, 0.0, 0.0))
+            assert run.answered(POSE, stamp), run.node.text()
+        last = diagnostic_values(run.client.messages_stamped(DIAGNOSTICS, stamp)[0])
+        assert int(last['log_records_lost']) > 0
+        assert run.node.stop(signal.SIGINT) == 0, run.node.text()
+        text = run.node.text()
+    assert 'Traceback' not in text
+    written, lost = _closing(text)
+    assert written > 0 and lost > 0
+    files = sorted(tmp_path.glob('run*.mcap'))
+    assert len(files) >= 2, files   # resumed in run_1.mcap after the first error
+    readable = 0
+    for file in files:
+        source = McapSource(file)
+        readable += sum(1 for _ in source.messages())
+        assert source.report.unread_bytes == 0, source.report.describe()
+        assert file.stat().st_size <= 400_000
+    assert readable == written
+
+
+def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
+    """A 1 kHz burst with rejections: every channel's log times are non-decreasing."""
+    path = tmp_path / 'run.mcap'
+    with Node(tmp_path, ros_env, path) as run:
+        for index in range(600):
+            force = (float('nan'), 0.0, 0.0) if index % 7 == 0 else (0.02 * index, 0.0, 0.0)
+            stamp = run.client.publish(force)
+        assert run.client.wait_for(lambda: run.client.messages_stamped(DIAGNOSTICS, stamp),
+                                   ANSWER_TIMEOUT_S)
+        assert run.node.stop(signal.SIGINT) == 0
+    last = {}
+    count = 0
+    with open(path, 'rb') as stream:
+        for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            assert message.log_time >= last.get(channel.topic, 0), channel.topic
+            last[channel.topic] = message.log_time
+            count += 1
+    assert count > 600 and {'/wrench', '/diagnostics'} <= set(last)
