@@ -134,9 +134,14 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
         assert 'File too large' in errors[0].message
         values = {pair.key: pair.value for pair in errors[0].values}
         assert int(values['records_lost']) > 0 and int(values['received']) > 0
-        for force in (3.0, 4.0, 5.0):   # still solving and publishing
-            stamp = run.client.publish((force, 0.0, 0.0))
+        for index in range(1000):   # still solving and publishing; a new file after 1 s
+            stamp = run.client.publish((3.0 + 0.01 * (index % 100), 0.0, 0.0))
             assert run.answered(POSE, stamp), run.node.text()
+            if any('resumed in' in status.message for status in run.log_diagnostics()):
+                break
+        assert any(status.level == bytes([messages.WARN]) and 'resumed in' in status.message
+                   for status in run.log_diagnostics()), run.node.text()
+        assert run.answered(DIAGNOSTICS, stamp)
         last = diagnostic_values(run.client.messages_stamped(DIAGNOSTICS, stamp)[0])
         assert int(last['log_records_lost']) > 0
         assert run.node.stop(signal.SIGINT) == 0, run.node.text()
