@@ -1,6 +1,8 @@
 """
-translator_node's MCAP log (issue 14): one writer per file, write errors as diagnostics,
-a clean shutdown that states what was written and lost, log times in order per channel.
+translator_node's MCAP log (issue 14): one writer per file, write errors as diagnostics.
+
+Also a clean shutdown that states what was written and lost, and log times in order per
+channel.
 
 Each test runs the node as a child process in this module's own ROS_DOMAIN_ID (localhost
 discovery); every wait is bounded.
@@ -11,12 +13,15 @@ from pathlib import Path
 import re
 import signal
 import sys
+import time
 
 from cdr_translator.interface import messages
 from cdr_translator.params import NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
 from cdr_translator.ros.client import MODULE_COMMAND, TranslatorClient
+from cdr_translator.ros.runtime import LogThread
 from mcap.reader import make_reader
+from msg_tools.mcap_log import McapLog
 from msg_tools.reader import McapSource
 import pytest
 
@@ -119,9 +124,9 @@ def test_second_node_on_the_same_path_stops_at_start(tmp_path, ros_env):
 def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_env):
     """The MCAP file hits the file-size limit: ERROR diagnostic, poses go on, exit 0."""
     path = tmp_path / 'run.mcap'
-    with Node(tmp_path, ros_env, path, ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
-                                         '-p', 'mcap_flush_messages:=20'],
-              command=LIMITED_COMMAND) as run:
+    ros_args = ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
+                '-p', 'mcap_flush_messages:=20']
+    with Node(tmp_path, ros_env, path, ros_args, command=LIMITED_COMMAND) as run:
         stamps = []
         for index in range(1500):
             stamps.append(run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0)))
@@ -161,12 +166,28 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
 
 
 def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
-    """A 1 kHz burst with rejections: every channel's log times are non-decreasing."""
+    """A 1 kHz burst with rejections: every channel's log times are non-decreasing.
+
+    Two publishers of /wrench (DDS may hand their samples over out of receive order);
+    rejections are published from the subscription callback, solves from the solver thread,
+    both to /diagnostics: the log thread must keep each channel in order.
+    """
     path = tmp_path / 'run.mcap'
     with Node(tmp_path, ros_env, path) as run:
-        for index in range(600):
-            force = (float('nan'), 0.0, 0.0) if index % 7 == 0 else (0.02 * index, 0.0, 0.0)
-            stamp = run.client.publish(force)
+        other = TranslatorClient((DIAGNOSTICS,))   # a second publisher of /wrench
+        try:
+            assert other.wait_for(lambda: run.node.process.poll() is None and
+                                  other.node.count_subscribers('/wrench') > 0, 30.0)
+            started = time.monotonic()
+            for index in range(1500):
+                delay = started + index * 1e-3 - time.monotonic()
+                if delay > 0.0:
+                    time.sleep(delay)
+                force = ((float('nan'), 0.0, 0.0) if index % 7 == 0 else
+                         (0.01 * index, 0.0, 0.0))
+                stamp = (run.client if index % 2 else other).publish(force)
+        finally:
+            other.close()
         assert run.client.wait_for(lambda: run.client.messages_stamped(DIAGNOSTICS, stamp),
                                    ANSWER_TIMEOUT_S)
         assert run.node.stop(signal.SIGINT) == 0
@@ -177,4 +198,23 @@ def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
             assert message.log_time >= last.get(channel.topic, 0), channel.topic
             last[channel.topic] = message.log_time
             count += 1
-    assert count > 600 and {'/wrench', '/diagnostics'} <= set(last)
+    assert count > 1000 and {'/wrench', '/diagnostics', '/end_disk_pose'} <= set(last)
+
+
+def test_log_thread_holds_back_an_earlier_log_time(tmp_path):
+    """Records handed over out of time order: written in order, each held-back one counted."""
+    wrench = messages.wrench_message([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], '',
+                                     messages.stamp_from_ns(0))
+    with McapLog(tmp_path / 'scratch.mcap') as scratch:
+        data = scratch._encoder(messages.WRENCH_TYPE)(wrench)
+    log = LogThread(McapLog(tmp_path / 'run.mcap', flush_every_s=0.0))
+    for topic, time_ns in [('/wrench', 5), ('/wrench', 3), ('/other', 1), ('/wrench', 7),
+                           ('/wrench', 6), ('/other', 2)]:
+        log.submit(topic, messages.WRENCH_TYPE, data, time_ns, time_ns)
+    status = log.close()
+    assert (status.written, status.lost, log.reordered) == (6, 0, 2)
+    with open(tmp_path / 'run.mcap', 'rb') as stream:
+        times = [(channel.topic, message.log_time, message.publish_time) for _, channel, message
+                 in make_reader(stream).iter_messages(log_time_order=False)]
+    assert times == [('/wrench', 5, 5), ('/wrench', 5, 3), ('/other', 1, 1), ('/wrench', 7, 7),
+                     ('/wrench', 7, 6), ('/other', 2, 2)]
