@@ -15,7 +15,7 @@ setup(
     packages=find_packages(include=['cdr_translator', 'cdr_translator.*', 'msg_tools',
                                     'msg_tools.*']),
     # the ROS 2 .msg texts msg_tools ships (it needs no ROS message packages)
-    package_data={'msg_tools': ['msg/*/*.msg']},
+    package_data={'msg_tools': ['msg/*/*.msg', 'py.typed'], 'cdr_translator': ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         (os.path.join('share', package_name), ['package.xml']),

@@ -10,6 +10,7 @@ DiagnosticStatus ``level`` is an int here (rclpy wants it as one byte: ``bytes([
 from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import geometry
 from ..params import TranslatorParams
@@ -88,12 +89,12 @@ def header(stamp: Mapping[str, int], frame_id: str) -> dict:
             'frame_id': str(frame_id)}
 
 
-def _vector3(values: Sequence[float], names: str = 'xyz') -> dict:
+def _vector3(values: ArrayLike, names: str = 'xyz') -> dict:
     """Return a dict of named float components (Vector3, Point, Quaternion with 'xyzw')."""
-    return {name: float(value) for name, value in zip(names, values)}
+    return {name: float(value) for name, value in zip(names, np.asarray(values, dtype=float))}
 
 
-def wrench_message(force: Sequence[float], moment: Sequence[float], frame_id: str,
+def wrench_message(force: ArrayLike, moment: ArrayLike, frame_id: str,
                    stamp: Mapping[str, int]) -> dict:
     """Return a geometry_msgs/WrenchStamped dict (force in N, torque in N m)."""
     return {'header': header(stamp, frame_id),

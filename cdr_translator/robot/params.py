@@ -138,7 +138,7 @@ class DeltaParams:
                 home_base=self.base_radius * radial,
                 slider_axis=turn @ np.array([-math.sin(gamma), 0.0, -math.cos(gamma)]),
                 attachment=self.platform_radius * radial))
-        return tuple(legs)
+        return legs[0], legs[1], legs[2]
 
     # Construction ---------------------------------------------------------------------------
     @classmethod

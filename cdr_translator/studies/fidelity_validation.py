@@ -6,7 +6,7 @@ minute; ``bench/speed_vs_error.py`` writes them). The data types, boxes and samp
 cdr_translator.fidelity.validation's; this module solves many times, so it is a study.
 """
 
-from typing import Tuple
+from typing import Dict, List, Tuple
 
 import numpy as np
 from scipy.stats import qmc
@@ -31,7 +31,8 @@ def validate(params: TranslatorParams, rod_steps: int, seed: int = 6) -> Validat
     reference = reference_solver(params)
     levels = {name: FidelitySolver(params, fidelity=name, rod_steps=rod_steps)
               for name in ('cc', 'rod', 'linear')}
-    errors = {name: {scale: [] for scale in SCALES} for name in ('cc', 'rod')}
+    errors: Dict[str, Dict[float, List[Tuple[float, float]]]] = {
+        name: {scale: [] for scale in SCALES} for name in ('cc', 'rod')}
     for scale in SCALES:
         for wrench in box_samples(scale, seed):
             expected = _reference(reference, wrench)
@@ -39,7 +40,7 @@ def validate(params: TranslatorParams, rod_steps: int, seed: int = 6) -> Validat
                 levels[name].reset()
                 errors[name][scale].append(_errors(levels[name], wrench, expected))
     rng = np.random.default_rng(seed)
-    linear = {scale: [] for scale in LINEAR_SCALES}
+    linear: Dict[float, List[Tuple[float, float]]] = {scale: [] for scale in LINEAR_SCALES}
     bases = np.vstack([np.zeros(6), (2.0 * qmc.Halton(d=6, seed=seed + 1).random(
         LINEAR_BASES - 1) - 1.0) * box_half_widths()])
     solver = levels['linear']
