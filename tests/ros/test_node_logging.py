@@ -166,7 +166,8 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
 
 
 def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
-    """A 1 kHz burst with rejections: every channel's log times are non-decreasing.
+    """
+    A 1 kHz burst with rejections: every channel's log times are non-decreasing.
 
     Two publishers of /wrench (DDS may hand their samples over out of receive order);
     rejections are published from the subscription callback, solves from the solver thread,
