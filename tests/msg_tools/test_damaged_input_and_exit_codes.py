@@ -6,12 +6,12 @@ import subprocess
 import sys
 
 from cdr_translator.interface import messages
-from mcap.reader import make_reader
+from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.writer import Writer
 from msg_tools import replay as replay_module, synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
-from msg_tools.mcap_log import _FileSink, McapLog
+from msg_tools.mcap_log import _FileSink
 from msg_tools.reader import McapSource
 from msg_tools.replay import (EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE,
                               replay)
@@ -20,22 +20,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _chunked(path, count=40, every=10):
-    """Write ``count`` small wrenches in chunks of ``every``; return the log times."""
-    stamps = [synth.DEFAULT_START_NS + 10_000_000 * k for k in range(count)]
-    with McapLog(path, flush_every_messages=every, flush_every_s=0.0) as log:
-        for k, stamp in enumerate(stamps):
-            log.write('/wrench', messages.WRENCH_TYPE, messages.wrench_message(
-                [0.2 * k, 0.0, 0.0], [0.0, 0.0, 0.0], '', messages.stamp_from_ns(stamp)),
-                log_time_ns=stamp)
-    return stamps
-
-
-def _chunks(path):
-    """Return sorted (offset, length) of the chunks, from the summary."""
-    with open(path, 'rb') as stream:
-        indexes = make_reader(stream).get_summary().chunk_indexes
-    return sorted((i.chunk_start_offset, i.chunk_length) for i in indexes)
+_chunked, _chunks = write_chunked, chunk_offsets
 
 
 def _replay_cli(*args):
@@ -150,15 +135,7 @@ def test_all_good_exits_0(tmp_path):
 def test_all_undecodable_exits_3(tmp_path):
     """Every message undecodable: exit 3, one line saying so, warnings capped."""
     bag = tmp_path / 'odd.mcap'
-    with open(bag, 'wb') as stream:
-        writer = Writer(stream)
-        writer.start(profile='ros2')
-        schema = writer.register_schema(messages.WRENCH_TYPE, 'ros2msg', b'int32 a')
-        channel = writer.register_channel('/wrench', 'cdr', schema)
-        for k in range(213):
-            writer.add_message(channel, log_time=k, publish_time=k,
-                               data=b'\x00\x01\x00\x00' + k.to_bytes(4, 'little'))
-        writer.finish()
+    write_undecodable(bag, 213)
     process = _replay_cli(bag, '--out', tmp_path / 'o.mcap')
     assert process.returncode == EXIT_NOTHING_SOLVED, process.stderr
     assert 'nothing could be solved: 213 messages read, 213 undecodable' in process.stderr

@@ -8,8 +8,6 @@ Each test runs the node as a child process in this module's own ROS_DOMAIN_ID (l
 discovery); every wait is bounded.
 """
 
-import os
-from pathlib import Path
 import re
 import signal
 import sys
@@ -17,18 +15,13 @@ import time
 
 from cdr_translator.interface import messages
 from cdr_translator.params import NODE_NAME
-from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.ros.client import MODULE_COMMAND, TranslatorClient
+from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
 from cdr_translator.ros.runtime import LogThread
 from mcap.reader import make_reader
 from msg_tools.mcap_log import McapLog
 from msg_tools.reader import McapSource
-import pytest
+from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
 
-START_TIMEOUT_S = 120.0
-ANSWER_TIMEOUT_S = 30.0
-POSE = messages.END_DISK_POSE_TOPIC
-DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
 LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
 CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost')
 
@@ -42,54 +35,10 @@ LIMITED_COMMAND = (sys.executable, '-c', (
     'runpy.run_module("cdr_translator.ros.translator_node", run_name="__main__")\n'))
 
 
-@pytest.fixture(scope='module', autouse=True)
-def ros_env():
-    """Give this test module its own DDS domain, limited to this machine."""
-    env = isolated_ros_env()
-    keys = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
-    saved = {key: os.environ.get(key) for key in keys}
-    os.environ.update(env)
-    yield env
-    for key, value in saved.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
-
-
-class Node:
-    """A node process with its MCAP at ``mcap`` and a connected client; torn down on exit."""
-
-    def __init__(self, tmp_path: Path, env, mcap: Path, ros_args=(), command=MODULE_COMMAND,
-                 name='node'):
-        self.mcap = mcap
-        self.node = NodeProcess(['-p', f'mcap_path:={mcap}', *ros_args], env,
-                                tmp_path / f'{name}.log', command)
-        self.client = None
-        try:
-            self.client = TranslatorClient((POSE, DIAGNOSTICS))
-            assert self.client.handshake(START_TIMEOUT_S), self.node.text()
-        except BaseException:
-            self.__exit__()
-            raise
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc_info):
-        if self.client is not None:
-            self.client.close()
-        self.node.kill()
-
-    def answered(self, topic, stamp) -> bool:
-        """Wait for the message of ``topic`` stamped ``stamp``."""
-        return self.client.wait_for(lambda: self.client.messages_stamped(topic, stamp),
-                                    ANSWER_TIMEOUT_S)
-
-    def log_diagnostics(self):
-        """Return the /diagnostics statuses about the MCAP log received so far."""
-        return [message.status[0] for message, _ in self.client.received[DIAGNOSTICS]
-                if message.status[0].name == LOG_DIAGNOSTIC]
+def log_diagnostics(run):
+    """Return the /diagnostics statuses about the MCAP log ``run``'s client received."""
+    return [message.status[0] for message, _ in run.client.received[DIAGNOSTICS]
+            if message.status[0].name == LOG_DIAGNOSTIC]
 
 
 def _closing(text):
@@ -102,7 +51,7 @@ def _closing(text):
 def test_second_node_on_the_same_path_stops_at_start(tmp_path, ros_env):
     """Two legs given one mcap_path: the second exits 2 naming the file and the first's PID."""
     path = tmp_path / 'leg.mcap'
-    with Node(tmp_path, ros_env, path, name='first') as first:
+    with Running(tmp_path, ros_env, mcap=path, name='first') as first:
         with NodeProcess(['-p', f'mcap_path:={path}'], ros_env, tmp_path / 'second.log') as second:
             assert second.process.wait(START_TIMEOUT_S) == 2, second.text()
             text = second.text()
@@ -126,14 +75,14 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
     path = tmp_path / 'run.mcap'
     ros_args = ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
                 '-p', 'mcap_flush_messages:=20']
-    with Node(tmp_path, ros_env, path, ros_args, command=LIMITED_COMMAND) as run:
+    with Running(tmp_path, ros_env, ros_args, command=LIMITED_COMMAND, mcap=path) as run:
         stamps = []
         for index in range(1500):
             stamps.append(run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0)))
             assert run.answered(POSE, stamps[-1]), run.node.text()
-            if any(status.level == bytes([messages.ERROR]) for status in run.log_diagnostics()):
+            if any(status.level == bytes([messages.ERROR]) for status in log_diagnostics(run)):
                 break
-        errors = [status for status in run.log_diagnostics()
+        errors = [status for status in log_diagnostics(run)
                   if status.level == bytes([messages.ERROR])]
         assert errors, run.node.text()
         assert 'File too large' in errors[0].message
@@ -142,10 +91,10 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
         for index in range(1000):   # still solving and publishing; a new file after 1 s
             stamp = run.client.publish((3.0 + 0.01 * (index % 100), 0.0, 0.0))
             assert run.answered(POSE, stamp), run.node.text()
-            if any('resumed in' in status.message for status in run.log_diagnostics()):
+            if any('resumed in' in status.message for status in log_diagnostics(run)):
                 break
         assert any(status.level == bytes([messages.WARN]) and 'resumed in' in status.message
-                   for status in run.log_diagnostics()), run.node.text()
+                   for status in log_diagnostics(run)), run.node.text()
         assert run.answered(DIAGNOSTICS, stamp)
         last = diagnostic_values(run.client.messages_stamped(DIAGNOSTICS, stamp)[0])
         assert int(last['log_records_lost']) > 0
@@ -174,7 +123,7 @@ def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
     both to /diagnostics: the log thread must keep each channel in order.
     """
     path = tmp_path / 'run.mcap'
-    with Node(tmp_path, ros_env, path) as run:
+    with Running(tmp_path, ros_env, mcap=path) as run:
         other = TranslatorClient((DIAGNOSTICS,))   # a second publisher of /wrench
         try:
             assert other.wait_for(lambda: run.node.process.poll() is None and
