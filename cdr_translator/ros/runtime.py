@@ -17,7 +17,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
@@ -53,6 +53,9 @@ SHUTDOWN_JOIN_S = 5.0
 #: Records the MCAP log thread may hold before a producer waits (never dropped, never
 #: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
 LOG_QUEUE_CAPACITY = 20000
+
+#: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
+LOG_CHECK_PERIOD_S = 1.0
 
 
 class LatestMailbox:
@@ -273,6 +276,35 @@ class LogWatch:
             text = status.message or self.log.last_error
             return messages.WARN, f'MCAP log: {lost} records lost so far; {text}', values
         return None
+
+
+def log_health(watch: Optional[LogWatch], logger: Any, node_name: str,
+               counts: Mapping[str, Any]) -> List[Tuple[str, str, dict]]:
+    """
+    Check the MCAP log (a node's timer work); return the diagnostic to publish, if any.
+
+    The status is named '<node_name>: mcap_log'; ERROR is also logged (throttled), WARN
+    once. ``counts`` (the node's running counts) are added to its values.
+    """
+    found = watch.check() if watch is not None else None
+    if found is None:
+        return []
+    level, text, values = found
+    if level == messages.ERROR:
+        logger.error(text, throttle_duration_sec=10.0)
+    else:
+        logger.warning(text)
+    return [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
+             messages.diagnostics_message(messages.stamp_from_ns(time.time_ns()), level, text,
+                                          {**values, **counts},
+                                          name=f'{node_name}: mcap_log'))]
+
+
+def log_lost(log: Optional[LogThread]) -> Dict[str, int]:
+    """Return ``{'log_records_lost': N}`` for a node's diagnostics ({} without a log)."""
+    if log is None:
+        return {}
+    return {'log_records_lost': log.status().lost + log.errors}
 
 
 def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[Any],

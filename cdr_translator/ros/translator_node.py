@@ -27,8 +27,9 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from .parameters import descriptor, ros_parameter_sources, SPECS
-from .runtime import check_parameters, fill_message, LatestMailbox, LogThread, LogWatch
-from .runtime import open_log, OUTPUTS, run, SHUTDOWN_JOIN_S, type_name
+from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
+from .runtime import SHUTDOWN_JOIN_S, type_name
 from ..fidelity import FidelitySolver
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
@@ -36,12 +37,6 @@ from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
 from ..solver import check_wrench
-
-
-#: How often the MCAP log's health is checked (an ERROR diagnostic while it fails).
-LOG_CHECK_PERIOD_S = 1.0
-#: DiagnosticStatus name of the MCAP log's health.
-LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
 
 
 class TranslatorNode(Node):
@@ -121,20 +116,8 @@ class TranslatorNode(Node):
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        if self._log_watch is None:
-            return
-        found = self._log_watch.check()
-        if found is None:
-            return
-        level, text, values = found
-        if level == messages.ERROR:
-            self.get_logger().error(text, throttle_duration_sec=10.0)
-        else:
-            self.get_logger().warning(text)
-        self._publish_all(_filled([(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
-                                    messages.diagnostics_message(
-                                        messages.stamp_from_ns(time.time_ns()), level, text,
-                                        {**values, **self._counts()}, name=LOG_DIAGNOSTIC))]))
+        self._publish_all(_filled(log_health(self._log_watch, self.get_logger(), NODE_NAME,
+                                             self._counts())))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes, info: dict) -> None:
@@ -200,13 +183,9 @@ class TranslatorNode(Node):
     # output ----------------------------------------------------------------------------------
     def _counts(self) -> Dict[str, int]:
         """Return the running message counts reported with every diagnostic."""
-        counts = {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                  'not_converged': self.failed, 'skipped': self._mailbox.skipped}
-        log = getattr(self, '_log', None)
-        if log is not None:
-            status = log.status()
-            counts['log_records_lost'] = status.lost + log.errors
-        return counts
+        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
+                **log_lost(getattr(self, '_log', None))}
 
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:

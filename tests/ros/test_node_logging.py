@@ -148,7 +148,7 @@ def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
             assert message.log_time >= last.get(channel.topic, 0), channel.topic
             last[channel.topic] = message.log_time
             count += 1
-    assert count > 1000 and {'/wrench', '/diagnostics', '/end_disk_pose'} <= set(last)
+    assert count > 200 and {'/wrench', '/diagnostics', '/end_disk_pose'} <= set(last)
 
 
 def test_log_thread_holds_back_an_earlier_log_time(tmp_path):
