@@ -131,7 +131,7 @@ class DeltaResult:
     platform_position: np.ndarray
     platform_rotation: np.ndarray
     home_position: np.ndarray
-    leg_results: Tuple[SolveResult, SolveResult, SolveResult]
+    leg_results: Tuple[SolveResult, ...]
     leg_tip_wrenches: np.ndarray
     equilibrium_residual: np.ndarray
     compatibility_residual: np.ndarray
@@ -250,6 +250,13 @@ class _State:
                       self.wrenches + step[6:].reshape(3, 6))
 
 
+def _solved(state: _State) -> List[SolveResult]:
+    """Return the legs solved under ``state`` (a residual is only taken after solving them)."""
+    if state.legs is None:
+        raise RuntimeError('the legs have not been solved under this state')
+    return state.legs
+
+
 @dataclass
 class _Outcome:
     """Where a Newton correction ended."""
@@ -317,7 +324,7 @@ class DeltaRobot:
         self._leg_solves = 0
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
-        self._lu = None
+        self._lu: Optional[tuple] = None
         self._inverse = InverseSolver(self)
 
     @classmethod
@@ -440,11 +447,13 @@ class DeltaRobot:
         dx = -J^-1 (dr/du) du, and Newton corrects it; a failed step is halved, a good one
         doubled.
         """
+        if self._previous is None:
+            raise RuntimeError('continuation needs a previous solution')
         state, start = self._previous
         lu = self._lu
         done, step, iterations = 0.0, 1.0, 0
         current = start
-        outcome = None
+        outcome: Optional[_Outcome] = None
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
@@ -470,6 +479,8 @@ class DeltaRobot:
                                    f'sliders and payload: {outcome.message}')
                 return outcome
         self._lu = lu
+        if outcome is None:  # cannot happen: the loop runs at least once
+            raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
         return outcome
 
@@ -485,10 +496,10 @@ class DeltaRobot:
         residual-norm test rejects far from the solution.
         """
         try:
-            self._solve_legs(state)
+            legs = self._solve_legs(state)
         except _Deadline as error:
             return _Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), lu)
-        if not all(leg.converged for leg in state.legs):
+        if not all(leg.converged for leg in legs):
             return _Outcome(state, np.full(SIZE, np.inf), 0, False,
                             'a leg did not converge at the predicted wrenches', lu)
         residual = self._residual(state, inputs)
@@ -535,8 +546,7 @@ class DeltaRobot:
         scale = 1.0
         for _ in range(10):
             trial = state.moved(scale * self._x_scale * step)
-            self._solve_legs(trial)
-            if all(leg.converged for leg in trial.legs):
+            if all(leg.converged for leg in self._solve_legs(trial)):
                 residual = self._residual(trial, inputs)
                 simplified = lu_solve(lu, residual / self._r_scale, check_finite=False)
                 contraction = float(np.linalg.norm(simplified)) / norm
@@ -552,9 +562,11 @@ class DeltaRobot:
                     and np.abs(compatibility[:, 1]).max() <= self.rotation_tolerance)
 
     # legs ------------------------------------------------------------------------------------
-    def _solve_legs(self, state: _State) -> None:
-        """Solve each leg under its wrench (warm-started) and store the results in ``state``."""
-        state.legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
+    def _solve_legs(self, state: _State) -> List[SolveResult]:
+        """Solve each leg under its wrench (warm-started); store the results in ``state`` too."""
+        legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
+        state.legs = legs
+        return legs
 
     def _solve_leg(self, k: int, wrench: np.ndarray, compliance: bool = False) -> SolveResult:
         remaining = self._deadline - time.perf_counter()
@@ -601,7 +613,7 @@ class DeltaRobot:
         sliders, force, moment, offset = inputs[:3], inputs[3:6], inputs[6:9], inputs[9:]
         residual = np.empty(SIZE)
         for k, (rotation, position) in enumerate(self._targets(state, sliders)):
-            frame = state.legs[k].frames['de']
+            frame = _solved(state)[k].frames['de']
             residual[6 * k:6 * k + 3] = frame[:3, 3] - position
             residual[6 * k + 3:6 * k + 6] = _rotation_vector(frame[:3, :3] @ rotation.T)
         forces, arms = self._reactions(state)
