@@ -13,6 +13,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import messages
 from .settings import TranslatorSettings
@@ -27,7 +28,7 @@ FOLLOWER_TOLERANCE = 1e-12
 FOLLOWER_MAX_SOLVES = 8
 
 
-def check_magnitude(force: Sequence[float], moment: Sequence[float], max_force: float,
+def check_magnitude(force: ArrayLike, moment: ArrayLike, max_force: float,
                     max_moment: float) -> None:
     """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
     for name, vector, limit, unit in (('force', force, max_force, 'N'),

@@ -31,7 +31,8 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from .parameters import descriptor, ros_parameter_sources
-from .runtime import check_parameters, fill_message, LatestMailbox, open_log, OUTPUTS, run
+from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
 from .runtime import SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
 from ..interface import cdr_messages, messages
@@ -100,6 +101,9 @@ class CdrNode(Node):
         topics += [(publisher.topic_name, type_name(CDR_OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
         self._log, self.mcap_path = open_log(self._settings, 'cdr', topics)
+        self._log_watch = LogWatch(self._log) if self._log is not None else None
+        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
+                           if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._subscriptions = [
@@ -124,6 +128,11 @@ class CdrNode(Node):
         self._settings = self._settings.with_values(
             **{parameter.name: parameter.value for parameter in parameters})
         self.robot.time_limit_s = self._settings.solve_time_limit_s
+
+    def _check_log(self) -> None:
+        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
+        self._publish(log_health(self._log_watch, self.get_logger(), CDR_NODE_NAME,
+                                 self._counts()))
 
     # input -----------------------------------------------------------------------------------
     def _warm_up(self) -> None:
@@ -242,7 +251,8 @@ class CdrNode(Node):
     def _counts(self) -> Dict[str, int]:
         """Return the running message counts reported with every diagnostic."""
         return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
+                **log_lost(getattr(self, '_log', None))}
 
     def _publish(self, built: Sequence[Tuple[str, str, dict]]) -> None:
         """Fill, publish and queue for the MCAP log the (topic, type, dict) of cdr_messages."""
@@ -260,10 +270,15 @@ class CdrNode(Node):
             self.destroy_subscription(subscription)
         self._mailbox.close()
         self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log_timer is not None:
+            self.destroy_timer(self._log_timer)
         if self._log is not None:
             self._log.close()
-            self.get_logger().info(f'MCAP log {self.mcap_path} closed: {self._log.written} '
-                                   f'records ({self._log.errors} failed)')
+            complete, line = self._log.closing_line()
+            if complete:
+                self.get_logger().info(line)
+            else:
+                self.get_logger().error(line)
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
