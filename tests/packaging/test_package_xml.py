@@ -151,9 +151,11 @@ def imports(folders: Tuple[str, ...]) -> Iterator[Tuple[str, Path, bool]]:
 
 def third_party(folders: Tuple[str, ...]) -> Dict[str, List[Tuple[Path, bool]]]:
     """Map every non-stdlib, non-own import of ``folders`` to where it occurs."""
+    # helper modules beside the tests (e.g. tests/msg_tools/chunked.py) are imported by name
+    local = {path.stem for folder in folders for path in (ROOT / folder).rglob('*.py')}
     found: Dict[str, List[Tuple[Path, bool]]] = {}
     for name, path, guarded in imports(folders):
-        if name not in sys.stdlib_module_names and name not in OWN_MODULES:
+        if name not in sys.stdlib_module_names and name not in OWN_MODULES | local:
             found.setdefault(name, []).append((path, guarded))
     return found
 
