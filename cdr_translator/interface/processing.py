@@ -9,7 +9,7 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 """
 
 from dataclasses import dataclass
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 import warnings
 
 import numpy as np
