@@ -7,9 +7,10 @@ of pytransform3d's ``check_*`` functions.
 """
 
 import math
-from typing import Any, Optional, Sequence, Type
+from typing import Any, Optional, Type
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import InputError
 
@@ -62,7 +63,7 @@ def check_integer(name: str, value: Any, *, low: Optional[int] = None,
     return int(value)
 
 
-def check_vector(name: str, values: Sequence[float], size: int = 3,
+def check_vector(name: str, values: ArrayLike, size: int = 3,
                  error: Type[ValueError] = InputError) -> np.ndarray:
     """Return ``values`` as a float array of ``size`` finite components (x, y, z named)."""
     try:

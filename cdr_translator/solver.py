@@ -18,6 +18,7 @@ from typing import Any, Callable, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 
 from ._jit import interpreted_kernels
@@ -56,7 +57,7 @@ class _Outcome:
     lu: Optional[tuple] = None
 
 
-def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
+def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
     """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, fields
 import math
 from pathlib import Path
 import time
-from typing import Any, List, Optional, Sequence, Tuple, Union
+from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -347,9 +347,9 @@ class DeltaRobot:
             solver.reset()
 
     # public ----------------------------------------------------------------------------------
-    def solve(self, sliders: Sequence[float], payload_force: Sequence[float],
-              payload_moment: Sequence[float] = (0.0, 0.0, 0.0),
-              payload_offset: Sequence[float] = (0.0, 0.0, 0.0),
+    def solve(self, sliders: ArrayLike, payload_force: ArrayLike,
+              payload_moment: ArrayLike = (0.0, 0.0, 0.0),
+              payload_offset: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False) -> DeltaResult:
         """
         Solve the platform pose for slider positions (m) and a payload on the platform.
@@ -678,9 +678,9 @@ class DeltaRobot:
             solve_time_s=elapsed, leg_solves=self._leg_solves)
 
 
-def solve_delta(sliders: Sequence[float], payload_force: Sequence[float],
-                payload_moment: Sequence[float] = (0.0, 0.0, 0.0),
-                payload_offset: Sequence[float] = (0.0, 0.0, 0.0),
+def solve_delta(sliders: ArrayLike, payload_force: ArrayLike,
+                payload_moment: ArrayLike = (0.0, 0.0, 0.0),
+                payload_offset: ArrayLike = (0.0, 0.0, 0.0),
                 params_path=DEFAULT_PARAMS_PATH) -> DeltaResult:
     """One cold forward-statics solve with the parameters of ``params_path``."""
     return DeltaRobot.from_yaml(params_path).solve(sliders, payload_force, payload_moment,

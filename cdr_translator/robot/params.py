@@ -19,9 +19,10 @@ follows from the two radii and the leg's stack height: sin(beta) = (R_b - R_p) /
 from dataclasses import dataclass, fields
 import math
 from pathlib import Path
-from typing import Any, Dict, Iterable, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..checks import check_number
 from ..errors import InputError, ParameterError
@@ -186,7 +187,7 @@ def cdr_values(paths: Iterable[Union[str, Path, None]], namespace: str = '/',
                           overrides=overrides, required=False)
 
 
-def check_sliders(sliders: Sequence[float], stroke: float) -> np.ndarray:
+def check_sliders(sliders: ArrayLike, stroke: float) -> np.ndarray:
     """Return the 3 slider positions (m); ValueError naming a bad or out-of-stroke value."""
     array = np.asarray(sliders, dtype=float)
     if array.shape != (3,):

@@ -99,10 +99,17 @@ class LatestMailbox:
             self._condition.notify_all()
 
 
-@lru_cache(maxsize=None)
-def _field_types(message_class: type) -> dict:
+#: Field name -> rosidl type, per generated message class (filled on first use).
+_FIELD_TYPES: Dict[Any, Dict[str, Any]] = {}
+
+
+def _field_types(message_class: Any) -> Dict[str, Any]:
     """Map field name -> rosidl type of a generated message class."""
-    return dict(zip(message_class.get_fields_and_field_types(), message_class.SLOT_TYPES))
+    types = _FIELD_TYPES.get(message_class)
+    if types is None:
+        types = dict(zip(message_class.get_fields_and_field_types(), message_class.SLOT_TYPES))
+        _FIELD_TYPES[message_class] = types
+    return types
 
 
 @lru_cache(maxsize=None)
@@ -136,7 +143,7 @@ def fill_message(message: Any, values: Mapping[str, Any]) -> Any:
     return message
 
 
-def type_name(message_class: type) -> str:
+def type_name(message_class: Any) -> str:
     """Return the ROS 2 type name of a generated message class, e.g. 'std_msgs/msg/String'."""
     package = message_class.__module__.split('.')[0]
     return f'{package}/msg/{message_class.__name__}'
@@ -362,12 +369,13 @@ def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] =
     parameters, unwritable log), else 0 after its ``close()`` (which must stop its threads
     and finalize its log) and a clean shutdown.
     """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=None if args is None else list(args),
+               signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
     try:
-        node = factory(ros_arguments=list(sys.argv if args is None else args))
+        node: Any = factory(ros_arguments=list(sys.argv if args is None else args))
     except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
             OSError) as error:
         print(f'{name}: {error}', file=sys.stderr)
