@@ -24,7 +24,7 @@ from threadpoolctl import ThreadpoolController
 from ._jit import interpreted_kernels
 from .compliance import compliance_analysis
 from .params import TranslatorParams
-from .problem import Problem, RESIDUAL_KINDS
+from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
 from .verify import verify as verify_result
 
@@ -98,7 +98,7 @@ class TranslatorSolver:
 
     def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
                  tolerance: float = 1e-10, max_iterations: Optional[int] = None,
-                 time_limit_s: float = 10.0) -> None:
+                 time_limit_s: float = 10.0, jacobian: str = 'exact') -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -106,8 +106,13 @@ class TranslatorSolver:
         disk spacing, forces in EI/D^2, moments in EI/D). ``max_iterations`` caps the
         Newton iterations of one continuation step (default 12: a step that needs more is
         halved instead) or, for ``method='paper'``, the Levenberg-Marquardt iterations
-        (default 30); ``time_limit_s`` caps a whole solve.
+        (default 30); ``time_limit_s`` caps a whole solve. ``jacobian`` is 'exact' (the
+        tangent-linear shot of model.translator_jacobian, default) or 'fd' (forward
+        differences, one shot per unknown: the former default, kept for tests and the
+        benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
         """
+        if jacobian not in JACOBIANS:
+            raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
         if method not in METHODS:
             raise ValueError(f'method must be one of {METHODS}, got {method!r}')
         self.params = params if params is not None else TranslatorParams.from_yaml()
@@ -123,8 +128,12 @@ class TranslatorSolver:
         if not (math.isfinite(tolerance) and tolerance > 0.0):
             raise ValueError(f'tolerance must be positive and finite, got {tolerance}')
         self.time_limit_s = time_limit_s
+        if method == 'paper':
+            jacobian = 'fd'
+        self.jacobian = jacobian
         kernel = interpreted_kernels()['model'] if method == 'paper' else None
-        self.problem = Problem(self.params) if kernel is None else Problem(self.params, kernel)
+        self.problem = (Problem(self.params, jacobian=jacobian) if kernel is None
+                        else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         self._lu = None
         self._unloaded_lu = None
