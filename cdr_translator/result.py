@@ -51,6 +51,12 @@ class SolveResult:
     #: the model that produced the result: 'full', or a reduced level of
     #: cdr_translator.fidelity ('cc', 'rod', 'linear')
     fidelity: str = 'full'
+    #: stability verdict of the equilibrium (cdr_translator.stability; docs/stability.md):
+    #: None when not assessed (not converged, or the paper's method)
+    stable: Optional[bool] = None
+    #: smallest generalized eigenvalue of the end-disk stiffness against the unloaded one:
+    #: 1 unloaded, 0 at a bifurcation, negative past it (NaN when not assessed)
+    stability_margin: float = math.nan
 
     @property
     def verified(self) -> Optional[bool]:
@@ -122,4 +128,8 @@ class SolveResult:
             'fidelity': self.fidelity,
             **(self.compliance.to_dict() if self.compliance is not None else {}),
             **(self.verification.to_dict() if self.verification is not None else {}),
+            **({} if self.stable is None else {
+                'stable': bool(self.stable),
+                'stability_margin': (float(self.stability_margin)
+                                     if math.isfinite(self.stability_margin) else None)}),
         }

@@ -25,6 +25,7 @@ from ._jit import interpreted_kernels
 from .compliance import compliance_analysis
 from .params import TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
+from . import stability
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
 from .verify import verify as verify_result
 
@@ -38,6 +39,21 @@ PREDICTOR_REACH = 0.3
 
 #: Smallest fraction of the remaining wrench change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
+
+#: A stability margin below this is recomputed on an exact Jacobian at the solution.
+RECHECK_MARGIN = 0.05
+
+#: A factorization made at a wrench further than this (relative to |w|, SI components)
+#: from the solved one is not trusted for the stability verdict.
+STALE_WRENCH = 0.05
+
+#: Perturb-and-reconverge attempts past a bifurcation (a symmetric structure may first
+#: land on a saddle branch, e.g. buckled along x when the stable one is diagonal).
+BRANCH_ATTEMPTS = 3
+
+#: Size of the critical-mode imperfection that steers past a bifurcation, relative to the
+#: wrench (stability margin < 0): large enough to leave the unstable branch's basin.
+IMPERFECTION = 0.02
 
 #: Largest nondimensional residual at which a corrector out of iterations gets another
 #: round on the same step instead of a halved step (it is converging, only slowly).
@@ -54,6 +70,9 @@ class _Outcome:
     converged: bool
     message: str
     lu: Optional[tuple] = None
+    #: (derivative of the end-disk frame, or None with jacobian='fd'; wrench) at the point
+    #: ``lu`` factorizes
+    pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
 
 
 def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
@@ -136,7 +155,11 @@ class TranslatorSolver:
                         else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         self._lu = None
+        self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._unloaded_lu = None
+        self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+        self._stability_origin: Optional[stability.Reference] = None
+        self._exact_at: Optional[np.ndarray] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -144,6 +167,7 @@ class TranslatorSolver:
         """Forget the previous solution: the next solve starts cold."""
         self._previous = None
         self._lu = None
+        self._pose = None
 
     def start_from(self, result: SolveResult) -> None:
         """
@@ -159,6 +183,7 @@ class TranslatorSolver:
         self._previous = (unknowns / self.problem.x_scale,
                           np.concatenate([result.force, result.moment]))
         self._lu = None
+        self._pose = None
 
     @_one_blas_thread
     def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
@@ -176,6 +201,7 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
+        self._exact_at: Optional[np.ndarray] = None  # unknowns self._lu is exact at
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
@@ -190,17 +216,125 @@ class TranslatorSolver:
                     outcome = restart
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
+        verdict = None
+        if outcome.converged and self.method == 'fast':
+            verdict = self._stability(outcome, wrench)
+            if not verdict.stable and time.perf_counter() < deadline:
+                outcome, verdict = self._follow_stable_branch(outcome, verdict, wrench, deadline)
         elapsed = time.perf_counter() - started
         result = self._result(outcome, wrench, elapsed)
+        if verdict is not None:
+            result.stable = verdict.stable
+            result.stability_margin = verdict.margin
+            if not verdict.stable:
+                result.message += f'; {verdict.message}'
         if compliance and outcome.converged:
+            exact = self._exact_at is outcome.xs and self._lu is not None and \
+                self._pose is not None and self._pose[0] is not None
             try:
-                result.compliance, self._lu = compliance_analysis(
-                    self.problem, outcome.xs, wrench, self._lu, **compliance_options)
+                result.compliance, self._lu, pose = compliance_analysis(
+                    self.problem, outcome.xs, wrench,
+                    (self._lu, self._pose[0]) if exact else None, **compliance_options)
+                self._pose = (pose, wrench.copy())
+                self._exact_at = outcome.xs
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
         if verify:
             result.verification = verify_result(result, self.params)
         return result
+
+    # stability -------------------------------------------------------------------------------
+    def _origin(self) -> stability.Reference:
+        """The unloaded state's stiffness and det J sign (stability.py), computed once."""
+        if self._stability_origin is None:
+            (xs, zero), lu = self._unloaded()
+            pose = self._unloaded_pose[0] if self._unloaded_pose is not None else None
+            if pose is None:  # jacobian='fd': the tangent shot gives the pose derivative
+                pose = self.problem.exact_jacobian(xs, zero)[2]
+            _, frames = self.problem.shape(xs, zero)
+            self._stability_origin = stability.reference(
+                lu, stability.pose_twist_jacobian(pose, frames[3][:3, :3]),
+                self.problem.wrench_sensitivity, self.params.stack_height)
+        return self._stability_origin
+
+    def _stability(self, outcome: _Outcome, wrench: np.ndarray) -> stability.Stability:
+        """
+        Verdict at a converged outcome from the factorization its iteration ended with.
+
+        That factorization may be from an earlier iterate or solve (chord steps); when it was
+        made at a wrench more than STALE_WRENCH (relative) away, or the verdict is unstable
+        or its margin below RECHECK_MARGIN, the verdict is redone on an exact Jacobian at the
+        solution itself, which then also becomes the stored factorization.
+        """
+        problem = self.problem
+        lu = outcome.lu
+        pose, lu_wrench = outcome.pose if outcome.pose is not None else (None, None)
+        rotation = problem.residual_and_end_frame(outcome.xs, wrench)[1][:3, :3]
+        verdict = None
+        fresh_enough = lu_wrench is not None and (
+            np.linalg.norm(wrench - lu_wrench) <= STALE_WRENCH * np.linalg.norm(wrench))
+        if lu is not None and pose is not None and fresh_enough:
+            verdict = stability.assess(lu, stability.pose_twist_jacobian(pose, rotation),
+                                       problem.wrench_sensitivity, self._origin())
+            if verdict.stable and verdict.margin >= RECHECK_MARGIN:
+                return verdict
+        _, jac, pose = problem.exact_jacobian(outcome.xs, wrench)
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', LinAlgWarning)
+            lu = lu_factor(jac, check_finite=False)
+        outcome.lu, outcome.pose = lu, (pose.copy(), wrench.copy())
+        self._lu, self._pose = outcome.lu, outcome.pose
+        self._exact_at = outcome.xs
+        return stability.assess(lu, stability.pose_twist_jacobian(pose, rotation),
+                                problem.wrench_sensitivity, self._origin())
+
+    def _follow_stable_branch(self, outcome: _Outcome, verdict: stability.Stability,
+                              wrench: np.ndarray,
+                              deadline: float) -> Tuple[_Outcome, stability.Stability]:
+        """
+        Past a bifurcation: perturb along the critical mode and re-converge (Riks' way).
+
+        The wrench is given an imperfection along the critical mode (IMPERFECTION of the
+        wrench's size, stability.critical_wrench), solved from the unloaded state, which
+        follows the imperfect, stable path; the imperfection is then removed by a warm
+        continuation that stays on the branch it reached. Returns the new outcome when it
+        converged stably, else the original one with its verdict.
+        """
+        saved = (self._previous, self._lu, self._pose)
+        length = self.params.stack_height
+        size = np.linalg.norm(wrench[:3]) + np.linalg.norm(wrench[3:]) / length
+        current, current_verdict = outcome, verdict
+        iterations = outcome.iterations
+        direction = np.zeros(6)
+        for attempt in range(BRANCH_ATTEMPTS):
+            # a later attempt adds the critical mode of the unstable branch it reached to
+            # the earlier imperfection (x-buckled saddle + its y mode: the diagonal)
+            direction = direction + stability.critical_wrench(current_verdict, length)
+            direction /= np.linalg.norm(direction[:3]) + np.linalg.norm(direction[3:]) / length
+            perturbed = wrench + IMPERFECTION * size * direction
+            first = self._continuation(perturbed, False, deadline, self._newton)
+            iterations += first.iterations
+            if not first.converged:
+                break
+            self._stability(first, perturbed)  # the exact factorization there: a stale
+            # one's predictor led the way back to the unstable branch
+            self._previous = (first.xs, perturbed)
+            second = self._continuation(wrench, True, deadline, self._newton)
+            iterations += second.iterations
+            if not second.converged:
+                break
+            new_verdict = self._stability(second, wrench)
+            if new_verdict.stable:
+                self._previous = (second.xs, wrench)
+                second.iterations = iterations
+                second.message = ('converged on the stable branch: the first solution was '
+                                  f'unstable (margin {verdict.margin:.3g}); perturbed along '
+                                  f'the critical mode and re-converged ({attempt + 1} '
+                                  'perturbation(s))')
+                return second, new_verdict
+            current, current_verdict = second, new_verdict
+        self._previous, self._lu, self._pose = saved
+        return outcome, verdict
 
     # continuation ----------------------------------------------------------------------------
     def _continuation(self, wrench: np.ndarray, warm_start: bool, deadline: float,
@@ -220,8 +354,9 @@ class TranslatorSolver:
         """
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
+            self._pose = self._unloaded_pose
         xs, start = self._previous
-        lu = self._lu
+        lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
         done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
         current = start
@@ -232,15 +367,16 @@ class TranslatorSolver:
             goal = start + target * (wrench - start)
             guess = xs if lu is None else xs - lu_solve(lu, sensitivity @ (goal - current),
                                                         check_finite=False)
-            outcome = corrector(guess, goal, deadline, lu, self.max_iterations)
+            outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
                     and time.perf_counter() < deadline):
                 # out of iterations but inside the basin: keep correcting, don't halve
-                outcome = corrector(outcome.xs, goal, deadline, outcome.lu, self.max_iterations)
+                outcome = corrector(outcome.xs, goal, deadline, outcome.lu, self.max_iterations,
+                                    outcome.pose)
                 iterations += outcome.iterations
             if outcome.converged:
-                done, xs, current, lu = target, outcome.xs, goal, outcome.lu
+                done, xs, current, lu, pose = target, outcome.xs, goal, outcome.lu, outcome.pose
                 if outcome.iterations <= self.max_iterations // 2:
                     step *= grow
                 grow = 2.0
@@ -249,7 +385,7 @@ class TranslatorSolver:
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
                 return self._stalled(xs, outcome, wrench, done, iterations, deadline)
-        self._lu = lu
+        self._lu, self._pose = lu, pose
         outcome.iterations = iterations
         return outcome
 
@@ -290,29 +426,33 @@ class TranslatorSolver:
             xs = self.problem.straight_guess(zero)
             self._unloaded_lu = lu_factor(
                 self.problem.jacobian(xs, zero, self.problem.residual(xs, zero)))
+            self._unloaded_pose = (self.problem.pose_jacobian, zero)
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
     # correctors ------------------------------------------------------------------------------
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                lu: Optional[tuple], max_iterations: int) -> _Outcome:
+                lu: Optional[tuple], max_iterations: int,
+                pose_in: Optional[np.ndarray] = None) -> _Outcome:
         """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
         problem = self.problem
         rs = problem.residual(xs, wrench)
         norm = _norm(rs)
         fresh = False
+        pose = pose_in
         for iteration in range(1, max_iterations + 1):
             if not math.isfinite(norm):
                 return _Outcome(xs, rs, iteration - 1, False,
-                                'residual became non-finite during the iteration', lu)
+                                'residual became non-finite during the iteration', lu, pose)
             if np.abs(rs).max() <= self.tolerance:
-                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu)
+                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu, pose)
             if time.perf_counter() > deadline:
                 return _Outcome(xs, rs, iteration - 1, False,
-                                f'time limit of {self.time_limit_s} s reached', lu)
+                                f'time limit of {self.time_limit_s} s reached', lu, pose)
             if lu is None:
                 with warnings.catch_warnings():  # a singular J shows as a non-finite step
                     warnings.simplefilter('ignore', LinAlgWarning)
                     lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
+                pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
             step = -lu_solve(lu, rs, check_finite=False)
             finite = bool(np.isfinite(step).all())
@@ -322,7 +462,7 @@ class TranslatorSolver:
                     return _Outcome(xs, rs, iteration, False,
                                     'line search found no decrease of the residual' if finite
                                     else 'Newton step is not finite (singular or non-finite '
-                                    'Jacobian)', lu)
+                                    'Jacobian)', lu, pose)
                 lu = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             xs, rs, new_norm = trial
@@ -333,14 +473,16 @@ class TranslatorSolver:
         converged = bool(np.abs(rs).max() <= self.tolerance)
         return _Outcome(xs, rs, max_iterations, converged,
                         'converged' if converged
-                        else f'no convergence in {max_iterations} iterations', lu)
+                        else f'no convergence in {max_iterations} iterations', lu, pose)
 
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                             lu: Optional[tuple], max_iterations: int) -> _Outcome:
+                             lu: Optional[tuple], max_iterations: int,
+                             pose_in: Optional[np.ndarray] = None) -> _Outcome:
         """
         Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances.
 
-        ``lu`` is ignored: the paper's method keeps no factorization between solves.
+        ``lu`` and ``pose_in`` are ignored: the paper's method keeps no factorization between
+        solves.
         """
         problem = self.problem
         tolerances = np.array([PAPER_TOLERANCES[kind] for kind in RESIDUAL_KINDS])
