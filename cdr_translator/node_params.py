@@ -14,7 +14,8 @@ from typing import Any, Mapping, Optional, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-from .params import DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_ONLY_KEYS, ParameterError
+from .params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_ONLY_KEYS
+from .params import ParameterError
 from .params import read_params_file
 from .params import TranslatorParams
 
@@ -93,9 +94,18 @@ _FIDELITY = (
                   read_only=True, bounds=(0.0, 90.0)),
 )
 
+_ACCURACY = (
+    ParameterSpec('accuracy_position_m', 'm, largest estimated discretization error of the '
+                  'end-disk position before a solve is refined (0: never refine)',
+                  read_only=True, bounds=(0.0, 1.0)),
+    ParameterSpec('accuracy_angle_deg', 'deg, largest estimated discretization error of the '
+                  'end-disk orientation before a solve is refined (0: never refine)',
+                  read_only=True, bounds=(0.0, 90.0)),
+)
+
 #: Every parameter translator_node declares, by name.
 SPECS: Mapping[str, ParameterSpec] = {spec.name: spec
-                                      for spec in _MODEL + _NODE + _FIDELITY}
+                                      for spec in _MODEL + _NODE + _FIDELITY + _ACCURACY}
 
 #: The model's keys (TranslatorParams fields), as opposed to the node-only ones.
 MODEL_KEYS = frozenset(spec.name for spec in _MODEL)
@@ -153,11 +163,14 @@ class NodeSettings:
     fidelity: str
     max_position_error: float
     max_angle_error: float
+    accuracy_position_m: float
+    accuracy_angle_deg: float
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> 'NodeSettings':
-        """Pick the node-only and fidelity keys out of all parameter values."""
-        return cls(**{key: values[key] for key in NODE_ONLY_KEYS | FIDELITY_KEYS})
+        """Pick the node-only, fidelity and accuracy keys out of all parameter values."""
+        return cls(**{key: values[key]
+                      for key in NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS})
 
 
 def model_params(values: Mapping[str, Any]) -> TranslatorParams:

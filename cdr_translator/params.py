@@ -44,8 +44,56 @@ NODE_ONLY_KEYS: frozenset = frozenset((
 FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_angle_error'))
 
 
+#: Keys of the same params file that set the accuracy target of every solve (read by
+#: ``Accuracy.from_yaml`` and TranslatorSolver, not by TranslatorParams).
+ACCURACY_KEYS: frozenset = frozenset(('accuracy_position_m', 'accuracy_angle_deg'))
+
+#: Most RK4 steps per disk interval the automatic refinement may use.
+MAX_REFINED_STEPS = 256
+
+
 class ParameterError(ValueError):
     """A parameter is missing, unknown or has an impossible value."""
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """
+    Accuracy target of every solve: the estimated discretization error may not exceed it.
+
+    ``position_m`` bounds the end-disk (and tube-face) position error, ``angle_deg`` their
+    orientation error and the defects of the secondaries' angle conditions; a solve whose
+    estimate exceeds either is refined (more steps per segment) up to MAX_REFINED_STEPS.
+    Zero disables the refinement of that kind (the estimate is still reported).
+    The shipped defaults are ten times inside the paper's tolerances that
+    ``cdr_translator.verify`` checks (2e-4 m, 1e-4 rad).
+    """
+
+    position_m: float = 2e-5
+    angle_deg: float = 5e-4
+
+    def __post_init__(self) -> None:
+        """Validate; ParameterError names the offending key and value."""
+        for name, value in (('accuracy_position_m', self.position_m),
+                            ('accuracy_angle_deg', self.angle_deg)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0.0:
+                raise ParameterError(f'{name} must be a finite number >= 0, got {value!r}')
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> 'Accuracy':
+        """Pick the accuracy keys out of a flat mapping (missing ones take the defaults)."""
+        picked = {}
+        if 'accuracy_position_m' in values:
+            picked['position_m'] = values['accuracy_position_m']
+        if 'accuracy_angle_deg' in values:
+            picked['angle_deg'] = values['accuracy_angle_deg']
+        return cls(**picked)
+
+    @classmethod
+    def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'Accuracy':
+        """Read the accuracy keys of a ROS 2 params file's translator_node section."""
+        return cls.from_mapping(read_params_file(path))
 
 
 def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH,
@@ -161,7 +209,7 @@ class TranslatorParams:
     def from_mapping(cls, values: Mapping[str, Any]) -> 'TranslatorParams':
         """Build from a flat mapping; unknown or missing keys raise ParameterError naming them."""
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known - NODE_ONLY_KEYS - FIDELITY_KEYS)
+        unknown = sorted(set(values) - known - NODE_ONLY_KEYS - FIDELITY_KEYS - ACCURACY_KEYS)
         if unknown:
             raise ParameterError(
                 f'unknown parameter(s) {", ".join(unknown)}; known: {", ".join(sorted(known))}')

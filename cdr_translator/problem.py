@@ -135,6 +135,16 @@ class Problem:
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
                 self.pose_jacobian)
 
+    def shot_with_steps(self, xs: np.ndarray, wrench: np.ndarray,
+                        steps: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Nondimensional residual and frames (4, 4, 4) at ``steps`` RK4 steps per interval."""
+        out = np.empty(self.size)
+        frames = np.empty((4, 4, 4))
+        args = self._args[:4] + (steps,) + self._args[5:]
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *args, out,
+                                        self._no_points, frames)
+        return out / self.residual_scale, frames
+
     def shape(self, xs: np.ndarray, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Centre-line points (5, rows, 3) and frames (4, 4, 4) at ``xs``."""
         rows = model.grid_points_per_rod(self.params.spacers_per_joint,

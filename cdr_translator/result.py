@@ -57,6 +57,15 @@ class SolveResult:
     #: smallest generalized eigenvalue of the end-disk stiffness against the unloaded one:
     #: 1 unloaded, 0 at a bifurcation, negative past it (NaN when not assessed)
     stability_margin: float = math.nan
+    #: estimated discretization error of the end-disk pose (and of what ``verify`` checks),
+    #: m and deg (cdr_translator.accuracy; NaN when not estimated)
+    error_estimate_m: float = math.nan
+    error_estimate_deg: float = math.nan
+    #: whether the estimate is within the solver's accuracy target
+    accuracy_met: bool = True
+    #: RK4 steps per disk interval of this result (more than the parameters' after an
+    #: automatic refinement; 0 when not recorded)
+    steps_per_segment: int = 0
 
     @property
     def verified(self) -> Optional[bool]:
@@ -128,8 +137,17 @@ class SolveResult:
             'fidelity': self.fidelity,
             **(self.compliance.to_dict() if self.compliance is not None else {}),
             **(self.verification.to_dict() if self.verification is not None else {}),
+            'error_estimate_m': _finite_or_none(self.error_estimate_m),
+            'error_estimate_deg': _finite_or_none(self.error_estimate_deg),
+            'accuracy_met': bool(self.accuracy_met),
+            'steps_per_segment': int(self.steps_per_segment),
             **({} if self.stable is None else {
                 'stable': bool(self.stable),
                 'stability_margin': (float(self.stability_margin)
                                      if math.isfinite(self.stability_margin) else None)}),
         }
+
+
+def _finite_or_none(value: float) -> Optional[float]:
+    """JSON has no NaN or infinity: those become null."""
+    return float(value) if math.isfinite(value) else None

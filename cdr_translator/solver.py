@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import functools
 import math
 import time
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
@@ -23,7 +23,8 @@ from threadpoolctl import ThreadpoolController
 
 from ._jit import interpreted_kernels
 from .compliance import compliance_analysis
-from .params import TranslatorParams
+from . import accuracy
+from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from . import stability
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
@@ -46,6 +47,9 @@ RECHECK_MARGIN = 0.05
 #: A factorization made at a wrench further than this (relative to |w|, SI components)
 #: from the solved one is not trusted for the stability verdict.
 STALE_WRENCH = 0.05
+
+#: Refined re-solves at most (each aims at the target from the error's N^-4 law).
+MAX_REFINEMENTS = 5
 
 #: Perturb-and-reconverge attempts past a bifurcation (a symmetric structure may first
 #: land on a saddle branch, e.g. buckled along x when the stable one is diagonal).
@@ -117,7 +121,8 @@ class TranslatorSolver:
 
     def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
                  tolerance: float = 1e-10, max_iterations: Optional[int] = None,
-                 time_limit_s: float = 10.0, jacobian: str = 'exact') -> None:
+                 time_limit_s: float = 10.0, jacobian: str = 'exact',
+                 accuracy: Optional[Accuracy] = None) -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -129,6 +134,9 @@ class TranslatorSolver:
         tangent-linear shot of model.translator_jacobian, default) or 'fd' (forward
         differences, one shot per unknown: the former default, kept for tests and the
         benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
+        ``accuracy`` is the discretization-error target of every solve (default: the
+        accuracy keys of config/translator.yaml): a converged solve whose estimate
+        (accuracy.py) exceeds it is re-solved with more steps per segment.
         """
         if jacobian not in JACOBIANS:
             raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
@@ -160,6 +168,9 @@ class TranslatorSolver:
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
         self._exact_at: Optional[np.ndarray] = None
+        self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
+        self._refined: Dict[int, 'TranslatorSolver'] = {}
+        self._last_estimate: Optional[accuracy.ErrorEstimate] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -228,6 +239,19 @@ class TranslatorSolver:
             result.stability_margin = verdict.margin
             if not verdict.stable:
                 result.message += f'; {verdict.message}'
+        if outcome.converged:
+            self._estimate_error(result, outcome, wrench)
+            if not result.accuracy_met and self.method == 'fast':
+                refined = self._refine(result, wrench, deadline, compliance, verify,
+                                       compliance_options)
+                if refined is not None:
+                    refined.solve_time_s = time.perf_counter() - started
+                    return refined
+            if not result.accuracy_met:
+                result.message += (f'; accuracy target not met: estimated error '
+                                   f'{result.error_estimate_m:.2g} m, '
+                                   f'{result.error_estimate_deg:.2g} deg at '
+                                   f'{result.steps_per_segment} steps per segment')
         if compliance and outcome.converged:
             exact = self._exact_at is outcome.xs and self._lu is not None and \
                 self._pose is not None and self._pose[0] is not None
@@ -242,6 +266,75 @@ class TranslatorSolver:
         if verify:
             result.verification = verify_result(result, self.params)
         return result
+
+    # accuracy --------------------------------------------------------------------------------
+    def _estimate_error(self, result: SolveResult, outcome: _Outcome,
+                        wrench: np.ndarray) -> None:
+        """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
+        pose = outcome.pose[0] if outcome.pose is not None else None
+        frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+        estimate = accuracy.estimate(self.problem, outcome.xs, wrench, outcome.rs, frames,
+                                     outcome.lu, pose)
+        result.error_estimate_m = estimate.position_m
+        result.error_estimate_deg = estimate.angle_deg
+        target = self.accuracy
+        result.accuracy_met = bool(
+            (target.position_m <= 0.0 or estimate.position_m <= target.position_m)
+            and (target.angle_deg <= 0.0 or estimate.angle_deg <= target.angle_deg))
+        self._last_estimate = estimate
+
+    def _refine(self, result: SolveResult, wrench: np.ndarray, deadline: float,
+                compliance: bool, verify: bool,
+                compliance_options: dict) -> Optional[SolveResult]:
+        """
+        Re-solve with more steps per segment until the accuracy target is met.
+
+        Each refined solve starts from the previous result (the unknowns mean the same at
+        any discretization). Returns the last converged refined result (its message says
+        whether the target was met), or None when no refinement converged.
+        """
+        estimate, current, refined = self._last_estimate, result, None
+        for _ in range(MAX_REFINEMENTS):
+            steps = accuracy.refined_steps(estimate, self.accuracy.position_m,
+                                           self.accuracy.angle_deg, MAX_REFINED_STEPS)
+            remaining = deadline - time.perf_counter()
+            if steps <= estimate.steps or remaining <= 0.0:
+                break
+            solver = self._refined.get(steps)
+            if solver is None:
+                solver = TranslatorSolver(self.params.with_changes(steps_per_segment=steps),
+                                          tolerance=self.tolerance,
+                                          max_iterations=self.max_iterations,
+                                          jacobian=self.jacobian,
+                                          accuracy=Accuracy(0.0, 0.0))
+                self._refined[steps] = solver
+            solver.time_limit_s = remaining
+            solver.start_from(current)
+            attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance,
+                                   verify=verify, **compliance_options)
+            if not attempt.converged:
+                break
+            current = refined = attempt
+            estimate = solver._last_estimate
+            met = ((self.accuracy.position_m <= 0.0
+                    or estimate.position_m <= self.accuracy.position_m)
+                   and (self.accuracy.angle_deg <= 0.0
+                        or estimate.angle_deg <= self.accuracy.angle_deg))
+            refined.accuracy_met = met
+            if met:
+                break
+        if refined is None:
+            return None
+        refined.iterations += result.iterations
+        refined.message += (f'; refined to {refined.steps_per_segment} steps per segment '
+                            f'(estimated error at {result.steps_per_segment}: '
+                            f'{result.error_estimate_m:.2g} m, '
+                            f'{result.error_estimate_deg:.2g} deg)')
+        if not refined.accuracy_met:
+            refined.message += (f'; accuracy target not met: estimated error '
+                                f'{refined.error_estimate_m:.2g} m, '
+                                f'{refined.error_estimate_deg:.2g} deg')
+        return refined
 
     # stability -------------------------------------------------------------------------------
     def _origin(self) -> stability.Reference:
@@ -523,7 +616,8 @@ class TranslatorSolver:
             force=wrench[:3].copy(), moment=wrench[3:].copy(),
             frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
             backbones=points, solve_time_s=elapsed, method=self.method,
-            unknowns=outcome.xs * problem.x_scale)
+            unknowns=outcome.xs * problem.x_scale,
+            steps_per_segment=self.params.steps_per_segment)
 
 
 def _norm(values: np.ndarray) -> float:

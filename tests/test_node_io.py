@@ -6,7 +6,8 @@ from cdr_translator import TranslatorParams
 from cdr_translator.node_io import fill_message, LatestMailbox, LogThread, type_name
 from cdr_translator.node_params import check_value, default_values, model_params
 from cdr_translator.node_params import NodeSettings, SPECS
-from cdr_translator.params import DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME, NODE_ONLY_KEYS
+from cdr_translator.params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
+from cdr_translator.params import NODE_ONLY_KEYS
 from cdr_translator.params import ParameterError, read_params_file
 from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
@@ -24,8 +25,9 @@ def test_every_yaml_key_is_declared_and_node_keys_match_the_library():
     values = read_params_file()
     assert set(values) == set(SPECS)
     model_keys = set(TranslatorParams.__dataclass_fields__)
-    assert set(SPECS) - model_keys == NODE_ONLY_KEYS | FIDELITY_KEYS
-    assert set(NodeSettings.__dataclass_fields__) == NODE_ONLY_KEYS | FIDELITY_KEYS
+    assert set(SPECS) - model_keys == NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
+    assert set(NodeSettings.__dataclass_fields__) == \
+        NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
     assert model_params(values) == TranslatorParams.from_yaml()
     assert all(SPECS[key].read_only for key in model_keys)
 
