@@ -17,7 +17,7 @@ It is applied to two families of quantities, and the estimate is the larger of t
   integrator, so a result whose estimate is well inside the paper's tolerances verifies;
 * the end-disk pose of the *solution*: the M-step solution is x_N + dx with
   J dx = -(r_M(x_N) - r_N(x_N)) (one Newton step on the solve's factorization), and the
-  pose moves by the difference of the shots plus dT/dx dx (stability.pose_twist_jacobian).
+  pose moves by the difference of the shots plus dT/dx dx (stability.pose_twist).
 
 Cost: one residual shot at M = N / 2 steps (half a solve iteration) and one LU solve.
 """
@@ -27,16 +27,14 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg import lu_solve
 
-from .compliance import frame_twist
-from .problem import Problem
 from . import stability
+from .problem import Problem
 
 
 @dataclass(frozen=True)
 class ErrorEstimate:
-    """Estimated discretization error (m, rad) of a solve at ``steps`` steps per segment."""
+    """Estimate of the discretization error (m, rad) at ``steps`` steps per segment."""
 
     position_m: float
     angle_rad: float
@@ -45,12 +43,12 @@ class ErrorEstimate:
 
     @property
     def angle_deg(self) -> float:
-        """The angle estimate in degrees."""
+        """Return the angle estimate in degrees."""
         return math.degrees(self.angle_rad)
 
 
 def coarse_steps(steps: int) -> int:
-    """Steps of the comparison shot: half (rounded down), or 2 when ``steps`` is 1."""
+    """Return the steps of the comparison shot: half (rounded down), or 2 for 1 step."""
     return steps // 2 if steps >= 2 else 2
 
 
@@ -74,14 +72,16 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
     kind = problem.residual_kind
     positions = [float(si[kind == 0].max(initial=0.0))]
     angles = [float(si[kind == 1].max(initial=0.0))]
-    for k in (1, 2, 3):
-        twist = frame_twist(frames[k], frames_other[k])
-        positions.append(float(np.linalg.norm(twist[:3])))
-        angles.append(float(np.linalg.norm(twist[3:])))
+    # the tube faces and the end disk: centre distances and rotation angles between shots
+    positions.append(float(np.linalg.norm(frames_other[1:, :3, 3] - frames[1:, :3, 3],
+                                          axis=1).max()))
+    angles.append(max(_angle(frames[k, :3, :3], frames_other[k, :3, :3]) for k in (1, 2, 3)))
     if lu is not None and pose is not None:
-        step = -lu_solve(lu, defect, check_finite=False)
-        twist = (frame_twist(frames[3], frames_other[3])
-                 + stability.pose_twist_jacobian(pose, frames[3][:3, :3]) @ step)
+        # the end disk of the other discretization's solution: one Newton step from x_N
+        change = pose @ stability.solve_lu(lu, -defect)
+        change[:3] += frames_other[3, :3, 3] - frames[3, :3, 3]
+        change[3:] += (frames_other[3, :3, :3] - frames[3, :3, :3]).ravel()
+        twist = stability.pose_twist(change, frames[3, :3, :3])
         positions.append(float(np.linalg.norm(twist[:3])))
         angles.append(float(np.linalg.norm(twist[3:])))
     return ErrorEstimate(factor * max(positions), factor * max(angles), steps, other)
@@ -93,10 +93,19 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
 MAX_GROWTH = 3.0
 
 
+def _angle(first: np.ndarray, second: np.ndarray) -> float:
+    """Rotation angle of first^T second: atan2(|vee of its skew part|, (trace - 1) / 2)."""
+    relative = first.T @ second
+    sine = 0.5 * math.sqrt((relative[2, 1] - relative[1, 2]) ** 2
+                           + (relative[0, 2] - relative[2, 0]) ** 2
+                           + (relative[1, 0] - relative[0, 1]) ** 2)
+    return math.atan2(sine, 0.5 * (relative[0, 0] + relative[1, 1] + relative[2, 2] - 1.0))
+
+
 def refined_steps(current: ErrorEstimate, position_target: float, angle_target: float,
                   ceiling: int) -> int:
     """
-    Steps per segment expected to meet the targets: the error falls as N^-4; 25 % margin.
+    Return the steps per segment expected to meet the targets (error ~ N^-4, 25 % margin).
 
     At most MAX_GROWTH times the current steps and ``ceiling``; returns ``current.steps``
     when both targets are met (a zero target is always met).

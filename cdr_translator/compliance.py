@@ -20,8 +20,8 @@ Two computations that agree to about 1e-8 relative (tests/test_compliance.py):
 from dataclasses import dataclass
 import math
 import time
-import warnings
 from typing import Optional, Sequence, Tuple
+import warnings
 
 import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
@@ -115,8 +115,8 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
     else:
         lu, pose = factorization
     rotation = problem.residual_and_end_frame(xs, wrench)[1][:3, :3]
-    compliance = stability.compliance_from_factorization(
-        lu, stability.pose_twist_jacobian(pose, rotation), problem.wrench_sensitivity)
+    compliance = stability.compliance_from_factorization(lu, pose, rotation,
+                                                         problem.wrench_sensitivity)
     if not np.all(np.isfinite(compliance)):
         raise ArithmeticError('the Jacobian at the solution is singular')
     diagonal = np.abs(np.diag(lu[0]))

@@ -245,12 +245,12 @@ def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp,
     m[1] = m_start[1] - (dz * n[0] - dx * n[2])
     m[2] = m_start[2] - (dx * n[1] - dy * n[0])
     for d in range(nd):
-        tm[0, d] = tm_start[0, d] - (tp[1, d] * n[2] - tp[2, d] * n[1]) - (dy * tn[2, d]
-                                                                            - dz * tn[1, d])
-        tm[1, d] = tm_start[1, d] - (tp[2, d] * n[0] - tp[0, d] * n[2]) - (dz * tn[0, d]
-                                                                            - dx * tn[2, d])
-        tm[2, d] = tm_start[2, d] - (tp[0, d] * n[1] - tp[1, d] * n[0]) - (dx * tn[1, d]
-                                                                            - dy * tn[0, d])
+        tm[0, d] = (tm_start[0, d] - (tp[1, d] * n[2] - tp[2, d] * n[1])
+                    - (dy * tn[2, d] - dz * tn[1, d]))
+        tm[1, d] = (tm_start[1, d] - (tp[2, d] * n[0] - tp[0, d] * n[2])
+                    - (dz * tn[0, d] - dx * tn[2, d]))
+        tm[2, d] = (tm_start[2, d] - (tp[0, d] * n[1] - tp[1, d] * n[0])
+                    - (dx * tn[1, d] - dy * tn[0, d]))
 
 
 def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: float):

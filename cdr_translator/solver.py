@@ -18,16 +18,17 @@ from typing import Callable, Dict, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, lu_factor
 from threadpoolctl import ThreadpoolController
 
+from . import accuracy
+from . import stability
 from ._jit import interpreted_kernels
 from .compliance import compliance_analysis
-from . import accuracy
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
-from . import stability
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
+from .stability import solve_lu
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
@@ -122,7 +123,8 @@ class TranslatorSolver:
     def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
                  tolerance: float = 1e-10, max_iterations: Optional[int] = None,
                  time_limit_s: float = 10.0, jacobian: str = 'exact',
-                 accuracy: Optional[Accuracy] = None) -> None:
+                 accuracy: Optional[Accuracy] = None,
+                 follow_stable_branch: bool = True) -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -136,7 +138,12 @@ class TranslatorSolver:
         benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
         ``accuracy`` is the discretization-error target of every solve (default: the
         accuracy keys of config/translator.yaml): a converged solve whose estimate
-        (accuracy.py) exceeds it is re-solved with more steps per segment.
+        (accuracy.py) exceeds it is re-solved with more steps per segment. Every converged
+        solve is judged stable or not (stability.py); an unstable one is, with
+        ``follow_stable_branch``, perturbed along its critical mode and re-converged on the
+        stable branch when one is found (without it, or if none is found, it is returned
+        with ``stable`` False and a message saying so; studies of unstable equilibria such
+        as studies/hard_cases.py switch it off).
         """
         if jacobian not in JACOBIANS:
             raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
@@ -168,7 +175,10 @@ class TranslatorSolver:
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
         self._exact_at: Optional[np.ndarray] = None
+        self._verdict: Optional[stability.Stability] = None
+        self._verdict_lu: Optional[tuple] = None
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
+        self.follow_stable_branch = follow_stable_branch
         self._refined: Dict[int, 'TranslatorSolver'] = {}
         self._last_estimate: Optional[accuracy.ErrorEstimate] = None
         if method == 'fast':
@@ -228,12 +238,14 @@ class TranslatorSolver:
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
         verdict = None
+        result = self._result(outcome, wrench, 0.0)
         if outcome.converged and self.method == 'fast':
-            verdict = self._stability(outcome, wrench)
-            if not verdict.stable and time.perf_counter() < deadline:
-                outcome, verdict = self._follow_stable_branch(outcome, verdict, wrench, deadline)
-        elapsed = time.perf_counter() - started
-        result = self._result(outcome, wrench, elapsed)
+            verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
+            if (not verdict.stable and self.follow_stable_branch
+                    and time.perf_counter() < deadline):
+                branch, verdict = self._follow_stable_branch(outcome, verdict, wrench, deadline)
+                if branch is not outcome:
+                    outcome, result = branch, self._result(branch, wrench, 0.0)
         if verdict is not None:
             result.stable = verdict.stable
             result.stability_margin = verdict.margin
@@ -252,6 +264,7 @@ class TranslatorSolver:
                                    f'{result.error_estimate_m:.2g} m, '
                                    f'{result.error_estimate_deg:.2g} deg at '
                                    f'{result.steps_per_segment} steps per segment')
+        result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
             exact = self._exact_at is outcome.xs and self._lu is not None and \
                 self._pose is not None and self._pose[0] is not None
@@ -306,7 +319,8 @@ class TranslatorSolver:
                                           tolerance=self.tolerance,
                                           max_iterations=self.max_iterations,
                                           jacobian=self.jacobian,
-                                          accuracy=Accuracy(0.0, 0.0))
+                                          accuracy=Accuracy(0.0, 0.0),
+                                          follow_stable_branch=self.follow_stable_branch)
                 self._refined[steps] = solver
             solver.time_limit_s = remaining
             solver.start_from(current)
@@ -338,7 +352,7 @@ class TranslatorSolver:
 
     # stability -------------------------------------------------------------------------------
     def _origin(self) -> stability.Reference:
-        """The unloaded state's stiffness and det J sign (stability.py), computed once."""
+        """Return the unloaded state's stiffness and det J sign (stability.py), made once."""
         if self._stability_origin is None:
             (xs, zero), lu = self._unloaded()
             pose = self._unloaded_pose[0] if self._unloaded_pose is not None else None
@@ -346,11 +360,12 @@ class TranslatorSolver:
                 pose = self.problem.exact_jacobian(xs, zero)[2]
             _, frames = self.problem.shape(xs, zero)
             self._stability_origin = stability.reference(
-                lu, stability.pose_twist_jacobian(pose, frames[3][:3, :3]),
-                self.problem.wrench_sensitivity, self.params.stack_height)
+                lu, pose, frames[3][:3, :3], self.problem.wrench_sensitivity,
+                self.params.stack_height)
         return self._stability_origin
 
-    def _stability(self, outcome: _Outcome, wrench: np.ndarray) -> stability.Stability:
+    def _stability(self, outcome: _Outcome, wrench: np.ndarray,
+                   rotation: Optional[np.ndarray] = None) -> stability.Stability:
         """
         Verdict at a converged outcome from the factorization its iteration ended with.
 
@@ -362,13 +377,18 @@ class TranslatorSolver:
         problem = self.problem
         lu = outcome.lu
         pose, lu_wrench = outcome.pose if outcome.pose is not None else (None, None)
-        rotation = problem.residual_and_end_frame(outcome.xs, wrench)[1][:3, :3]
+        if rotation is None:
+            rotation = problem.residual_and_end_frame(outcome.xs, wrench)[1][:3, :3]
         verdict = None
         fresh_enough = lu_wrench is not None and (
             np.linalg.norm(wrench - lu_wrench) <= STALE_WRENCH * np.linalg.norm(wrench))
         if lu is not None and pose is not None and fresh_enough:
-            verdict = stability.assess(lu, stability.pose_twist_jacobian(pose, rotation),
-                                       problem.wrench_sensitivity, self._origin())
+            if self._verdict_lu is lu and self._verdict is not None:
+                verdict = self._verdict  # chord steps keep a factorization over many solves
+            else:
+                verdict = stability.assess(lu, pose, rotation, problem.wrench_sensitivity,
+                                           self._origin())
+                self._verdict_lu, self._verdict = lu, verdict
             if verdict.stable and verdict.margin >= RECHECK_MARGIN:
                 return verdict
         _, jac, pose = problem.exact_jacobian(outcome.xs, wrench)
@@ -378,8 +398,7 @@ class TranslatorSolver:
         outcome.lu, outcome.pose = lu, (pose.copy(), wrench.copy())
         self._lu, self._pose = outcome.lu, outcome.pose
         self._exact_at = outcome.xs
-        return stability.assess(lu, stability.pose_twist_jacobian(pose, rotation),
-                                problem.wrench_sensitivity, self._origin())
+        return stability.assess(lu, pose, rotation, problem.wrench_sensitivity, self._origin())
 
     def _follow_stable_branch(self, outcome: _Outcome, verdict: stability.Stability,
                               wrench: np.ndarray,
@@ -396,7 +415,7 @@ class TranslatorSolver:
         saved = (self._previous, self._lu, self._pose)
         length = self.params.stack_height
         size = np.linalg.norm(wrench[:3]) + np.linalg.norm(wrench[3:]) / length
-        current, current_verdict = outcome, verdict
+        current_verdict = verdict
         iterations = outcome.iterations
         direction = np.zeros(6)
         for attempt in range(BRANCH_ATTEMPTS):
@@ -425,7 +444,7 @@ class TranslatorSolver:
                                   f'the critical mode and re-converged ({attempt + 1} '
                                   'perturbation(s))')
                 return second, new_verdict
-            current, current_verdict = second, new_verdict
+            current_verdict = new_verdict
         self._previous, self._lu, self._pose = saved
         return outcome, verdict
 
@@ -458,8 +477,7 @@ class TranslatorSolver:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            guess = xs if lu is None else xs - lu_solve(lu, sensitivity @ (goal - current),
-                                                        check_finite=False)
+            guess = xs if lu is None else xs - solve_lu(lu, sensitivity @ (goal - current))
             outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
@@ -492,8 +510,7 @@ class TranslatorSolver:
         """
         if lu is None:
             return 1.0
-        predicted = np.abs(lu_solve(lu, self.problem.wrench_sensitivity @ change,
-                                    check_finite=False)).max()
+        predicted = np.abs(solve_lu(lu, self.problem.wrench_sensitivity @ change)).max()
         if predicted <= PREDICTOR_REACH:
             return 1.0
         return max(PREDICTOR_REACH / predicted, MIN_CONTINUATION_STEP)
@@ -547,7 +564,7 @@ class TranslatorSolver:
                     lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
                 pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
-            step = -lu_solve(lu, rs, check_finite=False)
+            step = -solve_lu(lu, rs)
             finite = bool(np.isfinite(step).all())
             trial = _line_search(problem, xs, step, wrench, norm) if finite else None
             if trial is None:

@@ -34,7 +34,7 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg import eigh, lu_solve
+from scipy.linalg.lapack import dgetrs
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,20 @@ class Stability:
     message: str
 
 
+def solve_lu(lu: tuple, rhs: np.ndarray) -> np.ndarray:
+    """
+    Solve J x = rhs with scipy's LU factorization (lu, piv) by LAPACK getrs directly.
+
+    Same arithmetic as scipy.linalg.lu_solve without its argument checking, which cost
+    ten times the solve itself for these 90x90 systems (0.46 ms against 0.04 ms measured
+    on the loaded machine).
+    """
+    solution, info = dgetrs(lu[0], lu[1], rhs)
+    if info != 0:
+        raise ValueError(f'getrs: illegal argument {-info}')
+    return solution
+
+
 def determinant_sign(lu: tuple) -> int:
     """Sign of det J from scipy's LU factorization (lu, piv): diagonal signs and swaps."""
     factors, pivots = lu
@@ -59,24 +73,26 @@ def determinant_sign(lu: tuple) -> int:
     return -1 if (swaps + negative) % 2 else 1
 
 
-def pose_twist_jacobian(pose_jacobian: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+def pose_twist(pose_change: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """
-    Map d(frame)/dx (12 rows: centre, rotation row-major) to the end-disk twist d[v; w]/dx.
+    Map changes of the end-disk frame (12 rows) to end-disk twists [v; w] (6 rows).
+
+    Rows of ``pose_change``: centre, then rotation matrix row-major; any number of columns.
 
     w is the spatial angular velocity, vee of the skew part of dR R^T (the convention of
     compliance.frame_twist).
     """
-    d_rot = pose_jacobian[3:].reshape(3, 3, -1)
-    spin = np.einsum('abx,cb->acx', d_rot, rotation)  # dR R^T
-    angular = 0.5 * np.stack([spin[2, 1] - spin[1, 2], spin[0, 2] - spin[2, 0],
-                              spin[1, 0] - spin[0, 1]])
-    return np.vstack([pose_jacobian[:3], angular])
+    d_rot = pose_change[3:].reshape((3, 3) + pose_change.shape[1:])
+    spin = np.tensordot(rotation, d_rot, axes=([1], [1]))  # (R dR^T)^T = dR R^T, transposed
+    angular = 0.5 * np.stack([spin[1, 2] - spin[2, 1], spin[2, 0] - spin[0, 2],
+                              spin[0, 1] - spin[1, 0]])
+    return np.concatenate([pose_change[:3], angular])
 
 
-def compliance_from_factorization(lu: tuple, twist_jacobian: np.ndarray,
+def compliance_from_factorization(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
                                   wrench_sensitivity: np.ndarray) -> np.ndarray:
     """C = -dT/dx J^-1 dr/dw: the end-disk compliance (SI) from one 6-column LU solve."""
-    return -twist_jacobian @ lu_solve(lu, wrench_sensitivity, check_finite=False)
+    return -pose_twist(pose_jacobian @ solve_lu(lu, wrench_sensitivity), rotation)
 
 
 @dataclass(frozen=True)
@@ -95,26 +111,26 @@ def _scaled_stiffness(compliance: np.ndarray, length: float) -> np.ndarray:
     return 0.5 * (stiffness + stiffness.T)
 
 
-def reference(lu: tuple, twist_jacobian: np.ndarray, wrench_sensitivity: np.ndarray,
-              length: float) -> Reference:
+def reference(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
+              wrench_sensitivity: np.ndarray, length: float) -> Reference:
     """Build the Reference from the unloaded factorization; ``length`` the stack height."""
-    compliance = compliance_from_factorization(lu, twist_jacobian, wrench_sensitivity)
-    smallest = float(eigh(_scaled_stiffness(compliance, length), eigvals_only=True)[0])
+    compliance = compliance_from_factorization(lu, pose_jacobian, rotation, wrench_sensitivity)
+    smallest = float(np.linalg.eigvalsh(_scaled_stiffness(compliance, length))[0])
     if not smallest > 0.0:
         raise ArithmeticError('the unloaded translator is not stable: check the parameters')
     return Reference(length, smallest, determinant_sign(lu))
 
 
-def assess(lu: tuple, twist_jacobian: np.ndarray, wrench_sensitivity: np.ndarray,
-           origin: Reference) -> Stability:
+def assess(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
+           wrench_sensitivity: np.ndarray, origin: Reference) -> Stability:
     """Verdict and margin (see the module docstring) at the factorization ``lu``."""
-    compliance = compliance_from_factorization(lu, twist_jacobian, wrench_sensitivity)
+    compliance = compliance_from_factorization(lu, pose_jacobian, rotation, wrench_sensitivity)
     sign = determinant_sign(lu)
     parity_ok = sign == origin.determinant_sign
     try:
         if sign == 0 or not np.all(np.isfinite(compliance)):
             raise np.linalg.LinAlgError
-        values, vectors = eigh(_scaled_stiffness(compliance, origin.length))
+        values, vectors = np.linalg.eigh(_scaled_stiffness(compliance, origin.length))
     except np.linalg.LinAlgError:
         return Stability(False, -math.inf, parity_ok, compliance, np.zeros(6),
                          'unstable: the Jacobian at the solution is singular (at a '

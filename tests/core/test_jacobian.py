@@ -2,11 +2,10 @@
 
 from dataclasses import replace
 
-import numpy as np
-import pytest
-
 from cdr_translator import TranslatorSolver
 from cdr_translator.problem import Problem
+import numpy as np
+import pytest
 
 #: (force, moment) loads whose solutions the random states scatter around: small, large
 #: bends (100 N lateral: about 60 deg per joint), torsion, compression

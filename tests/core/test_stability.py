@@ -2,10 +2,9 @@
 
 import json
 
+from cdr_translator import cli, solver as solver_module, TranslatorSolver
 import numpy as np
 import pytest
-
-from cdr_translator import cli, solver as solver_module, TranslatorSolver
 
 
 def test_unloaded_margin_is_one_and_lateral_load_is_stable(solver):
