@@ -31,9 +31,11 @@ hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
 # Speed against error of every fidelity level, the paper baseline and the node's rate (about
-# 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml.
+# 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml;
+# then issue 13's targets, exact vs forward-difference Jacobian: bench/results/targets.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
+	$(VPY) -m bench.targets --spacers-slope
 
 # Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup

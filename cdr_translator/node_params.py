@@ -15,7 +15,7 @@ from typing import Any, Mapping, Optional, Tuple, Union
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from .params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_ONLY_KEYS
-from .params import ParameterError
+from .params import MAX_SPACERS_PER_JOINT, ParameterError
 from .params import read_params_file
 from .params import TranslatorParams
 
@@ -54,7 +54,7 @@ _MODEL = (
     ParameterSpec('youngs_modulus', 'Pa, Young modulus E of the backbones', read_only=True),
     ParameterSpec('poisson_ratio', 'Poisson ratio; G = E / (2 (1 + nu))', read_only=True),
     ParameterSpec('spacers_per_joint', 'spacer disks per continuum joint', read_only=True,
-                  bounds=(0, 64)),
+                  bounds=(0, MAX_SPACERS_PER_JOINT)),
     ParameterSpec('steps_per_segment', 'RK4 steps per disk interval', read_only=True,
                   bounds=(1, 1024)),
 )

@@ -48,6 +48,12 @@ FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_ang
 #: ``Accuracy.from_yaml`` and TranslatorSolver, not by TranslatorParams).
 ACCURACY_KEYS: frozenset = frozenset(('accuracy_position_m', 'accuracy_angle_deg'))
 
+#: Most spacer disks per joint: the library and the node refuse more. The exact Jacobian's
+#: cost grows with (unknowns)^2 x (disk intervals), its factorization with (unknowns)^3;
+#: at 16 (690 unknowns) one Newton iteration stays well inside a time limit of a second,
+#: so ``time_limit_s`` (checked between iterations) holds.
+MAX_SPACERS_PER_JOINT = 16
+
 #: Most RK4 steps per disk interval the automatic refinement may use.
 MAX_REFINED_STEPS = 256
 
@@ -162,6 +168,9 @@ class TranslatorParams:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
                 raise ParameterError(f'{name} must be an integer >= {lowest}, got {value!r}')
+        if self.spacers_per_joint > MAX_SPACERS_PER_JOINT:
+            raise ParameterError(f'spacers_per_joint must be at most {MAX_SPACERS_PER_JOINT}, '
+                                 f'got {self.spacers_per_joint!r}')
         if self.pitch_radius < self.backbone_diameter:
             # Secondary holes would overlap the central primary backbone.
             raise ParameterError(

@@ -47,7 +47,7 @@ RECHECK_MARGIN = 0.05
 
 #: A factorization made at a wrench further than this (relative to |w|, SI components)
 #: from the solved one is not trusted for the stability verdict.
-STALE_WRENCH = 0.05
+STALE_WRENCH = 0.2
 
 #: Refined re-solves at most (each aims at the target from the error's N^-4 law).
 MAX_REFINEMENTS = 5

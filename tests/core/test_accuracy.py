@@ -89,3 +89,15 @@ def test_random_wrenches_verify_or_are_flagged(params):
             assert 'accuracy target not met' in result.message or 'unstable' in result.message
     assert converged >= 0.9 * SAMPLES
     assert not unflagged, unflagged
+
+
+def test_spacer_disks_have_an_upper_bound(params):
+    """Library and node refuse more than MAX_SPACERS_PER_JOINT spacer disks per joint."""
+    from cdr_translator.node_params import SPECS
+    from cdr_translator.params import MAX_SPACERS_PER_JOINT
+
+    with pytest.raises(ParameterError, match='spacers_per_joint'):
+        params.with_changes(spacers_per_joint=MAX_SPACERS_PER_JOINT + 1)
+    assert SPECS['spacers_per_joint'].bounds == (0, MAX_SPACERS_PER_JOINT)
+    assert params.with_changes(spacers_per_joint=MAX_SPACERS_PER_JOINT).spacers_per_joint \
+        == MAX_SPACERS_PER_JOINT
