@@ -20,10 +20,10 @@ ratios measured in the same run much less.
 """
 
 import argparse
+from pathlib import Path
 import platform
 import statistics
 import time
-from pathlib import Path
 from typing import Callable, Dict, List
 
 from bench.speed_vs_error import wrench_sequence
@@ -214,7 +214,7 @@ def main() -> None:
         line('3 spacer disks per joint, warm (median)', TARGETS['spacers3_warm'],
              exact['spacers3']['warm_s'], fd['spacers3']['warm_s']),
         '',
-        f"Stability verdict + error estimate inside a warm solve: median "
+        'Stability verdict + error estimate inside a warm solve: median '
         f"{_ms(exact['warm']['overhead_median_s'])} ms = "
         f"{100 * exact['warm']['overhead_fraction']:.0f} % of the warm solve (target "
         f"{100 * TARGETS['overhead']:.0f} %: "

@@ -313,8 +313,14 @@ def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, space
 # which central differences confirm (tests/core/test_jacobian.py).
 
 @jit
-def _chain_segment(k, tl, lp, lrot, lm, tp, trot, tn, tm, stack):
-    """Chain rod k's local segment derivative into its global tangents (tl: d length/dx)."""
+def _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, columns):
+    """
+    Gather rod k's input tangents into ``stack`` (LOCAL_DIRECTIONS, size); return counts.
+
+    ``active[j]`` says whether local direction j has any nonzero tangent (only those are
+    integrated), ``columns[:count]`` lists the unknowns whose tangent columns are nonzero
+    (only those are chained): near the base most are zero. Returns the column count.
+    """
     nd = tp.shape[2]
     for a in range(3):
         for b in range(3):
@@ -325,21 +331,43 @@ def _chain_segment(k, tl, lp, lrot, lm, tp, trot, tn, tm, stack):
             stack[LOCAL_M + a, d] = tm[k, a, d]
     for d in range(nd):
         stack[LOCAL_LENGTH, d] = tl[d]
+    count = 0
+    for j in range(LOCAL_DIRECTIONS):
+        active[j] = False
+    for d in range(nd):
+        used = False
+        for j in range(LOCAL_DIRECTIONS):
+            if stack[j, d] != 0.0:
+                active[j] = True
+                used = True
+        if used:
+            columns[count] = d
+            count += 1
+    return count
+
+
+@jit
+def _chain_segment(k, lp, lrot, lm, tp, trot, tm, stack, active, columns, count):
+    """Chain rod k's local segment derivative into its global tangents (nonzero columns)."""
     for a in range(3):
-        for d in range(nd):
+        for index in range(count):
+            d = columns[index]
             acc_p = tp[k, a, d]
             acc_m = 0.0
             for j in range(LOCAL_DIRECTIONS):
-                s = stack[j, d]
-                acc_p += lp[a, j] * s
-                acc_m += lm[a, j] * s
+                if active[j]:
+                    s = stack[j, d]
+                    acc_p += lp[a, j] * s
+                    acc_m += lm[a, j] * s
             tp[k, a, d] = acc_p
             tm[k, a, d] = acc_m
         for b in range(3):
-            for d in range(nd):
+            for index in range(count):
+                d = columns[index]
                 acc = 0.0
                 for j in range(LOCAL_DIRECTIONS):
-                    acc += lrot[a, b, j] * stack[j, d]
+                    if active[j]:
+                        acc += lrot[a, b, j] * stack[j, d]
                 trot[k, a, b, d] = acc
 
 
@@ -510,6 +538,7 @@ def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row):
     arm = np.empty(3)
     tarm = np.empty((3, nd))
     tmoment = np.zeros((3, nd))
+    tq = np.empty((3, 3))
     for c in range(3):
         for d in range(nd):
             jac[row + 24 + c, d] = 0.0
@@ -531,7 +560,6 @@ def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row):
                     acc += trot[0, a, c, d] * arm[a] + rot[0, a, c] * tarm[a, d]
                 jac[r + c, d] = acc
         for d in range(nd):
-            tq = np.empty((3, 3))
             for a in range(3):
                 for b in range(3):
                     acc = 0.0
@@ -573,6 +601,8 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     tused = np.zeros((4, size))
     tl = np.zeros(size)
     stack = np.empty((LOCAL_DIRECTIONS, size))
+    active = np.zeros(LOCAL_DIRECTIONS, dtype=np.bool_)
+    columns = np.empty(size, dtype=np.int64)
     lp = np.empty((3, LOCAL_DIRECTIONS))
     lrot = np.empty((3, 3, LOCAL_DIRECTIONS))
     lm = np.empty((3, LOCAL_DIRECTIONS))
@@ -594,10 +624,11 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
-            integrate_segment_tangent(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse,
-                                      inv_kbt, lp, lrot, lm)
             tl[:] = 0.0
-            _chain_segment(0, tl, lp, lrot, lm, tp, trot, tn, tm, stack)
+            count = _segment_inputs(0, tl, tp, trot, tn, tm, stack, active, columns)
+            integrate_segment_tangent(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse,
+                                      inv_kbt, lp, lrot, lm, active)
+            _chain_segment(0, lp, lrot, lm, tp, trot, tm, stack, active, columns, count)
             is_end = joint == 1 and station == spacers
             for i in range(4):
                 tl[:] = 0.0
@@ -612,9 +643,11 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
                 used[i] += length
                 for d in range(size):
                     tused[i, d] += tl[d]
+                count = _segment_inputs(i + 1, tl, tp, trot, tn, tm, stack, active, columns)
                 integrate_segment_tangent(p[i + 1], rot[i + 1], n[i + 1], m[i + 1], length,
-                                          steps, inv_kse, inv_kbt, lp, lrot, lm)
-                _chain_segment(i + 1, tl, lp, lrot, lm, tp, trot, tn, tm, stack)
+                                          steps, inv_kse, inv_kbt, lp, lrot, lm, active)
+                _chain_segment(i + 1, lp, lrot, lm, tp, trot, tm, stack, active, columns,
+                               count)
             if is_end:
                 _store_frame(rot[0], p[0], frames[3])
                 for c in range(3):

@@ -170,33 +170,48 @@ def pose_derivative_tangent(p, rot, tp, trot, n, m_start, p_start, tn, tm_start,
 
 
 @jit
-def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp, trot, tm):
+def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp, trot, tm,
+                              active):
     """
     ``integrate_segment`` (no points) plus the exact derivative of the discrete map.
 
     On exit (p, rot, m) hold the end state as in ``integrate_segment`` and ``tp`` (3, 16),
     ``trot`` (3, 3, 16), ``tm`` (3, 16) its derivatives along the LOCAL_DIRECTIONS inputs:
     the 9 entries of R(0), n, m(0) and the segment length. (The derivative with respect to
-    p(0) is the identity on p and zero on R and m: the map is translation invariant.) It is
+    p(0) is the identity on p and zero on R and m: the map is translation invariant.) Only
+    the directions flagged in ``active`` (bool, 16) are computed; the others are left
+    zero (e.g. R(0) at a rod's first segment, where it is fixed). It is
     the tangent-linear (forward-mode) form of the very RK4 steps taken, so it equals the
     derivative of the discretized map to rounding, not that of the continuous one
     (variational equations of Eq. 6 discretized by the same Runge-Kutta scheme, whose
     derivative they are: Hairer, Norsett & Wanner, Solving ODEs I, Sec. II.6 / I.14).
     """
-    nd = LOCAL_DIRECTIONS
+    directions = np.empty(LOCAL_DIRECTIONS, dtype=np.int64)
+    nd = 0
+    for j in range(LOCAL_DIRECTIONS):
+        if active[j]:
+            directions[nd] = j
+            nd += 1
+    length_slot = -1
     h = length / steps
     dh = 1.0 / steps  # d h / d length
     p_start = p.copy()
     m_start = m.copy()
+    # compact tangents: slot s holds local direction directions[s]
     tn = np.zeros((3, nd))
     tm_start = np.zeros((3, nd))
-    tp[:, :] = 0.0
-    trot[:, :, :] = 0.0
-    for c in range(3):
-        tn[c, LOCAL_N + c] = 1.0
-        tm_start[c, LOCAL_M + c] = 1.0
-        for b in range(3):
-            trot[c, b, LOCAL_ROT + 3 * c + b] = 1.0
+    cp = np.zeros((3, nd))
+    crot = np.zeros((3, 3, nd))
+    for slot in range(nd):
+        j = directions[slot]
+        if j == LOCAL_LENGTH:
+            length_slot = slot
+        elif j >= LOCAL_M:
+            tm_start[j - LOCAL_M, slot] = 1.0
+        elif j >= LOCAL_N:
+            tn[j - LOCAL_N, slot] = 1.0
+        else:
+            crot[(j - LOCAL_ROT) // 3, (j - LOCAL_ROT) % 3, slot] = 1.0
     k_p = np.empty((4, 3))
     k_rot = np.empty((4, 3, 3))
     tk_p = np.empty((4, 3, nd))
@@ -206,51 +221,65 @@ def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp,
     tp_stage = np.empty((3, nd))
     trot_stage = np.empty((3, 3, nd))
     for step in range(steps):
-        pose_derivative_tangent(p, rot, tp, trot, n, m_start, p_start, tn, tm_start, inv_kse,
+        pose_derivative_tangent(p, rot, cp, crot, n, m_start, p_start, tn, tm_start, inv_kse,
                                 inv_kbt, k_p[0], k_rot[0], tk_p[0], tk_rot[0])
         for stage, weight in ((1, 0.5), (2, 0.5), (3, 1.0)):
             rk4_stage_pose(p, rot, k_p[stage - 1], k_rot[stage - 1], weight * h, p_stage,
                            rot_stage)
             for i in range(3):
                 for d in range(nd):
-                    tp_stage[i, d] = tp[i, d] + weight * h * tk_p[stage - 1, i, d]
-                tp_stage[i, LOCAL_LENGTH] += weight * dh * k_p[stage - 1, i]
+                    tp_stage[i, d] = cp[i, d] + weight * h * tk_p[stage - 1, i, d]
+                if length_slot >= 0:
+                    tp_stage[i, length_slot] += weight * dh * k_p[stage - 1, i]
                 for j in range(3):
                     for d in range(nd):
-                        trot_stage[i, j, d] = (trot[i, j, d]
+                        trot_stage[i, j, d] = (crot[i, j, d]
                                                + weight * h * tk_rot[stage - 1, i, j, d])
-                    trot_stage[i, j, LOCAL_LENGTH] += weight * dh * k_rot[stage - 1, i, j]
+                    if length_slot >= 0:
+                        trot_stage[i, j, length_slot] += weight * dh * k_rot[stage - 1, i, j]
             pose_derivative_tangent(p_stage, rot_stage, tp_stage, trot_stage, n, m_start,
                                     p_start, tn, tm_start, inv_kse, inv_kbt, k_p[stage],
                                     k_rot[stage], tk_p[stage], tk_rot[stage])
         for i in range(3):
             for d in range(nd):
-                tp[i, d] += h / 6.0 * (tk_p[0, i, d] + 2.0 * tk_p[1, i, d]
+                cp[i, d] += h / 6.0 * (tk_p[0, i, d] + 2.0 * tk_p[1, i, d]
                                        + 2.0 * tk_p[2, i, d] + tk_p[3, i, d])
-            tp[i, LOCAL_LENGTH] += dh / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i]
-                                               + k_p[3, i])
+            if length_slot >= 0:
+                cp[i, length_slot] += dh / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i]
+                                                  + 2.0 * k_p[2, i] + k_p[3, i])
             for j in range(3):
                 for d in range(nd):
-                    trot[i, j, d] += h / 6.0 * (tk_rot[0, i, j, d] + 2.0 * tk_rot[1, i, j, d]
+                    crot[i, j, d] += h / 6.0 * (tk_rot[0, i, j, d] + 2.0 * tk_rot[1, i, j, d]
                                                 + 2.0 * tk_rot[2, i, j, d]
                                                 + tk_rot[3, i, j, d])
-                trot[i, j, LOCAL_LENGTH] += dh / 6.0 * (
-                    k_rot[0, i, j] + 2.0 * k_rot[1, i, j] + 2.0 * k_rot[2, i, j]
-                    + k_rot[3, i, j])
+                if length_slot >= 0:
+                    crot[i, j, length_slot] += dh / 6.0 * (
+                        k_rot[0, i, j] + 2.0 * k_rot[1, i, j] + 2.0 * k_rot[2, i, j]
+                        + k_rot[3, i, j])
         rk4_advance_pose(p, rot, k_p, k_rot, h)
+    tp[:, :] = 0.0
+    trot[:, :, :] = 0.0
+    tm[:, :] = 0.0
+    for slot in range(nd):
+        j = directions[slot]
+        for i in range(3):
+            tp[i, j] = cp[i, slot]
+            for b in range(3):
+                trot[i, b, j] = crot[i, b, slot]
     dx = p[0] - p_start[0]
     dy = p[1] - p_start[1]
     dz = p[2] - p_start[2]
     m[0] = m_start[0] - (dy * n[2] - dz * n[1])
     m[1] = m_start[1] - (dz * n[0] - dx * n[2])
     m[2] = m_start[2] - (dx * n[1] - dy * n[0])
-    for d in range(nd):
-        tm[0, d] = (tm_start[0, d] - (tp[1, d] * n[2] - tp[2, d] * n[1])
-                    - (dy * tn[2, d] - dz * tn[1, d]))
-        tm[1, d] = (tm_start[1, d] - (tp[2, d] * n[0] - tp[0, d] * n[2])
-                    - (dz * tn[0, d] - dx * tn[2, d]))
-        tm[2, d] = (tm_start[2, d] - (tp[0, d] * n[1] - tp[1, d] * n[0])
-                    - (dx * tn[1, d] - dy * tn[0, d]))
+    for slot in range(nd):
+        d = directions[slot]
+        tm[0, d] = (tm_start[0, slot] - (cp[1, slot] * n[2] - cp[2, slot] * n[1])
+                    - (dy * tn[2, slot] - dz * tn[1, slot]))
+        tm[1, d] = (tm_start[1, slot] - (cp[2, slot] * n[0] - cp[0, slot] * n[2])
+                    - (dz * tn[0, slot] - dx * tn[2, slot]))
+        tm[2, d] = (tm_start[2, slot] - (cp[0, slot] * n[1] - cp[1, slot] * n[0])
+                    - (dx * tn[1, slot] - dy * tn[0, slot]))
 
 
 def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: float):

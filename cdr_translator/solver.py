@@ -340,6 +340,8 @@ class TranslatorSolver:
         if refined is None:
             return None
         refined.iterations += result.iterations
+        extra = '' if refined.message == 'converged' else f' ({refined.message})'
+        refined.message = result.message + extra
         refined.message += (f'; refined to {refined.steps_per_segment} steps per segment '
                             f'(estimated error at {result.steps_per_segment}: '
                             f'{result.error_estimate_m:.2g} m, '
