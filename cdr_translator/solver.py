@@ -372,26 +372,29 @@ class TranslatorSolver:
         Verdict at a converged outcome from the factorization its iteration ended with.
 
         That factorization may be from an earlier iterate or solve (chord steps); when it was
-        made at a wrench more than STALE_WRENCH (relative) away, or the verdict is unstable
-        or its margin below RECHECK_MARGIN, the verdict is redone on an exact Jacobian at the
-        solution itself, which then also becomes the stored factorization.
+        made at a wrench further (relative to |w|) than STALE_WRENCH or half the margin it
+        gives, or the verdict is unstable or its margin below RECHECK_MARGIN, the verdict is
+        redone on an exact Jacobian at the solution itself, which then also becomes the
+        stored factorization.
         """
         problem = self.problem
         lu = outcome.lu
         pose, lu_wrench = outcome.pose if outcome.pose is not None else (None, None)
         if rotation is None:
             rotation = problem.residual_and_end_frame(outcome.xs, wrench)[1][:3, :3]
-        verdict = None
-        fresh_enough = lu_wrench is not None and (
-            np.linalg.norm(wrench - lu_wrench) <= STALE_WRENCH * np.linalg.norm(wrench))
-        if lu is not None and pose is not None and fresh_enough:
+        if lu is not None and pose is not None and lu_wrench is not None:
             if self._verdict_lu is lu and self._verdict is not None:
                 verdict = self._verdict  # chord steps keep a factorization over many solves
             else:
                 verdict = stability.assess(lu, pose, rotation, problem.wrench_sensitivity,
                                            self._origin())
                 self._verdict_lu, self._verdict = lu, verdict
-            if verdict.stable and verdict.margin >= RECHECK_MARGIN:
+            # the margin moves about as fast as the load, relative to the load: a verdict
+            # from a factorization made at a wrench more than half the margin away (or
+            # STALE_WRENCH) could already be on the other side of zero
+            drift = np.linalg.norm(wrench - lu_wrench) / max(np.linalg.norm(wrench), 1e-300)
+            if verdict.stable and verdict.margin >= RECHECK_MARGIN and \
+                    drift <= min(STALE_WRENCH, 0.5 * verdict.margin):
                 return verdict
         _, jac, pose = problem.exact_jacobian(outcome.xs, wrench)
         with warnings.catch_warnings():

@@ -57,3 +57,25 @@ def test_fd_jacobian_solver_gives_the_same_verdict(params):
     assert result.converged and result.stable
     with pytest.raises(ValueError, match='jacobian'):
         TranslatorSolver(params, jacobian='complex-step')
+
+
+def test_warm_compression_ramp_buckles_onto_the_stable_branch(params):
+    """
+    Warm steps across the 29.3 N load: the margin falls as 1 - F / F_cr, then buckles.
+
+    The stale factorizations of chord steps must not hide the crossing: the straight state
+    is never reported stable past the buckling load.
+    """
+    solver = TranslatorSolver(params)
+    margins = []
+    for load in (10.0, 20.0, 27.0, 29.5, 33.0):
+        result = solver.solve((0.0, 0.0, -load))
+        assert result.converged and result.stable, result.message
+        lateral = np.linalg.norm(result.end_disk_position[:2])
+        margins.append(result.stability_margin)
+        if load > 29.3:
+            assert lateral > 5e-3, f'straight and stable at {load} N'
+        else:
+            assert lateral < 1e-9
+    assert margins[0] == pytest.approx(1.0 - 10.0 / 29.3, abs=0.02)
+    assert margins[1] == pytest.approx(1.0 - 20.0 / 29.3, abs=0.02)
