@@ -282,17 +282,25 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
 
 @jit
 def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, spacers, steps,
-                      inv_kse, inv_kbt, base, jac):
+                      inv_kse, inv_kbt, base, jac, pose_jac):
     """
     Forward-difference Jacobian d(residual)/dx into ``jac``; ``base`` = residual at x.
 
-    ``step`` holds the perturbation of every unknown.
+    ``step`` holds the perturbation of every unknown. ``pose_jac`` (12, size) receives the
+    same differences of the end-disk frame {de} (centre, rotation matrix row-major).
     """
     size = x.shape[0]
     column = np.empty(size)
     probe = x.copy()
     points = np.empty((N_RODS, 0, 3))
     frames = np.empty((4, 4, 4))
+    translator_residual(probe, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, column, points, frames)
+    end = np.empty(12)
+    for c in range(3):
+        end[c] = frames[3, c, 3]
+        for b in range(3):
+            end[3 + 3 * c + b] = frames[3, c, b]
     for j in range(size):
         probe[j] = x[j] + step[j]
         translator_residual(probe, wrench, pitch_radius, spacing, tube_length, spacers, steps,
@@ -300,6 +308,10 @@ def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, space
         probe[j] = x[j]
         for r in range(size):
             jac[r, j] = (column[r] - base[r]) / step[j]
+        for c in range(3):
+            pose_jac[c, j] = (frames[3, c, 3] - end[c]) / step[j]
+            for b in range(3):
+                pose_jac[3 + 3 * c + b, j] = (frames[3, c, b] - end[3 + 3 * c + b]) / step[j]
 
 
 # exact Jacobian: the tangent-linear (forward-mode) form of translator_residual ---------------

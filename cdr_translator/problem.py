@@ -85,7 +85,7 @@ class Problem:
         self._step = FD_STEP * x_scale
         self._pose_jacobian = np.empty((12, self.size))
         #: derivative of the end-disk frame {de} (centre, then rotation matrix row-major;
-        #: SI per nondimensional unknown) at the last exact Jacobian, or None
+        #: SI per nondimensional unknown) at the last Jacobian, or None
         self.pose_jacobian: Optional[np.ndarray] = None
 
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
@@ -108,13 +108,14 @@ class Problem:
         """
         Nondimensional Jacobian at ``xs`` (``rs`` = residual there), by ``jacobian_method``.
 
-        'exact' also sets ``pose_jacobian``; 'fd' clears it.
+        Both also set ``pose_jacobian`` (the end-disk frame's derivative, the same way).
         """
         if self.jacobian_method == 'exact':
             return self.exact_jacobian(xs, wrench)[1]
-        self.pose_jacobian = None
         self.kernel.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,
-                                      rs * self.residual_scale, self._jacobian)
+                                      rs * self.residual_scale, self._jacobian,
+                                      self._pose_jacobian)
+        self.pose_jacobian = self._pose_jacobian * self.x_scale
         return self._jacobian * (self.x_scale / self.residual_scale[:, None])
 
     def exact_jacobian(self, xs: np.ndarray,
