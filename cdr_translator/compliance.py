@@ -26,6 +26,7 @@ import warnings
 import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
 
+from . import stability
 from .params import TranslatorParams
 from .problem import Problem
 
@@ -107,8 +108,6 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
     the machine epsilon, bounded by the 1-norm condition estimate of the factorization.
     ArithmeticError if J is singular or not finite at ``xs``.
     """
-    from . import stability  # stability imports nothing from here; keep the import light
-
     if factorization is None:
         _, jacobian, pose = problem.exact_jacobian(xs, wrench)
         lu = _factorization(jacobian)
@@ -161,9 +160,12 @@ def finite_difference_compliance(params: TranslatorParams, force: Sequence[float
     The default steps keep the truncation error (step^2) and the solve tolerance's share
     (tolerance / step) both near 1e-8 of C.
     """
+    from .params import Accuracy
     from .solver import TranslatorSolver  # the solver module imports this one
 
-    solver = TranslatorSolver(params, tolerance=tolerance)
+    # one fixed discretization and branch for all 12 solves
+    solver = TranslatorSolver(params, tolerance=tolerance, accuracy=Accuracy(0.0, 0.0),
+                              follow_stable_branch=False)
     base = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
 
     def end_frame(wrench: np.ndarray) -> np.ndarray:
