@@ -11,9 +11,11 @@ package_name = 'cdr_translator'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['tests', 'tests.*', 'test', 'test.*']),
+    # only the two libraries: bench/, scripts/ and tests/ are not installed
+    packages=find_packages(include=['cdr_translator', 'cdr_translator.*', 'msg_tools',
+                                    'msg_tools.*']),
     # the ROS 2 .msg texts msg_tools ships (it needs no ROS message packages)
-    package_data={'msg_tools': ['msg/*/*.msg']},
+    package_data={'msg_tools': ['msg/*/*.msg', 'py.typed'], 'cdr_translator': ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         (os.path.join('share', package_name), ['package.xml']),
@@ -32,8 +34,8 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'translator_node = cdr_translator.node:main',
-            'cdr_node = cdr_translator.cdr_node:main',
+            'translator_node = cdr_translator.ros.translator_node:main',
+            'cdr_node = cdr_translator.ros.cdr_node:main',
         ],
     },
 )

@@ -16,7 +16,7 @@ import math
 import statistics
 
 from cdr_translator import geometry
-from cdr_translator.delta import DeltaRobot
+from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
 
 COLD_CASES = (((0.0, 0.0, 0.0), (0.0, 0.0, -9.81)),

@@ -3,7 +3,7 @@ Run the whole hard-case suite and write its report; the README table is generate
 
 Usage: python -m bench.hard_cases [--quick] [--no-readme]
 
-Every case of ``cdr_translator.hard_cases`` (``--quick``: only those ``make test`` runs) is
+Every case of ``cdr_translator.studies.hard_cases`` (``--quick``: only those ``make test`` runs) is
 solved, each converged state verified independently and, if only its discretization is too
 coarse, re-solved on a finer grid; the axial buckling load is found and compared with the
 Euler estimate. The markdown goes to bench/results/hard_cases.md and replaces the README

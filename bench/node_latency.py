@@ -21,9 +21,9 @@ import signal
 import tempfile
 import time
 
-from cdr_translator.node_client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.node_client import TranslatorClient
-from msg_tools import messages
+from cdr_translator.interface import messages
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
+from cdr_translator.ros.client import TranslatorClient
 import numpy as np
 
 

@@ -31,10 +31,11 @@ import time
 from typing import Callable, Dict, List, Optional
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.compliance import finite_difference_compliance
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
 from cdr_translator.fidelity import validation
 from cdr_translator.fidelity.reduced import ROD_STEPS
+from cdr_translator.studies import fidelity_validation
+from cdr_translator.studies.finite_difference import finite_difference_compliance
 from matplotlib.figure import Figure
 import numpy as np
 
@@ -236,8 +237,8 @@ def node_rate(seconds: float = 3.0, rate_hz: float = 1000.0) -> dict:
     """translator_node's sustained answers per second under a wrench burst over DDS."""
     try:
         from bench.node_latency import measure
-        from cdr_translator.node_client import isolated_ros_env, NodeProcess, TranslatorClient
-        from msg_tools import messages
+        from cdr_translator.ros.client import isolated_ros_env, NodeProcess, TranslatorClient
+        from cdr_translator.interface import messages
     except ImportError as error:
         return {'error': f'node tools unavailable: {error}'}
     env = isolated_ros_env()
@@ -476,7 +477,7 @@ def main() -> None:
               'load_before': ', '.join(f'{v:.1f}' for v in os.getloadavg())}
     if not args.skip_validation:
         print('validating the reduced levels against the reference ...', flush=True)
-        data = validation.validate(params, FidelitySolver(params).rod_steps)
+        data = fidelity_validation.validate(params, FidelitySolver(params).rod_steps)
         data.save(validation.DEFAULT_VALIDATION_PATH,
                   'Validated ranges of the reduced fidelity levels (cdr_translator.fidelity).\n'
                   'Written by bench/speed_vs_error.py (make bench); do not edit by hand.')

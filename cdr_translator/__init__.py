@@ -1,7 +1,9 @@
 """Cosserat-rod kinestatics of the dual-continuum-joint translator (one CDR leg)."""
 
-from .params import ParameterError, TranslatorParams
+from .errors import InputError, ParameterError, SolveError
+from .params import TranslatorParams
 from .result import SolveResult
 from .solver import TranslatorSolver
 
-__all__ = ['ParameterError', 'SolveResult', 'TranslatorParams', 'TranslatorSolver']
+__all__ = ['InputError', 'ParameterError', 'SolveError', 'SolveResult', 'TranslatorParams',
+           'TranslatorSolver']

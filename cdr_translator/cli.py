@@ -20,12 +20,11 @@ import sys
 from typing import List, Optional
 
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
-from .delta import DeltaResult, DeltaRobot
-from .delta_params import DeltaParams
 from .fidelity import FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
+from .robot.delta import DeltaResult, DeltaRobot
 from .solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
@@ -203,8 +202,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             print(_paper_comparison(params))
             return EXIT_CONVERGED
         if args.command == 'delta':
-            robot = DeltaRobot(params, DeltaParams.from_yaml(args.params),
-                               time_limit_s=args.time_limit)
+            robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
             result = robot.solve(args.sliders, args.payload, args.payload_moment,
                                  args.payload_offset)
             table = _delta_table

@@ -6,28 +6,27 @@ the end-disk centre) to the small twist [v; w] of the end disk: v the velocity o
 w its angular velocity, both in {pe}. SI units: C[:3, :3] m/N, C[:3, 3:] m/(N m),
 C[3:, :3] rad/N, C[3:, 3:] rad/(N m).
 
-Two computations that agree to about 1e-8 relative (tests/test_compliance.py):
+Two computations that agree to about 1e-8 relative (tests/core/test_compliance.py):
 
 * ``implicit_compliance`` (the default): implicit differentiation of the shooting problem
   at the converged solution (Rucker & Webster, ICRA 2011). r(x, w) = 0 gives
   dx/dw = -J^-1 dr/dw; the twist is the derivative of the end-disk pose along each column.
   The exact Jacobian and the end-disk pose derivative come from one tangent-linear shot;
   C is then one 6-column solve with that factorization (no refinement sweeps).
-* ``finite_difference_compliance``: central differences of loaded solves, the paper's way
-  (its ref. [15]); the check.
+* ``cdr_translator.studies.finite_difference.finite_difference_compliance``: central
+  differences of loaded solves, the paper's way (its ref. [15]); the check.
 """
 
 from dataclasses import dataclass
 import math
 import time
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Tuple
 import warnings
 
 import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
 
 from . import stability
-from .params import TranslatorParams
 from .problem import Problem
 
 #: Human-readable names of the six twist/wrench axes, in the order of C's rows.
@@ -146,44 +145,6 @@ def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     angle = math.atan2(sine, cosine)
     scale = angle / sine if sine > 1e-12 else 1.0 + angle ** 2 / 6.0
     return np.concatenate([after[:3, 3] - before[:3, 3], scale * skew])
-
-
-# finite differences of loaded solves ------------------------------------------------------
-def finite_difference_compliance(params: TranslatorParams, force: Sequence[float],
-                                 moment: Sequence[float] = (0.0, 0.0, 0.0),
-                                 force_step: float = 1e-3, moment_step: float = 1e-4,
-                                 tolerance: float = 1e-12) -> np.ndarray:
-    """
-    C by central differences of 12 loaded solves around (force, moment): the check.
-
-    Uses its own solver (warm-started along the 12 solves) so no caller's state changes.
-    The default steps keep the truncation error (step^2) and the solve tolerance's share
-    (tolerance / step) both near 1e-8 of C.
-    """
-    from .params import Accuracy
-    from .solver import TranslatorSolver  # the solver module imports this one
-
-    # one fixed discretization and branch for all 12 solves
-    solver = TranslatorSolver(params, tolerance=tolerance, accuracy=Accuracy(0.0, 0.0),
-                              follow_stable_branch=False)
-    base = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
-
-    def end_frame(wrench: np.ndarray) -> np.ndarray:
-        result = solver.solve(wrench[:3], wrench[3:])
-        if not result.converged:
-            raise ArithmeticError(f'finite-difference solve at {wrench.tolist()} failed: '
-                                  f'{result.message}')
-        return result.frames['de']
-
-    end_frame(base)
-    compliance = np.empty((6, 6))
-    for column in range(6):
-        step = force_step if column < 3 else moment_step
-        offset = np.zeros(6)
-        offset[column] = step
-        plus, minus = end_frame(base + offset), end_frame(base - offset)
-        compliance[:, column] = frame_twist(minus, plus) / (2.0 * step)
-    return compliance
 
 
 # eigen / screw analysis -----------------------------------------------------------------------

@@ -5,7 +5,9 @@ import math
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-import yaml
+from .checks import check_integer, check_number
+from .errors import ParameterError
+from .params_file import layered_values, section_values
 
 #: The node name under which the parameters sit in the ROS 2 params file.
 NODE_NAME = 'translator_node'
@@ -33,6 +35,18 @@ DEFAULT_PARAMS_PATH = _shipped_params_path()
 #: Secondary backbones sit at these angles on the pitch circle (secondary 1 on +x).
 SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 
+#: Upper bounds of the discretization, enforced by the library and both nodes alike: past
+#: them a solve cannot meet any time limit (cost and memory grow with both). The exact
+#: Jacobian costs ~ (unknowns)^2 x (disk intervals) and its factorization (unknowns)^3;
+#: at 16 spacer disks per joint (690 unknowns) one Newton iteration stays well inside a
+#: second, so ``time_limit_s`` (checked between iterations) holds; at 64 (2610 unknowns)
+#: one iteration alone took longer.
+MAX_SPACERS_PER_JOINT = 16
+MAX_STEPS_PER_SEGMENT = 1024
+
+#: Most RK4 steps per disk interval the automatic refinement may use.
+MAX_REFINED_STEPS = 256
+
 #: Keys of the same params file that belong to the ROS node, not to the model.
 NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
@@ -43,89 +57,34 @@ NODE_ONLY_KEYS: frozenset = frozenset((
 #: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).
 FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_angle_error'))
 
-
 #: Keys of the same params file that set the accuracy target of every solve (read by
 #: ``Accuracy.from_yaml`` and TranslatorSolver, not by TranslatorParams).
 ACCURACY_KEYS: frozenset = frozenset(('accuracy_position_m', 'accuracy_angle_deg'))
-
-#: Most spacer disks per joint: the library and the node refuse more. The exact Jacobian's
-#: cost grows with (unknowns)^2 x (disk intervals), its factorization with (unknowns)^3;
-#: at 16 (690 unknowns) one Newton iteration stays well inside a time limit of a second,
-#: so ``time_limit_s`` (checked between iterations) holds.
-MAX_SPACERS_PER_JOINT = 16
-
-#: Most RK4 steps per disk interval the automatic refinement may use.
-MAX_REFINED_STEPS = 256
-
-
-class ParameterError(ValueError):
-    """A parameter is missing, unknown or has an impossible value."""
-
-
-@dataclass(frozen=True)
-class Accuracy:
-    """
-    Accuracy target of every solve: the estimated discretization error may not exceed it.
-
-    ``position_m`` bounds the end-disk (and tube-face) position error, ``angle_deg`` their
-    orientation error and the defects of the secondaries' angle conditions; a solve whose
-    estimate exceeds either is refined (more steps per segment) up to MAX_REFINED_STEPS.
-    Zero disables the refinement of that kind (the estimate is still reported).
-    The shipped defaults are ten times inside the paper's tolerances that
-    ``cdr_translator.verify`` checks (2e-4 m, 1e-4 rad).
-    """
-
-    position_m: float = 2e-5
-    angle_deg: float = 5e-4
-
-    def __post_init__(self) -> None:
-        """Validate; ParameterError names the offending key and value."""
-        for name, value in (('accuracy_position_m', self.position_m),
-                            ('accuracy_angle_deg', self.angle_deg)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value < 0.0:
-                raise ParameterError(f'{name} must be a finite number >= 0, got {value!r}')
-
-    @classmethod
-    def from_mapping(cls, values: Mapping[str, Any]) -> 'Accuracy':
-        """Pick the accuracy keys out of a flat mapping (missing ones take the defaults)."""
-        picked = {}
-        if 'accuracy_position_m' in values:
-            picked['position_m'] = values['accuracy_position_m']
-        if 'accuracy_angle_deg' in values:
-            picked['angle_deg'] = values['accuracy_angle_deg']
-        return cls(**picked)
-
-    @classmethod
-    def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'Accuracy':
-        """Read the accuracy keys of a ROS 2 params file's translator_node section."""
-        return cls.from_mapping(read_params_file(path))
 
 
 def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH,
                      section: str = NODE_NAME) -> dict:
     """
-    Return the ``<section>: ros__parameters:`` mapping of a ROS 2 params file.
+    Return the parameters a ROS 2 params file gives node ``section`` (root namespace).
 
-    ``section`` is a node name: ``translator_node`` (default) or ``cdr_node`` (the delta
-    robot's geometry). Model and node-only keys alike, unvalidated; ParameterError if the
-    file cannot be read.
+    Every section that applies (``/**``, ``section``, ``/section``, ...) merged in file order,
+    unvalidated; ParameterError if the file cannot be read or none of it applies.
     """
-    path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise ParameterError(f'cannot read parameter file {path}: {error}') from error
-    except yaml.YAMLError as error:
-        raise ParameterError(f'{path} is not valid YAML: {error}') from error
-    try:
-        values = document[section]['ros__parameters']
-    except (TypeError, KeyError):
-        raise ParameterError(
-            f'{path} has no {section}: ros__parameters: section') from None
-    if not isinstance(values, Mapping):
-        raise ParameterError(f'{path}: {section}.ros__parameters must be a mapping')
-    return dict(values)
+    values = section_values(path, section)
+    if not values:
+        raise ParameterError(f'{path} has no section for {section} ({section}: or /**: '
+                             'with ros__parameters:)')
+    return values
+
+
+def translator_values(path: Union[str, Path, None] = None) -> dict:
+    """
+    Every translator_node parameter: the shipped file, then ``path`` key by key.
+
+    ROS 2 params-file semantics (cdr_translator.params_file): an unknown key or a value of
+    the wrong ROS type is a ParameterError naming it.
+    """
+    return layered_values(NODE_NAME, [path], DEFAULT_PARAMS_PATH)
 
 
 @dataclass(frozen=True)
@@ -151,26 +110,15 @@ class TranslatorParams:
     def __post_init__(self) -> None:
         """Validate every field; raise ParameterError naming the offending key."""
         for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
-                     'youngs_modulus', 'poisson_ratio'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ParameterError(f'{name} must be a number, got {value!r}')
-            if not math.isfinite(value):
-                raise ParameterError(f'{name} must be finite, got {value!r}')
-        for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
                      'youngs_modulus'):
-            if getattr(self, name) <= 0.0:
-                raise ParameterError(f'{name} must be positive, got {getattr(self, name)!r}')
-        if not -1.0 < self.poisson_ratio < 0.5:
-            raise ParameterError(
-                f'poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio!r}')
-        for name, lowest in (('spacers_per_joint', 0), ('steps_per_segment', 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
-                raise ParameterError(f'{name} must be an integer >= {lowest}, got {value!r}')
-        if self.spacers_per_joint > MAX_SPACERS_PER_JOINT:
-            raise ParameterError(f'spacers_per_joint must be at most {MAX_SPACERS_PER_JOINT}, '
-                                 f'got {self.spacers_per_joint!r}')
+            check_number(name, getattr(self, name), low=0.0, low_open=True,
+                         error=ParameterError)
+        check_number('poisson_ratio', self.poisson_ratio, low=-1.0, high=0.5, low_open=True,
+                     high_open=True, error=ParameterError)
+        check_integer('spacers_per_joint', self.spacers_per_joint, low=0,
+                      high=MAX_SPACERS_PER_JOINT, error=ParameterError)
+        check_integer('steps_per_segment', self.steps_per_segment, low=1,
+                      high=MAX_STEPS_PER_SEGMENT, error=ParameterError)
         if self.pitch_radius < self.backbone_diameter:
             # Secondary holes would overlap the central primary backbone.
             raise ParameterError(
@@ -234,8 +182,13 @@ class TranslatorParams:
 
     @classmethod
     def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'TranslatorParams':
-        """Read a ROS 2 params file (``translator_node: ros__parameters: {...}``)."""
-        return cls.from_mapping(read_params_file(path))
+        """
+        Read a ROS 2 params file over the shipped one, key by key (``translator_values``).
+
+        A partial file, a ``/**:`` section and the node's name all work as in the node.
+        """
+        values = translator_values(path)
+        return cls.from_mapping({field.name: values[field.name] for field in fields(cls)})
 
     def with_changes(self, **changes: Any) -> 'TranslatorParams':
         """Return a validated copy with some fields changed."""
@@ -244,3 +197,40 @@ class TranslatorParams:
     def to_dict(self) -> dict:
         """Plain dict of the fields, as written in the YAML file."""
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """
+    Accuracy target of every solve: the estimated discretization error may not exceed it.
+
+    ``position_m`` bounds the end-disk (and tube-face) position error, ``angle_deg`` their
+    orientation error and the defects of the secondaries' angle conditions; a solve whose
+    estimate exceeds either is refined (more steps per segment) up to MAX_REFINED_STEPS.
+    Zero disables the refinement of that kind (the estimate is still reported).
+    The shipped defaults are ten times inside the paper's tolerances that
+    ``cdr_translator.verify`` checks (2e-4 m, 1e-4 rad). docs/accuracy.md.
+    """
+
+    position_m: float = 2e-5
+    angle_deg: float = 5e-4
+
+    def __post_init__(self) -> None:
+        """Validate; ParameterError names the offending key and value."""
+        check_number('accuracy_position_m', self.position_m, low=0.0, error=ParameterError)
+        check_number('accuracy_angle_deg', self.angle_deg, low=0.0, error=ParameterError)
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> 'Accuracy':
+        """Pick the accuracy keys out of a flat mapping (missing ones take the defaults)."""
+        picked = {}
+        if 'accuracy_position_m' in values:
+            picked['position_m'] = values['accuracy_position_m']
+        if 'accuracy_angle_deg' in values:
+            picked['angle_deg'] = values['accuracy_angle_deg']
+        return cls(**picked)
+
+    @classmethod
+    def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'Accuracy':
+        """Read the accuracy keys of a params file over the shipped one (``translator_values``)."""
+        return cls.from_mapping(translator_values(path))

@@ -3,15 +3,13 @@
 from dataclasses import dataclass, field
 from functools import cached_property
 import math
-from typing import Dict, Optional, TYPE_CHECKING
+from typing import Dict, Optional
 
 import numpy as np
 
 from . import geometry
 from .compliance import ComplianceAnalysis
 
-if TYPE_CHECKING:  # verify imports this module
-    from .verify import Verification
 
 #: Frame names, in the order the kernel writes them: base, tube ends, end disk.
 FRAME_NAMES = ('pe', 'pm', 'dm', 'de')
@@ -19,6 +17,34 @@ FRAME_NAMES = ('pe', 'pm', 'dm', 'de')
 #: The paper's convergence tolerances (Section III.D), SI.
 PAPER_TOLERANCES = {'position_m': 2e-4, 'orientation_rad': 1e-4, 'force_n': 1e-4,
                     'moment_nm': 1e-4}
+
+
+@dataclass
+class Verification:
+    """
+    Outcome of ``cdr_translator.verify.verify``: each check's worst value, its limit, a verdict.
+
+    ``checks`` and ``limits`` share keys whose suffix names the unit (``_m``, ``_rad``,
+    ``_n``, ``_nm``). ``passed`` is True when every check is within its limit.
+    """
+
+    passed: bool
+    message: str
+    checks: Dict[str, float] = field(default_factory=dict)
+    limits: Dict[str, float] = field(default_factory=dict)
+
+    def worst(self) -> str:
+        """Name the check closest to (or furthest beyond) its limit ('' if none ran)."""
+        return max(self.checks, key=lambda name: self.checks[name] / self.limits[name],
+                   default='')
+
+    def to_dict(self) -> dict:
+        """JSON-ready form: the keys SolveResult.to_dict adds when a solve was verified."""
+        return {'verified': bool(self.passed), 'verification_message': self.message,
+                'verification_checks': {key: float(value)
+                                        for key, value in self.checks.items()},
+                'verification_limits': {key: float(value)
+                                        for key, value in self.limits.items()}}
 
 
 @dataclass
@@ -47,7 +73,7 @@ class SolveResult:
     #: end-disk compliance and its analysis, when the solve was asked for it
     compliance: Optional[ComplianceAnalysis] = field(default=None, repr=False)
     #: independent re-check (cdr_translator.verify), when the solve was asked for it
-    verification: Optional['Verification'] = field(default=None, repr=False)
+    verification: Optional[Verification] = field(default=None, repr=False)
     #: the model that produced the result: 'full', or a reduced level of
     #: cdr_translator.fidelity ('cc', 'rod', 'linear')
     fidelity: str = 'full'

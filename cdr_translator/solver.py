@@ -21,9 +21,10 @@ import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
 from threadpoolctl import ThreadpoolController
 
-from . import accuracy
+from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from . import stability
 from ._jit import interpreted_kernels
+from .checks import check_vector
 from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
@@ -81,24 +82,15 @@ class _Outcome:
 
 
 def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
-    """Return the 6-vector [force; moment]; ValueError naming a non-finite component."""
-    wrench = np.empty(6)
-    for name, values, offset in (('force', force, 0), ('moment', moment, 3)):
-        array = np.asarray(values, dtype=float)
-        if array.shape != (3,):
-            raise ValueError(f'{name} must have 3 components, got shape {array.shape}')
-        for axis, value in zip('xyz', array):
-            if not math.isfinite(value):
-                raise ValueError(f'{name} {axis} component is {value}: a wrench must be finite')
-        wrench[offset:offset + 3] = array
-    return wrench
+    """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
+    return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 
 
 #: The BLAS libraries loaded in this process (numpy's and scipy's OpenBLAS)
 _BLAS = ThreadpoolController()
 
 
-def _one_blas_thread(method: Callable) -> Callable:
+def one_blas_thread(method: Callable) -> Callable:
     """
     Run ``method`` with BLAS limited to one thread (about 8 us to switch).
 
@@ -169,9 +161,9 @@ class TranslatorSolver:
         self.problem = (Problem(self.params, jacobian=jacobian) if kernel is None
                         else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
-        self._lu = None
+        self._lu: Optional[tuple] = None
         self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
-        self._unloaded_lu = None
+        self._unloaded_lu: Optional[tuple] = None
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
         self._exact_at: Optional[np.ndarray] = None
@@ -180,7 +172,7 @@ class TranslatorSolver:
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
         self.follow_stable_branch = follow_stable_branch
         self._refined: Dict[int, 'TranslatorSolver'] = {}
-        self._last_estimate: Optional[accuracy.ErrorEstimate] = None
+        self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -206,7 +198,7 @@ class TranslatorSolver:
         self._lu = None
         self._pose = None
 
-    @_one_blas_thread
+    @one_blas_thread
     def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
@@ -222,7 +214,7 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
-        self._exact_at: Optional[np.ndarray] = None  # unknowns self._lu is exact at
+        self._exact_at = None  # the unknowns self._lu is exact at, once known
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
@@ -266,12 +258,12 @@ class TranslatorSolver:
                                    f'{result.steps_per_segment} steps per segment')
         result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
-            exact = self._exact_at is outcome.xs and self._lu is not None and \
-                self._pose is not None and self._pose[0] is not None
+            stored = self._pose[0] if self._pose is not None else None
+            factorization = ((self._lu, stored) if self._exact_at is outcome.xs
+                             and self._lu is not None and stored is not None else None)
             try:
                 result.compliance, self._lu, pose = compliance_analysis(
-                    self.problem, outcome.xs, wrench,
-                    (self._lu, self._pose[0]) if exact else None, **compliance_options)
+                    self.problem, outcome.xs, wrench, factorization, **compliance_options)
                 self._pose = (pose, wrench.copy())
                 self._exact_at = outcome.xs
             except ArithmeticError as error:
@@ -286,7 +278,7 @@ class TranslatorSolver:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
         pose = outcome.pose[0] if outcome.pose is not None else None
         frames = np.stack([result.frames[name] for name in FRAME_NAMES])
-        estimate = accuracy.estimate(self.problem, outcome.xs, wrench, outcome.rs, frames,
+        estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
                                      outcome.lu, pose)
         result.error_estimate_m = estimate.position_m
         result.error_estimate_deg = estimate.angle_deg
@@ -307,8 +299,9 @@ class TranslatorSolver:
         whether the target was met), or None when no refinement converged.
         """
         estimate, current, refined = self._last_estimate, result, None
+        assert estimate is not None  # _estimate_error ran first
         for _ in range(MAX_REFINEMENTS):
-            steps = accuracy.refined_steps(estimate, self.accuracy.position_m,
+            steps = refined_steps(estimate, self.accuracy.position_m,
                                            self.accuracy.angle_deg, MAX_REFINED_STEPS)
             remaining = deadline - time.perf_counter()
             if steps <= estimate.steps or remaining <= 0.0:
@@ -330,6 +323,7 @@ class TranslatorSolver:
                 break
             current = refined = attempt
             estimate = solver._last_estimate
+            assert estimate is not None
             met = ((self.accuracy.position_m <= 0.0
                     or estimate.position_m <= self.accuracy.position_m)
                    and (self.accuracy.angle_deg <= 0.0
@@ -392,7 +386,8 @@ class TranslatorSolver:
             # the margin moves about as fast as the load, relative to the load: a verdict
             # from a factorization made at a wrench more than half the margin away (or
             # STALE_WRENCH) could already be on the other side of zero
-            drift = np.linalg.norm(wrench - lu_wrench) / max(np.linalg.norm(wrench), 1e-300)
+            drift = float(np.linalg.norm(wrench - lu_wrench)) / max(
+                float(np.linalg.norm(wrench)), 1e-300)
             if verdict.stable and verdict.margin >= RECHECK_MARGIN and \
                     drift <= min(STALE_WRENCH, 0.5 * verdict.margin):
                 return verdict
@@ -547,7 +542,7 @@ class TranslatorSolver:
     # correctors ------------------------------------------------------------------------------
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
-                pose_in: Optional[np.ndarray] = None) -> _Outcome:
+                pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
         """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
         problem = self.problem
         rs = problem.residual(xs, wrench)
@@ -592,7 +587,8 @@ class TranslatorSolver:
 
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                              lu: Optional[tuple], max_iterations: int,
-                             pose_in: Optional[np.ndarray] = None) -> _Outcome:
+                             pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+                             ) -> _Outcome:
         """
         Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances.
 

@@ -26,7 +26,7 @@ moment balance also allows the position tolerance times the rod forces whose lev
 affects.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 from typing import Dict, Optional
 
@@ -34,7 +34,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .params import SECONDARY_ANGLES_RAD, TranslatorParams
-from .result import PAPER_TOLERANCES, SolveResult
+from .result import PAPER_TOLERANCES, SolveResult, Verification
+
+#: Verification is defined beside SolveResult (which holds one) and exported here too.
+__all__ = ['INTEGRATION_ATOL', 'INTEGRATION_RTOL', 'Tolerances', 'Verification', 'verify']
 
 #: Relative and absolute error tolerances of the re-integration (DOP853).
 INTEGRATION_RTOL = 1e-11
@@ -59,34 +62,6 @@ class Tolerances:
     orientation_rad: float = PAPER_TOLERANCES['orientation_rad']
     force_n: float = PAPER_TOLERANCES['force_n']
     moment_nm: float = PAPER_TOLERANCES['moment_nm']
-
-
-@dataclass
-class Verification:
-    """
-    Outcome of :func:`verify`: every check's worst value and its limit (SI), and a verdict.
-
-    ``checks`` and ``limits`` share keys whose suffix names the unit (``_m``, ``_rad``,
-    ``_n``, ``_nm``). ``passed`` is True when every check is within its limit.
-    """
-
-    passed: bool
-    message: str
-    checks: Dict[str, float] = field(default_factory=dict)
-    limits: Dict[str, float] = field(default_factory=dict)
-
-    def worst(self) -> str:
-        """Name the check closest to (or furthest beyond) its limit ('' if none ran)."""
-        return max(self.checks, key=lambda name: self.checks[name] / self.limits[name],
-                   default='')
-
-    def to_dict(self) -> dict:
-        """JSON-ready form: the keys SolveResult.to_dict adds when a solve was verified."""
-        return {'verified': bool(self.passed), 'verification_message': self.message,
-                'verification_checks': {key: float(value)
-                                        for key, value in self.checks.items()},
-                'verification_limits': {key: float(value)
-                                        for key, value in self.limits.items()}}
 
 
 def verify(result: SolveResult, params: TranslatorParams,

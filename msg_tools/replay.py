@@ -18,11 +18,10 @@ import sys
 import time
 from typing import Dict, IO, List, Optional, Sequence, Tuple, Union
 
-from cdr_translator import TranslatorParams
-from cdr_translator.params import DEFAULT_PARAMS_PATH
-from msg_tools import messages
+from cdr_translator.interface import messages
+from cdr_translator.interface.processing import WrenchProcessor
+from cdr_translator.interface.settings import TranslatorSettings
 from msg_tools.mcap_log import McapLog
-from msg_tools.processing import InputSettings, WrenchProcessor
 from msg_tools.reader import Decoders, McapSource, ReadReport
 import numpy as np
 
@@ -226,8 +225,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     chosen, warnings, total = select_topics(source, topics)
     if Path(output_path).resolve() == Path(input_path).resolve():
         raise ReplayError('the output file must not be the input file')
-    params = TranslatorParams.from_yaml(params_path or DEFAULT_PARAMS_PATH)
-    settings = InputSettings.from_params_file(params_path)
+    settings = TranslatorSettings.from_params_file(params_path)
+    params = settings.params
     source = McapSource(input_path, topics=chosen)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}

@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import List, NamedTuple, Optional, Sequence, Union
 
-from msg_tools import messages
+from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
 import numpy as np
 

@@ -22,11 +22,11 @@ import sys
 import time
 from typing import List, Sequence, Tuple
 
-from cdr_translator.node_client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.node_client import TranslatorClient
+from cdr_translator.interface import messages
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
+from cdr_translator.ros.client import TranslatorClient
 from geometry_msgs.msg import WrenchStamped
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import messages
 from msg_tools.reader import McapSource
 import numpy as np
 from rclpy.serialization import deserialize_message

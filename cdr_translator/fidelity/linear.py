@@ -19,7 +19,7 @@ import numpy as np
 from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
 from ..compliance import implicit_compliance
 from ..problem import Problem
-from ..solver import _one_blas_thread
+from ..solver import one_blas_thread
 from ..stability import solve_lu
 
 
@@ -43,7 +43,7 @@ class TangentModel:
         """Forget the cached solution."""
         self.origin = None
 
-    @_one_blas_thread  # 90x90 factorizations: more BLAS threads only spin on a busy machine
+    @one_blas_thread  # 90x90 factorizations: more BLAS threads only spin on a busy machine
     def build(self, xs0: np.ndarray, wrench0: np.ndarray) -> None:
         """
         Cache the converged nondimensional unknowns ``xs0`` under ``wrench0``.

@@ -10,7 +10,6 @@ and falls back to 'full' outside every validated range. Every result says which 
 produced it (``result.fidelity``) and why (``result.message``).
 """
 
-import math
 from pathlib import Path
 import time
 from typing import Optional, Sequence, Tuple, Union
@@ -20,8 +19,9 @@ import numpy as np
 from .linear import TangentModel
 from .reduced import ReducedModel, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
-from ..params import DEFAULT_PARAMS_PATH, read_params_file, TranslatorParams
+from ..params import DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
 from ..problem import RESIDUAL_KINDS
 from ..result import FRAME_NAMES, SolveResult
 from ..solver import check_wrench, TranslatorSolver
@@ -77,9 +77,7 @@ class FidelitySolver:
             raise ValueError(f'fidelity must be one of {FIDELITIES}, got {fidelity!r}')
         for name, value in (('max_position_error', max_position_error),
                             ('max_angle_error_deg', max_angle_error_deg)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value < 0.0:
-                raise ValueError(f'{name} must be a finite number >= 0, got {value!r}')
+            check_number(name, value, low=0.0)
         if fidelity != 'auto' and (max_position_error > 0.0 or max_angle_error_deg > 0.0):
             raise ValueError(f"an error budget needs fidelity 'auto', got {fidelity!r}")
         self.full = TranslatorSolver(params, tolerance=tolerance, time_limit_s=time_limit_s)
@@ -118,15 +116,15 @@ class FidelitySolver:
         """
         Build from a params file: the model, ``fidelity`` and the budget.
 
-        The budget keys are ``max_position_error`` (m) and ``max_angle_error`` (deg);
-        absent keys mean 'auto' with a zero budget, i.e. the full model.
+        The budget keys are ``max_position_error`` (m) and ``max_angle_error`` (deg); the
+        file overrides the shipped config/translator.yaml key by key (``translator_values``).
         """
-        values = read_params_file(path)
-        settings = {'fidelity': values.get('fidelity', 'auto'),
-                    'max_position_error': values.get('max_position_error', 0.0),
-                    'max_angle_error_deg': values.get('max_angle_error', 0.0)}
+        values = translator_values(path)
+        settings = {'fidelity': values['fidelity'],
+                    'max_position_error': values['max_position_error'],
+                    'max_angle_error_deg': values['max_angle_error']}
         settings.update(options)
-        return cls(TranslatorParams.from_mapping(values), **settings)
+        return cls(TranslatorParams.from_yaml(path), **settings)
 
     def reset(self) -> None:
         """Forget every previous solution and the cached tangent: the next solve is cold."""

@@ -14,10 +14,11 @@ errors over fixed samples inside it (the 12 axis extremes, the 64 corners and Ha
 are stored. A wrench belongs to the smallest box that holds it; outside the largest it is
 unvalidated. For 'linear' the boxes are offsets w - w0 from the cached wrench w0
 (LINEAR_SCALES, same half-widths), sampled around cached solutions spread over the largest
-box. ``validate`` computes all of it (about a minute); ``bench/speed_vs_error.py``
-(``make bench``) stores the result in config/fidelity_validation.yaml, which the
-FidelitySolver reads. The data hold only for the model parameters they were computed with
-(stored beside them); with other parameters no reduced level is validated.
+box. ``cdr_translator.studies.fidelity_validation.validate`` computes all of it (about a
+minute); ``bench/speed_vs_error.py`` (``make bench``) stores the result in
+config/fidelity_validation.yaml, which the FidelitySolver reads. The data hold only for
+the model parameters they were computed with (stored beside them); with other parameters
+no reduced level is validated.
 """
 
 from dataclasses import dataclass
@@ -57,8 +58,8 @@ LINEAR_OFFSETS = 16
 DEFAULT_VALIDATION_PATH = DEFAULT_PARAMS_PATH.parent / 'fidelity_validation.yaml'
 
 #: The model parameters the data depend on (the full model's discretization does not count).
-_KEYED_PARAMS = ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
-                 'youngs_modulus', 'poisson_ratio', 'spacers_per_joint')
+KEYED_PARAMS = ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
+                'youngs_modulus', 'poisson_ratio', 'spacers_per_joint')
 
 
 def reference_solver(params: TranslatorParams) -> TranslatorSolver:
@@ -172,7 +173,7 @@ class Validation:
         """Whether these data were computed for ``params`` and the 'rod' discretization."""
         values = params.to_dict()
         return (rod_steps == self.rod_steps
-                and all(values[key] == self.params.get(key) for key in _KEYED_PARAMS)
+                and all(values[key] == self.params.get(key) for key in KEYED_PARAMS)
                 and np.array_equal(np.array(self.box), box_half_widths()))
 
     def admissible(self, level: str, wrench: np.ndarray, max_position_error: float,
@@ -195,7 +196,7 @@ class Validation:
 
     def save(self, path: Union[str, Path], header: str = '') -> None:
         """Write the data as YAML, with ``header`` as leading comment lines."""
-        document = {'params': {key: self.params[key] for key in _KEYED_PARAMS},
+        document = {'params': {key: self.params[key] for key in KEYED_PARAMS},
                     'rod_steps': self.rod_steps,
                     'reference': {'steps_per_segment': REFERENCE_STEPS,
                                   'tolerance': REFERENCE_TOLERANCE},
@@ -219,7 +220,8 @@ class Validation:
                     for name, values in document['levels'].items()})
 
 
-def _bound(scales: Iterable[float], errors: Dict[float, List[Tuple[float, float]]]) -> LevelBound:
+def level_bound(scales: Iterable[float],
+                errors: Dict[float, List[Tuple[float, float]]]) -> LevelBound:
     """Largest errors per nested box: every sample of a box counts for the larger ones."""
     scales = tuple(scales)
     positions, angles, counts = [], [], []
@@ -229,58 +231,3 @@ def _bound(scales: Iterable[float], errors: Dict[float, List[Tuple[float, float]
         angles.append(math.degrees(max(pair[1] for pair in pooled)))
         counts.append(len(pooled))
     return LevelBound(scales, tuple(positions), tuple(angles), tuple(counts))
-
-
-def validate(params: TranslatorParams, rod_steps: int, seed: int = 6) -> Validation:
-    """
-    Measure the reduced levels against the reference over the validated boxes.
-
-    Every reference solve is warm-started from the previous sample. The levels are run
-    through FidelitySolver with the level fixed (cold for 'cc' and 'rod', so that the
-    errors do not depend on the order of the samples).
-    """
-    from .solver import FidelitySolver  # the solver module imports this one
-
-    reference = reference_solver(params)
-    levels = {name: FidelitySolver(params, fidelity=name, rod_steps=rod_steps)
-              for name in ('cc', 'rod', 'linear')}
-    errors = {name: {scale: [] for scale in SCALES} for name in ('cc', 'rod')}
-    for scale in SCALES:
-        for wrench in box_samples(scale, seed):
-            expected = _reference(reference, wrench)
-            for name in ('cc', 'rod'):
-                levels[name].reset()
-                errors[name][scale].append(_errors(levels[name], wrench, expected))
-    rng = np.random.default_rng(seed)
-    linear = {scale: [] for scale in LINEAR_SCALES}
-    bases = np.vstack([np.zeros(6), (2.0 * qmc.Halton(d=6, seed=seed + 1).random(
-        LINEAR_BASES - 1) - 1.0) * box_half_widths()])
-    solver = levels['linear']
-    for base in bases:
-        solver.cache_full_solution(base)
-        for scale in LINEAR_SCALES:
-            for offset in offset_samples(scale, rng):
-                expected = _reference(reference, base + offset)
-                linear[scale].append(_errors(solver, base + offset, expected))
-    bounds = {name: _bound(SCALES, errors[name]) for name in ('cc', 'rod')}
-    bounds['linear'] = _bound(LINEAR_SCALES, linear)
-    return Validation({key: params.to_dict()[key] for key in _KEYED_PARAMS}, rod_steps,
-                      tuple(box_half_widths()), bounds)
-
-
-def _reference(reference: TranslatorSolver, wrench: np.ndarray) -> SolveResult:
-    result = reference.solve(wrench[:3], wrench[3:])
-    if not result.converged:
-        reference.reset()
-        result = reference.solve(wrench[:3], wrench[3:])
-    if not result.converged:
-        raise ArithmeticError(f'reference solve failed at {wrench.tolist()}: {result.message}')
-    return result
-
-
-def _errors(solver, wrench: np.ndarray, expected: SolveResult) -> Tuple[float, float]:
-    result = solver.solve(wrench[:3], wrench[3:])
-    if not result.converged:
-        raise ArithmeticError(f'{result.fidelity} solve failed at {wrench.tolist()}: '
-                              f'{result.message}')
-    return pose_errors(result, expected)

@@ -98,7 +98,7 @@ def test_random_wrenches_verify_or_are_flagged(params):
 
 def test_spacer_disks_have_an_upper_bound(params):
     """Library and node refuse more than MAX_SPACERS_PER_JOINT spacer disks per joint."""
-    from cdr_translator.node_params import SPECS
+    from cdr_translator.interface.settings import SPECS
     from cdr_translator.params import MAX_SPACERS_PER_JOINT
 
     with pytest.raises(ParameterError, match='spacers_per_joint'):

@@ -9,18 +9,19 @@ import sys
 import threading
 
 from cdr_translator import TranslatorSolver
+from cdr_translator.interface import messages
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import messages, msgdefs
+from msg_tools import msgdefs
 from msg_tools.mcap_log import McapLog, offered_qos_profiles_yaml
 import numpy as np
 import pytest
 import yaml
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The interface files installed by the ROS wheels: the oracle for texts and hashes.
 ROS_SHARE = Path(sys.prefix) / 'share'
 OUTPUT_TYPES = ('geometry_msgs/msg/WrenchStamped', 'geometry_msgs/msg/PoseStamped',
@@ -328,7 +329,7 @@ def test_concurrent_writers_lose_nothing(tmp_path):
 
 KILLED_WRITER = """
 import os, signal, sys, time
-from msg_tools import messages
+from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
 log = McapLog(sys.argv[1], flush_every_messages=int(sys.argv[2]), flush_every_s=float(sys.argv[3]))
 for index in range(int(sys.argv[4])):

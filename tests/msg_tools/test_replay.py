@@ -13,21 +13,22 @@ import sys
 import time
 
 from cdr_translator import TranslatorSolver
+from cdr_translator.interface import messages
+from cdr_translator.interface.processing import InputSettings, WrenchProcessor
 from cdr_translator.params import DEFAULT_PARAMS_PATH
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import messages, synth
+from msg_tools import synth
 from msg_tools.__main__ import main
 from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points
-from msg_tools.processing import InputSettings, WrenchProcessor
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay, ReplayError
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BAGS = ROOT / 'bags'
 
 #: Runs ``python -m msg_tools ...`` with rclpy and every ROS message package unimportable.

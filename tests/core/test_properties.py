@@ -13,7 +13,7 @@ reproducible.
 import math
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.hard_cases import DISCRETIZATION_FREE_CHECKS
+from cdr_translator.studies.hard_cases import DISCRETIZATION_FREE_CHECKS
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest

@@ -2,75 +2,42 @@
 
 import threading
 
-from cdr_translator import TranslatorParams
-from cdr_translator.node_io import fill_message, LatestMailbox, LogThread, type_name
-from cdr_translator.node_params import check_value, default_values, model_params
-from cdr_translator.node_params import NodeSettings, SPECS
-from cdr_translator.params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
-from cdr_translator.params import NODE_ONLY_KEYS
-from cdr_translator.params import ParameterError, read_params_file
+from cdr_translator.interface import messages
+from cdr_translator.interface.processing import check_magnitude, in_end_disk_frame
+from cdr_translator.params import ParameterError
+from cdr_translator.ros.parameters import default_values, descriptor, ros_parameter_sources
+from cdr_translator.ros.parameters import SPECS
+from cdr_translator.ros.runtime import fill_message, LatestMailbox, LogThread, type_name
 from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import messages
 from msg_tools.mcap_log import McapLog
-from msg_tools.processing import check_magnitude, in_end_disk_frame
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import MarkerArray
-import yaml
-
-
-def test_every_yaml_key_is_declared_and_node_keys_match_the_library():
-    """The one YAML, the node's specs and params.NODE_ONLY_KEYS name the same parameters."""
-    values = read_params_file()
-    assert set(values) == set(SPECS)
-    model_keys = set(TranslatorParams.__dataclass_fields__)
-    assert set(SPECS) - model_keys == NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
-    assert set(NodeSettings.__dataclass_fields__) == \
-        NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
-    assert model_params(values) == TranslatorParams.from_yaml()
-    assert all(SPECS[key].read_only for key in model_keys)
-
-
-def test_default_values_name_missing_and_unknown_keys(tmp_path):
-    """A params file the node cannot take fully is an error naming the keys."""
-    document = yaml.safe_load(DEFAULT_PARAMS_PATH.read_text())
-    section = document[NODE_NAME]['ros__parameters']
-    del section['max_force']
-    section['max_forse'] = 1.0
-    path = tmp_path / 'params.yaml'
-    path.write_text(yaml.safe_dump(document))
-    with pytest.raises(ParameterError, match=r"unknown parameter\(s\) \['max_forse'\], "
-                                             r"missing \['max_force'\]"):
-        default_values(path)
 
 
 def test_descriptors_carry_description_range_and_read_only():
     """Integer and float ranges follow the value's type; geometry is read-only."""
     values = default_values()
-    steps = SPECS['steps_per_segment'].descriptor(values['steps_per_segment'])
+    steps = descriptor(SPECS['steps_per_segment'], values['steps_per_segment'])
     assert steps.read_only and steps.integer_range[0].from_value == 1
-    force = SPECS['max_force'].descriptor(values['max_force'])
+    force = descriptor(SPECS['max_force'], values['max_force'])
     assert not force.read_only and force.floating_point_range[0].from_value == 0.0
     assert 'N' in force.description
-    frame = SPECS['base_frame'].descriptor(values['base_frame'])
+    frame = descriptor(SPECS['base_frame'], values['base_frame'])
     assert not frame.integer_range and not frame.floating_point_range
 
 
-@pytest.mark.parametrize('name, value, others, reason', [
-    ('base_frame', '', {'end_disk_frame': 'e'}, 'must not be empty'),
-    ('base_frame', 'a b', {'end_disk_frame': 'e'}, 'white space'),
-    ('end_disk_frame', 'b', {'base_frame': 'b'}, 'must differ'),
-])
-def test_check_value_gives_reasons(name, value, others, reason):
-    """Run-time values the descriptors cannot catch are refused with a reason."""
-    assert reason in check_value(name, value, others)
-
-
-def test_check_value_accepts_good_values():
-    """Valid frames and limits pass."""
-    assert check_value('base_frame', 'world', {'end_disk_frame': 'tool'}) is None
-    assert check_value('max_force', 5.0, {}) is None
+def test_command_line_parameter_sources():
+    """--params-file and -p count inside --ros-args only; -p values are YAML."""
+    files, overrides = ros_parameter_sources(
+        ['node', '--params-file', 'not_ros.yaml', '--ros-args', '--params-file', 'a.yaml',
+         '-p', 'max_force:=50.0', '--param', 'log_dir:=/tmp/x', '-r', '__ns:=/leg1', '--',
+         '-p', 'ignored:=1', '--ros-args', '--params-file', 'b.yaml'])
+    assert files == ['a.yaml', 'b.yaml']
+    assert overrides == {'max_force': 50.0, 'log_dir': '/tmp/x'}
+    with pytest.raises(ParameterError, match='expected name:=value'):
+        ros_parameter_sources(['--ros-args', '-p', 'max_force=50'])
 
 
 def test_input_checks_name_the_problem():

@@ -2,8 +2,9 @@
 translator_node over real DDS: round trip, bad input, bursts, shutdown, parameters.
 
 Each test session has its own ROS_DOMAIN_ID (random in 100..200) and localhost-only
-discovery; the node runs as a child process (``python -m cdr_translator.node``) that every
-test kills in the end. Every wait is bounded; none of the assertions depends on timing.
+discovery; the node runs as a child process (``python -m
+cdr_translator.ros.translator_node``) that every test kills in the end. Every wait is
+bounded; none of the assertions depends on timing.
 """
 
 import math
@@ -15,12 +16,12 @@ import sys
 import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.node_client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.node_client import MODULE_COMMAND, SCRIPT_COMMAND, TranslatorClient
+from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
+from cdr_translator.ros.client import MODULE_COMMAND, SCRIPT_COMMAND, TranslatorClient
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import messages
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 import numpy as np
@@ -34,7 +35,7 @@ import yaml
 #: The first solve may compile the kernels (cached on disk after), DDS discovery takes
 #: seconds on a loaded machine: generous bounds, never waited for in full when all is well.
 START_TIMEOUT_S = 120.0
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ANSWER_TIMEOUT_S = 30.0
 POSE = messages.END_DISK_POSE_TOPIC
 ANGLES = messages.BENDING_ANGLES_TOPIC
@@ -274,7 +275,7 @@ def test_parameters_through_the_parameter_service(tmp_path, ros_env):
 @pytest.mark.parametrize('key, value, reason', [
     ('base_frame', ' ', 'base_frame must not be empty'),
     ('tube_length', -0.1, 'tube_length must be positive'),
-    ('max_force', 50, "expecting type 'DOUBLE'"),  # an int where a double is declared
+    ('max_force', 50, 'max_force must be a double, got integer 50 (write 50.0)'),
 ])
 def test_bad_params_file_stops_with_the_reason(tmp_path, ros_env, key, value, reason):
     """A params file with an invalid value: exit code 2 and the reason, before any DDS."""

@@ -45,8 +45,8 @@ def test_shipped_file_loads(params):
     ('steps_per_segment', 0, 'steps_per_segment must be an integer'),
     ('pitch_radius', 0.001, 'pitch_radius'),
     ('backbone_diameter', 0.02, 'backbone_diameter'),
-    ('tube_length', 'long', 'tube_length must be a number'),
-    ('tube_length', None, 'missing parameter.*tube_length'),
+    ('tube_length', 'long', "tube_length must be a double, got string 'long'"),
+    ('tube_length', 1, r'tube_length must be a double, got integer 1 \(write 1\.0\)'),
 ])
 def test_invalid_values_name_the_key(tmp_path, key, value, fragment):
     """Each bad value is rejected with the key (and value) in the message."""
@@ -54,9 +54,15 @@ def test_invalid_values_name_the_key(tmp_path, key, value, fragment):
         TranslatorParams.from_yaml(write_params(tmp_path, **{key: value}))
 
 
+def test_a_partial_file_keeps_the_shipped_values(tmp_path, params):
+    """A key a file lacks keeps its shipped value (ROS 2 params files override key by key)."""
+    assert TranslatorParams.from_yaml(write_params(tmp_path, tube_length=None)) == params
+
+
 def test_unknown_key_is_named(tmp_path):
     """A misspelt key is an error, not silently ignored."""
-    with pytest.raises(ParameterError, match='unknown parameter.*tube_lenght'):
+    with pytest.raises(ParameterError, match=r'unknown translator_node parameter.*tube_lenght '
+                                             r'\(did you mean tube_length\?\)'):
         TranslatorParams.from_yaml(write_params(tmp_path, tube_lenght=0.1))
 
 
@@ -64,7 +70,7 @@ def test_missing_section_and_bad_yaml(tmp_path):
     """A file without the ROS params section, or not YAML at all, is a clear error."""
     path = tmp_path / 'other.yaml'
     path.write_text('some_node:\n  ros__parameters: {}\n')
-    with pytest.raises(ParameterError, match='translator_node'):
+    with pytest.raises(ParameterError, match='has no section for /translator_node'):
         TranslatorParams.from_yaml(path)
     path.write_text('translator_node: [unclosed\n')
     with pytest.raises(ParameterError, match='not valid YAML'):

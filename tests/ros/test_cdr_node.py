@@ -7,12 +7,12 @@ import sys
 import time
 
 from cdr_translator import cdr_messages
-from cdr_translator.delta import DeltaRobot
-from cdr_translator.node_client import isolated_ros_env, NodeProcess
+from cdr_translator.interface import messages
+from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from mcap.reader import make_reader
-from msg_tools import messages
 import numpy as np
 import pytest
 import rclpy
@@ -22,7 +22,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-COMMAND = (sys.executable, '-m', 'cdr_translator.cdr_node')
+COMMAND = (sys.executable, '-m', 'cdr_translator.ros.cdr_node')
 START_TIMEOUT_S = 120.0
 ANSWER_TIMEOUT_S = 60.0
 

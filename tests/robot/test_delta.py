@@ -6,9 +6,9 @@ import math
 
 from cdr_translator import geometry, ParameterError, TranslatorParams
 from cdr_translator.cli import main
-from cdr_translator.delta import DeltaRobot
-from cdr_translator.delta_params import CDR_NODE_NAME, DeltaParams
 from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.robot.params import CDR_NODE_NAME, DeltaParams
 import numpy as np
 import pytest
 from scipy.optimize import fsolve
@@ -295,10 +295,10 @@ def test_bad_geometry_names_the_key(key, value, fragment):
 
 
 def test_geometry_file_errors(tmp_path):
-    """A params file without a cdr_node section, or no file, is a ParameterError."""
+    """A params file with nothing for the robot, or no file, is a ParameterError."""
     path = tmp_path / 'params.yaml'
-    path.write_text('translator_node:\n  ros__parameters: {}\n')
-    with pytest.raises(ParameterError, match='has no cdr_node: ros__parameters: section'):
+    path.write_text('some_node:\n  ros__parameters: {}\n')
+    with pytest.raises(ParameterError, match='has no section for cdr_node or translator_node'):
         DeltaParams.from_yaml(path)
     with pytest.raises(ParameterError, match='cannot read parameter file'):
         DeltaParams.from_yaml(tmp_path / 'missing.yaml')

@@ -1,14 +1,15 @@
 """
-The quick hard cases (cdr_translator.hard_cases): outcomes, physics and failure handling.
+The quick hard cases (cdr_translator.studies.hard_cases): outcomes, physics and failure handling.
 
 The whole suite, with refinement, runs in `make hard-cases` (bench/hard_cases.py).
 """
 
 import math
 
-from cdr_translator import hard_cases, TranslatorSolver
-from cdr_translator.hard_cases import DISCRETIZATION_FREE_CHECKS
+from cdr_translator import TranslatorSolver
 from cdr_translator.params import Accuracy
+from cdr_translator.studies import hard_cases
+from cdr_translator.studies.hard_cases import DISCRETIZATION_FREE_CHECKS
 import numpy as np
 import pytest
 

@@ -5,7 +5,7 @@ import shutil
 import subprocess
 import sys
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COLCON = Path(sys.executable).parent / 'colcon'
 
 
@@ -27,6 +27,16 @@ def test_colcon_build_installs_package_and_params(tmp_path):
     assert (share / 'ament_index' / 'resource_index' / 'packages' / 'cdr_translator').is_file()
     installed = list((tmp_path / 'install').glob('**/site-packages/cdr_translator/solver.py'))
     assert installed, 'the library was not installed'
+    # only the two libraries (and their metadata) go to site-packages: no bench, tests, scripts
+    site = installed[0].parents[1]
+    packages = {path.name for path in site.iterdir()
+                if path.is_dir() and not path.name.endswith(('.egg-info', '.dist-info'))
+                and path.name != '__pycache__'}
+    assert packages == {'cdr_translator', 'msg_tools'}, packages
+    for subpackage in ('fidelity', 'robot', 'studies', 'interface', 'ros'):
+        assert (site / 'cdr_translator' / subpackage / '__init__.py').is_file(), subpackage
+    assert (site / 'cdr_translator' / 'py.typed').is_file()
+    assert (site / 'msg_tools' / 'py.typed').is_file()
     # the installed library finds the installed parameter file without the ament index
     check = subprocess.run(
         [sys.executable, '-c', 'from cdr_translator.params import DEFAULT_PARAMS_PATH as p; '

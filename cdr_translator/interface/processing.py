@@ -1,0 +1,150 @@
+"""
+What translator_node does with one WrenchStamped, without ROS: checks, frames, the solve.
+
+Replay uses this to publish exactly what the live node would have: the same input checks
+(finite, magnitudes within ``max_force``/``max_moment``), the same frame handling (base frame
+or empty: {pe} components; end-disk frame: a follower load, rotated into {pe} with the
+solved end-disk orientation until that orientation settles; anything else rejected) and the
+same solver settings (``solve_time_limit_s``), all read from the one params file.
+"""
+
+from dataclasses import dataclass
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+import warnings
+
+import numpy as np
+
+from . import messages
+from .settings import TranslatorSettings
+from ..fidelity import FidelitySolver
+from ..params import TranslatorParams
+from ..result import SolveResult
+from ..solver import check_wrench, TranslatorSolver
+
+#: A follower load's orientation has settled when no rotation-matrix entry changes more.
+FOLLOWER_TOLERANCE = 1e-12
+#: Solves allowed for a follower load before it is reported as not converged.
+FOLLOWER_MAX_SOLVES = 8
+
+
+def check_magnitude(force: Sequence[float], moment: Sequence[float], max_force: float,
+                    max_moment: float) -> None:
+    """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
+    for name, vector, limit, unit in (('force', force, max_force, 'N'),
+                                      ('moment', moment, max_moment, 'N m')):
+        magnitude = float(np.linalg.norm(np.asarray(vector, dtype=float)))
+        if magnitude > limit:
+            raise ValueError(f'|{name}| = {magnitude:.6g} {unit} exceeds max_{name} = '
+                             f'{limit:.6g} {unit}')
+
+
+def in_end_disk_frame(frame_id: str, base_frame: str, end_disk_frame: str) -> bool:
+    """
+    Tell whether a wrench's frame_id is the end-disk frame (True) or the base frame (False).
+
+    An empty frame_id means the base frame; any other name raises ValueError (no tf here).
+    """
+    if frame_id in ('', base_frame):
+        return False
+    if frame_id == end_disk_frame:
+        return True
+    raise ValueError(f'unknown frame_id {frame_id!r}: expected {base_frame!r} (or empty) or '
+                     f'{end_disk_frame!r}')
+
+
+def solve_wrench(solver: Union[TranslatorSolver, FidelitySolver], force: np.ndarray,
+                 moment: np.ndarray, end_disk: bool, rotation: np.ndarray, compliance: bool
+                 ) -> Tuple[SolveResult, int]:
+    """
+    Solve a base-frame wrench, or an end-disk-frame one as a follower load.
+
+    ``rotation`` is the end-disk orientation of the last converged solve (the starting
+    guess of a follower load's direction). Returns the result and the number of solves.
+    """
+    if not end_disk:
+        return solver.solve(force, moment, compliance=compliance), 1
+    for solves in range(1, FOLLOWER_MAX_SOLVES + 1):
+        result = solver.solve(rotation @ force, rotation @ moment, compliance=compliance)
+        if not result.converged:
+            return result, solves
+        new_rotation = result.frames['de'][:3, :3]
+        if np.abs(new_rotation - rotation).max() <= FOLLOWER_TOLERANCE:
+            return result, solves
+        rotation = new_rotation
+    result.converged = False
+    result.message = (f'the end-disk orientation of the follower load did not settle in '
+                      f'{FOLLOWER_MAX_SOLVES} solves')
+    return result, FOLLOWER_MAX_SOLVES
+
+
+@dataclass
+class Outcome:
+    """What one wrench gave: the result (None if rejected), why not, and the outputs."""
+
+    result: Optional[SolveResult]
+    error: str
+    outputs: List[Tuple[str, str, dict]]
+    solves: int = 0
+
+
+class WrenchProcessor:
+    """
+    The node's handling of a sequence of wrenches, warm-starting one solver along it.
+
+    Counts received, rejected, solved and not converged messages and reports them in every
+    diagnostic, as the node does (``skipped`` is always 0: nothing is dropped offline).
+    """
+
+    def __init__(self, params: TranslatorParams, settings: TranslatorSettings, *,
+                 compliance: bool = True, backbones: bool = False) -> None:
+        """Build the solver (the node's time limit) for ``params``."""
+        self.settings = settings
+        self.solver = FidelitySolver(params, fidelity=settings.fidelity,
+                                     max_position_error=settings.max_position_error,
+                                     max_angle_error_deg=settings.max_angle_error,
+                                     time_limit_s=settings.solve_time_limit_s)
+        self.compliance = compliance
+        self.backbones = backbones
+        self.rotation = np.eye(3)
+        self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
+                                       'not_converged': 0, 'skipped': 0}
+
+    def process(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
+                stamp: Mapping[str, int]) -> Outcome:
+        """Check, solve and build the outputs of one wrench (outputs stamped ``stamp``)."""
+        settings = self.settings
+        self.counts['received'] += 1
+        try:
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+        except ValueError as error:
+            self.counts['rejected'] += 1
+            return Outcome(None, f'rejected: {error}', messages.rejection_messages(
+                stamp, f'rejected: {error}', dict(self.counts)))
+        result, solves = solve_wrench(self.solver, np.asarray(force, dtype=float),
+                                      np.asarray(moment, dtype=float), end_disk,
+                                      self.rotation, self.compliance)
+        if result.converged:
+            self.counts['solved'] += 1
+            self.rotation = result.frames['de'][:3, :3]
+        else:
+            self.counts['not_converged'] += 1
+        extra: Dict[str, Any] = dict(self.counts)
+        if end_disk:
+            extra['follower_solves'] = solves
+        outputs = messages.output_messages(
+            result, stamp, settings.base_frame, compliance=self.compliance,
+            backbones_params=self.solver.params if self.backbones else None,
+            extra_values=extra)
+        return Outcome(result, '' if result.converged else result.message, outputs, solves)
+
+
+def __getattr__(name: str) -> Any:
+    """Serve ``InputSettings``, the name TranslatorSettings had here before 0.2."""
+    if name == 'InputSettings':
+        warnings.warn('cdr_translator.interface.processing.InputSettings is deprecated; use '
+                      'cdr_translator.interface.settings.TranslatorSettings',
+                      DeprecationWarning, stacklevel=2)
+        return TranslatorSettings
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

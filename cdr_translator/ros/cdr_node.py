@@ -1,0 +1,224 @@
+"""
+cdr_node: slider positions and a platform payload in, the Continuum Delta Robot's pose out.
+
+Subscribes ``sliders`` (sensor_msgs/JointState: positions in m, named slider_1..3 or
+unnamed in leg order) and ``platform_wrench`` (geometry_msgs/WrenchStamped: the payload on
+the platform origin, in the world frame), both with sensor-data QoS, and publishes,
+reliable with depth 10, ``platform_pose``, ``leg_bending_angles``, ``leg_tip_wrenches``
+and ``/diagnostics`` (cdr_messages defines their content). Every accepted input triggers a
+solve with the latest value of the other (sliders at home and no payload until the first
+message of each). The translator node's parts do the rest: the latest-wins mailbox and
+solver thread pattern, message filling, MCAP log thread and ``run`` loop (runtime.py); the
+parameters are CdrSettings' (cdr_translator.interface.settings).
+"""
+
+import sys
+import threading
+import time
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from geometry_msgs.msg import WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+
+from .parameters import descriptor, ros_parameter_sources
+from .runtime import check_parameters, fill_message, LatestMailbox, open_log, OUTPUTS, run
+from .runtime import SHUTDOWN_JOIN_S, type_name
+from ..interface import cdr_messages, messages
+from ..interface.processing import check_magnitude
+from ..interface.settings import CDR_SPECS, CdrSettings
+from ..params import DEFAULT_PARAMS_PATH
+from ..robot.delta import DeltaRobot
+from ..robot.params import CDR_NODE_NAME, check_sliders
+from ..solver import check_wrench
+
+#: Output topics and their message classes (the translator node's classes, by type).
+CDR_OUTPUTS = {
+    cdr_messages.PLATFORM_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
+    cdr_messages.LEG_ANGLES_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
+    cdr_messages.LEG_WRENCHES_TOPIC: OUTPUTS[messages.COMPLIANCE_TOPIC],
+    cdr_messages.DIAGNOSTICS_TOPIC: OUTPUTS[messages.DIAGNOSTICS_TOPIC],
+}
+
+
+class CdrNode(Node):
+    """The CDR forward statics as a ROS 2 node; ``close()`` stops it and finalizes its log."""
+
+    def __init__(self, params_path: str = str(DEFAULT_PARAMS_PATH),
+                 ros_arguments: Sequence[str] = (), **kwargs: Any) -> None:
+        """
+        Declare parameters, warm up, then subscribe.
+
+        The values are CdrSettings' reading of ``params_path`` (the shipped defaults) and of
+        the ``--params-file``/``-p`` of ``ros_arguments``, for this node's fully qualified
+        name: the rules the CLI applies to the same files.
+        """
+        super().__init__(CDR_NODE_NAME, **kwargs)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        files, overrides = ros_parameter_sources(ros_arguments)
+        settings = CdrSettings.from_params_files(
+            files, namespace=self.get_namespace(), defaults_path=params_path,
+            node_name=self.get_name(), overrides=overrides)
+        values = {name: self.declare_parameter(name, value,
+                                               descriptor(CDR_SPECS[name], value)).value
+                  for name, value in settings.values().items()}
+        self._settings = CdrSettings.from_values(values)
+        self.robot = DeltaRobot(self._settings.params, self._settings.geometry,
+                                time_limit_s=self._settings.solve_time_limit_s)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.received = self.rejected = self.solved = self.failed = 0
+        self._sliders = np.zeros(3)
+        self._payload = (np.zeros(3), np.zeros(3))
+        self._inputs_lock = threading.Lock()
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
+                                                                  reliable)
+                                     for topic, message_class in CDR_OUTPUTS.items()}
+        self._mailbox = LatestMailbox()
+        self.robot.solve(self._sliders, (0.0, 0.0, -1.0))  # loads the compiled kernels
+        self.robot.reset()
+        inputs = {cdr_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
+                  cdr_messages.SLIDERS_TOPIC: JointState}
+        topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
+                  for topic, message_class in inputs.items()]
+        topics += [(publisher.topic_name, type_name(CDR_OUTPUTS[topic]), 'reliable')
+                   for topic, publisher in self._publishers_by_topic.items()]
+        self._log, self.mcap_path = open_log(self._settings, 'cdr', topics)
+        self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
+        self._worker.start()
+        self._subscriptions = [
+            self.create_subscription(WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC,
+                                     self._on_wrench, qos_profile_sensor_data, raw=True),
+            self.create_subscription(JointState, cdr_messages.SLIDERS_TOPIC, self._on_sliders,
+                                     qos_profile_sensor_data, raw=True)]
+        self.get_logger().info(
+            f'ready: {", ".join(s.topic_name for s in self._subscriptions)} -> '
+            f'{", ".join(p.topic_name for p in self._publishers_by_topic.values())}; '
+            f'MCAP log {self.mcap_path or "off"}')
+
+    # parameters ------------------------------------------------------------------------------
+    def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
+        """Reject a change with the reason (descriptors have checked read-only and ranges)."""
+        return check_parameters(self, CDR_SPECS, parameters)
+
+    def _apply_parameters(self, parameters: List[Parameter]) -> None:
+        """Take accepted run-time values into a new settings snapshot."""
+        self._settings = self._settings.with_values(
+            **{parameter.name: parameter.value for parameter in parameters})
+        self.robot.time_limit_s = self._settings.solve_time_limit_s
+
+    # input -----------------------------------------------------------------------------------
+    def _log_input(self, index: int, data: bytes, info: dict) -> None:
+        self.received += 1
+        if self._log is not None:
+            subscription = self._subscriptions[index]
+            self._log.submit(subscription.topic_name, type_name(subscription.msg_type), data,
+                             info.get('received_timestamp') or time.time_ns(),
+                             info.get('source_timestamp'))
+
+    def _on_wrench(self, data: bytes, info: dict) -> None:
+        """Log the payload as received; reject it with a diagnostic or solve with it."""
+        self._log_input(0, data, info)
+        force, moment, frame_id, stamp = messages.wrench_from_message(
+            deserialize_message(data, WrenchStamped))
+        settings = self._settings
+        try:
+            if frame_id not in ('', settings.world_frame):
+                raise ValueError(f'payload frame_id {frame_id!r} is not the world frame '
+                                 f'{settings.world_frame!r} (no tf here)')
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+        except ValueError as error:
+            self._reject(stamp, 'payload', error)
+            return
+        with self._inputs_lock:
+            self._payload = (force, moment)
+            self._mailbox.put((stamp, self._sliders, force, moment))
+
+    def _on_sliders(self, data: bytes, info: dict) -> None:
+        """Log the slider positions as received; reject them with a diagnostic or solve."""
+        self._log_input(1, data, info)
+        message = deserialize_message(data, JointState)
+        stamp = {'sec': message.header.stamp.sec, 'nanosec': message.header.stamp.nanosec}
+        try:
+            sliders = check_sliders(
+                cdr_messages.sliders_from_joint_state(message.name, message.position),
+                self.robot.geometry.slider_stroke)
+        except ValueError as error:
+            self._reject(stamp, 'sliders', error)
+            return
+        with self._inputs_lock:
+            self._sliders = sliders
+            self._mailbox.put((stamp, sliders, *self._payload))
+
+    def _reject(self, stamp: dict, what: str, error: Exception) -> None:
+        self.rejected += 1
+        self.get_logger().warning(f'{what} rejected: {error}', throttle_duration_sec=1.0)
+        self._publish(cdr_messages.rejection_messages(stamp, f'{what} rejected: {error}',
+                                                      self._counts()))
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: solve the newest inputs, publish and log what it gives."""
+        while True:
+            item = self._mailbox.take()
+            if item is None:
+                return
+            stamp, sliders, force, moment = item
+            try:
+                result = self.robot.solve(sliders, force, moment)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish(cdr_messages.rejection_messages(
+                    stamp, f'internal error: {error!r}', self._counts()))
+                continue
+            if result.converged:
+                self.solved += 1
+            else:
+                self.failed += 1
+                self.get_logger().error(f'no equilibrium: {result.message}',
+                                        throttle_duration_sec=1.0)
+            self._publish(cdr_messages.output_messages(
+                result, stamp, self._settings.world_frame, self._counts()))
+
+    # output ----------------------------------------------------------------------------------
+    def _counts(self) -> Dict[str, int]:
+        """Return the running message counts reported with every diagnostic."""
+        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+
+    def _publish(self, built: Sequence[Tuple[str, str, dict]]) -> None:
+        """Fill, publish and queue for the MCAP log the (topic, type, dict) of cdr_messages."""
+        for topic, name, values in built:
+            message = fill_message(CDR_OUTPUTS[topic](), values)
+            publisher = self._publishers_by_topic[topic]
+            publisher.publish(message)
+            if self._log is not None:
+                self._log.submit(publisher.topic_name, name, message, time.time_ns())
+
+    # shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop taking inputs, let the running solve finish, finalize the MCAP file."""
+        for subscription in self._subscriptions:
+            self.destroy_subscription(subscription)
+        self._mailbox.close()
+        self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log is not None:
+            self._log.close()
+            self.get_logger().info(f'MCAP log {self.mcap_path} closed: {self._log.written} '
+                                   f'records ({self._log.errors} failed)')
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Run cdr_node until SIGINT or SIGTERM; return the process exit code."""
+    return run(CdrNode, CDR_NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,195 @@
+"""
+Drive a translator_node from outside: start it as a process, send wrenches, collect outputs.
+
+Used by ``make demo`` (scripts/demo.py), the node tests and the latency measurement. Every
+wait is bounded; ``NodeProcess`` kills what it started when left.
+"""
+
+import os
+from pathlib import Path
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+
+from .runtime import fill_message, OUTPUTS
+from ..interface import messages
+
+#: What a client listens to unless told otherwise.
+DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
+                  messages.DIAGNOSTICS_TOPIC)
+
+
+#: The node run as a module of this interpreter, and as the installed console script.
+MODULE_COMMAND = (sys.executable, '-m', 'cdr_translator.ros.translator_node')
+SCRIPT_COMMAND = (str(Path(sys.executable).parent / 'translator_node'),)
+
+
+def isolated_ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
+    """
+    Return os.environ with its own ROS_DOMAIN_ID (random in 100..200) and localhost discovery.
+
+    Set it in os.environ before ``rclpy.init`` and pass it to child processes so that runs
+    on one machine never see each other.
+    """
+    env = dict(os.environ)
+    env['ROS_DOMAIN_ID'] = str(random.randint(100, 200) if domain_id is None else domain_id)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.pop('ROS_STATIC_PEERS', None)
+    return env
+
+
+class NodeProcess:
+    """translator_node as a child process (``python -m cdr_translator.ros.translator_node``)."""
+
+    def __init__(self, ros_args: Sequence[str], env: Mapping[str, str], output: Path,
+                 command: Sequence[str] = MODULE_COMMAND) -> None:
+        """Start ``command --ros-args ros_args``; stdout and stderr go to ``output``."""
+        self.output = Path(output)
+        self._file = open(self.output, 'wb')
+        self.process = subprocess.Popen([*command, '--ros-args', *ros_args], env=dict(env),
+                                        stdout=self._file, stderr=subprocess.STDOUT)
+
+    def text(self) -> str:
+        """Return what the node has printed so far."""
+        return self.output.read_text(errors='replace')
+
+    def stop(self, number: int = signal.SIGINT, timeout_s: float = 20.0) -> Optional[int]:
+        """Send a signal and wait for the exit code (None, after a kill, if it did not exit)."""
+        if self.process.poll() is None:
+            self.process.send_signal(number)
+        try:
+            return self.process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            return None
+
+    def kill(self) -> None:
+        """Kill the process if it still runs and close its output file."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait(10.0)
+        self._file.close()
+
+    def __enter__(self) -> 'NodeProcess':
+        """Return self."""
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        """Kill the node if still running."""
+        self.kill()
+
+
+class TranslatorClient:
+    """
+    A second node in its own rclpy context: publishes wrenches, records the node's outputs.
+
+    ``received[topic]`` lists (message, receive time in ns) in arrival order; an executor
+    thread spins the node until ``close()``.
+    """
+
+    def __init__(self, topics: Sequence[str] = DEFAULT_TOPICS, name: str = 'translator_client',
+                 depth: int = 1000) -> None:
+        """Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``."""
+        self.context = Context()
+        rclpy.init(args=[], context=self.context)
+        self.node = Node(name, context=self.context)
+        self.publisher = self.node.create_publisher(WrenchStamped, messages.WRENCH_TOPIC,
+                                                    qos_profile_sensor_data)
+        self.received: Dict[str, List[Tuple[Any, int]]] = {topic: [] for topic in topics}
+        self._condition = threading.Condition()
+        reliable = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+        self.subscriptions = [
+            self.node.create_subscription(OUTPUTS[topic], topic, self._recorder(topic),
+                                          reliable)
+            for topic in topics]
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name='client_spin', daemon=True)
+        self._thread.start()
+
+    def _recorder(self, topic: str) -> Callable[[Any], None]:
+        def record(message: Any) -> None:
+            with self._condition:
+                self.received[topic].append((message, time.time_ns()))
+                self._condition.notify_all()
+        return record
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def wait_for(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """Wait until ``predicate()`` holds (re-checked on every message); False on timeout."""
+        deadline = time.monotonic() + timeout_s
+        with self._condition:
+            while not predicate():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0:
+                    return False
+                self._condition.wait(min(remaining, 0.05))
+        return True
+
+    def wait_connected(self, timeout_s: float) -> bool:
+        """Wait until the node subscribes to ``wrench`` and publishes every listened topic."""
+        return self.wait_for(lambda: self.publisher.get_subscription_count() > 0 and all(
+            self.node.count_publishers(subscription.topic_name) > 0
+            for subscription in self.subscriptions), timeout_s)
+
+    def handshake(self, timeout_s: float, period_s: float = 0.25) -> bool:
+        """
+        Send zero wrenches until one is answered on /diagnostics; False on timeout.
+
+        Matching is not symmetric: the publisher may see the node's subscription before the
+        node's reader accepts its samples, so the first best-effort wrenches can be lost.
+        """
+        deadline = time.monotonic() + timeout_s
+        if not self.wait_connected(timeout_s):
+            return False
+        sent: List[dict] = []
+        while time.monotonic() < deadline:
+            sent.append(self.publish((0.0, 0.0, 0.0)))
+            if self.wait_for(lambda: any(self.messages_stamped(messages.DIAGNOSTICS_TOPIC, stamp)
+                                         for stamp in sent), period_s):
+                return True
+        return False
+
+    def publish(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
+                frame_id: str = '', stamp_ns: Optional[int] = None) -> dict:
+        """Publish one wrench stamped now (or ``stamp_ns``); return its stamp dict."""
+        stamp = messages.stamp_from_ns(time.time_ns() if stamp_ns is None else stamp_ns)
+        self.publisher.publish(fill_message(WrenchStamped(), messages.wrench_message(
+            force, moment, frame_id, stamp)))
+        return stamp
+
+    def messages_stamped(self, topic: str, stamp: Mapping[str, int]) -> List[Any]:
+        """Return the received messages of ``topic`` whose header stamp is ``stamp``."""
+        with self._condition:
+            return [message for message, _ in self.received[topic]
+                    if message.header.stamp.sec == stamp['sec']
+                    and message.header.stamp.nanosec == stamp['nanosec']]
+
+    def close(self) -> None:
+        """Stop spinning and shut the context down."""
+        self._stop.set()
+        self._thread.join(5.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def diagnostic_values(message: DiagnosticArray) -> Dict[str, str]:
+    """Return the key/values of the first status of a DiagnosticArray."""
+    return {pair.key: pair.value for pair in message.status[0].values}

@@ -1,0 +1,82 @@
+"""
+Parameters of both nodes on the ROS side: descriptors, and what the command line asks for.
+
+The specs, the checks and the one settings type per node live in
+cdr_translator.interface.settings (ROS-free, shared with the CLI and replay). Here they become
+``ParameterDescriptor``s, and a node's ``--ros-args`` (``--params-file FILE``,
+``-p name:=value``) are read so that the node applies exactly the rules the CLI applies to
+the same file: an unknown key or a wrongly typed value stops the node with the same message,
+where rcl alone would ignore or refuse it differently.
+"""
+
+from pathlib import Path
+from typing import Any, Dict, List, Mapping, Sequence, Tuple, Union
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+import yaml
+
+from ..errors import ParameterError
+from ..interface.settings import check_value, MODEL_KEYS, ParameterSpec, SPECS
+from ..interface.settings import TranslatorSettings
+from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
+
+__all__ = ['check_value', 'default_values', 'descriptor', 'MODEL_KEYS', 'model_params',
+           'NodeSettings', 'ParameterSpec', 'ros_parameter_sources', 'SPECS']
+
+#: The node-only snapshot type of earlier versions: now every key is in TranslatorSettings.
+NodeSettings = TranslatorSettings
+
+
+def descriptor(spec: ParameterSpec, value: Any) -> ParameterDescriptor:
+    """Return the ROS descriptor of ``spec``; its range typed like ``value`` (int or float)."""
+    described = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    if spec.bounds is None:
+        return described
+    low, high = spec.bounds
+    if isinstance(value, int):
+        described.integer_range = [IntegerRange(from_value=int(low), to_value=int(high),
+                                                step=1)]
+    else:
+        described.floating_point_range = [FloatingPointRange(
+            from_value=float(low), to_value=float(high), step=0.0)]
+    return described
+
+
+def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str, Any]]:
+    """
+    Return the ``--params-file`` paths and ``-p name:=value`` values of a command line.
+
+    Only what stands between ``--ros-args`` and ``--`` (or the end) counts, as rcl reads it;
+    ``-p`` values are YAML, as rcl parses them. ParameterError for a malformed ``-p``.
+    """
+    files: List[str] = []
+    overrides: Dict[str, Any] = {}
+    inside = False
+    tokens = list(arguments)
+    for index, token in enumerate(tokens):
+        if token == '--ros-args':
+            inside = True
+        elif token == '--':
+            inside = False
+        elif inside and index + 1 < len(tokens):
+            following = tokens[index + 1]
+            if token == '--params-file':
+                files.append(following)
+            elif token in ('-p', '--param'):
+                name, separator, text = following.partition(':=')
+                if not separator or not name:
+                    raise ParameterError(f'-p {following!r}: expected name:=value')
+                if ':' in name:  # node:name targets one node by name
+                    continue
+                overrides[name] = yaml.safe_load(text)
+    return files, overrides
+
+
+def default_values(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:
+    """Return every translator_node parameter of ``path`` over the shipped defaults."""
+    return TranslatorSettings.from_params_file(path).values()
+
+
+def model_params(values: Mapping[str, Any]) -> TranslatorParams:
+    """Build the validated model parameters out of all parameter values."""
+    return TranslatorParams.from_mapping({key: values[key] for key in MODEL_KEYS})

@@ -1,0 +1,279 @@
+"""
+The runtime both nodes share: mailbox, message filling, MCAP log thread, start and spin.
+
+The latest-wins mailbox, message filling and the MCAP log thread can each be tested without
+DDS; ``run`` starts a node, spins it until SIGINT/SIGTERM and closes it cleanly. The input
+checks and the solve of one wrench are cdr_translator.interface.processing's, shared with
+the offline replay.
+"""
+
+import datetime
+from functools import lru_cache
+import importlib
+import os
+from pathlib import Path
+import queue
+import signal
+import sys
+import threading
+import time
+from typing import Any, Callable, Mapping, Optional, Sequence, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from msg_tools.mcap_log import McapLog
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.serialization import serialize_message
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
+
+from .parameters import check_value
+from ..interface import messages
+from ..params import ParameterError
+
+#: The node's output topics (relative names except /diagnostics) and their message classes.
+OUTPUTS = {
+    messages.END_DISK_POSE_TOPIC: PoseStamped,
+    messages.BENDING_ANGLES_TOPIC: JointState,
+    messages.COMPLIANCE_EIGENVALUES_TOPIC: Float64MultiArray,
+    messages.COMPLIANCE_TOPIC: Float64MultiArray,
+    messages.BACKBONES_TOPIC: MarkerArray,
+    messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+}
+
+#: How long main() waits for the solver thread to finish its solve at shutdown.
+SHUTDOWN_JOIN_S = 5.0
+
+#: Records the MCAP log thread may hold before a producer waits (never dropped, never
+#: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
+LOG_QUEUE_CAPACITY = 20000
+
+
+class LatestMailbox:
+    """
+    One-slot, thread-safe mailbox: ``put`` replaces an untaken item (counted as skipped).
+
+    The consumer always gets the newest item; nothing ever queues up behind it.
+    """
+
+    def __init__(self) -> None:
+        """Start empty and open."""
+        self._condition = threading.Condition()
+        self._item: Any = None
+        self._full = False
+        self._closed = False
+        self.skipped = 0
+
+    def put(self, item: Any) -> bool:
+        """Leave ``item``; return True if it replaced one nobody had taken yet."""
+        with self._condition:
+            replaced = self._full
+            if replaced:
+                self.skipped += 1
+            self._item, self._full = item, True
+            self._condition.notify()
+            return replaced
+
+    def take(self, timeout: Optional[float] = None) -> Any:
+        """Wait for an item and return it; None once closed (or after ``timeout`` s)."""
+        with self._condition:
+            self._condition.wait_for(lambda: self._full or self._closed, timeout)
+            if self._closed or not self._full:
+                return None
+            item, self._item, self._full = self._item, None, False
+            return item
+
+    def close(self) -> None:
+        """Wake the consumer for good; an untaken item is dropped."""
+        with self._condition:
+            self._closed = True
+            self._condition.notify_all()
+
+
+@lru_cache(maxsize=None)
+def _field_types(message_class: type) -> dict:
+    """Map field name -> rosidl type of a generated message class."""
+    return dict(zip(message_class.get_fields_and_field_types(), message_class.SLOT_TYPES))
+
+
+@lru_cache(maxsize=None)
+def _message_class(namespaces: tuple, name: str) -> type:
+    """Import a generated message class, e.g. (('geometry_msgs', 'msg'), 'Point')."""
+    return getattr(importlib.import_module('.'.join(namespaces)), name)
+
+
+def fill_message(message: Any, values: Mapping[str, Any]) -> Any:
+    """
+    Set the fields of a generated ROS message from a nested plain dict; return the message.
+
+    Nested messages are dicts, sequences of messages lists of dicts, an int for a ``byte``
+    field becomes that one byte, everything else is assigned as it is (the message's own
+    setters check the types). KeyError names a field the message does not have.
+    """
+    types = _field_types(type(message))
+    for name, value in values.items():
+        if name not in types:
+            raise KeyError(f'{type(message).__name__} has no field {name!r}')
+        if isinstance(value, Mapping):
+            fill_message(getattr(message, name), value)
+        elif isinstance(value, (list, tuple)) and value and isinstance(value[0], Mapping):
+            element = types[name].value_type
+            element_class = _message_class(tuple(element.namespaces), element.name)
+            setattr(message, name, [fill_message(element_class(), item) for item in value])
+        elif isinstance(value, int) and isinstance(getattr(message, name), bytes):
+            setattr(message, name, bytes([value]))  # a .msg 'byte' field, e.g. a level
+        else:
+            setattr(message, name, value)
+    return message
+
+
+def type_name(message_class: type) -> str:
+    """Return the ROS 2 type name of a generated message class, e.g. 'std_msgs/msg/String'."""
+    package = message_class.__module__.split('.')[0]
+    return f'{package}/msg/{message_class.__name__}'
+
+
+class LogThread:
+    """
+    Serialize and write log records to an McapLog on a thread of its own.
+
+    Producers (the subscription callback, the solver thread) only enqueue: a record is the
+    already-serialized bytes of a received message or a published message object, which
+    this thread serializes. The queue is bounded (``capacity``); when it is full a producer
+    waits rather than drop a record. The McapLog itself flushes completed chunks every N
+    messages and T seconds. ``enqueue_wait_s`` and ``write_time_s`` measure whether logging
+    ever holds up the solver.
+    """
+
+    def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY) -> None:
+        """Start writing to ``log`` (an McapLog, closed by ``close()``)."""
+        self._log = log
+        self._queue: queue.Queue = queue.Queue(maxsize=capacity)
+        self.submitted = 0
+        self.written = 0
+        self.errors = 0
+        self.last_error = ''
+        self.max_depth = 0
+        self.enqueue_wait_s = 0.0
+        self.max_enqueue_wait_s = 0.0
+        self.write_time_s = 0.0
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name='mcap_log', daemon=True)
+        self._thread.start()
+
+    def submit(self, topic: str, type_name: str, message: Any, log_time_ns: int,
+               publish_time_ns: Optional[int] = None) -> None:
+        """Queue one record; ``message`` is CDR bytes or a generated message object."""
+        started = time.perf_counter()
+        self._queue.put((topic, type_name, message, log_time_ns, publish_time_ns))
+        waited = time.perf_counter() - started
+        self.submitted += 1
+        self.enqueue_wait_s += waited
+        self.max_enqueue_wait_s = max(self.max_enqueue_wait_s, waited)
+        self.max_depth = max(self.max_depth, self._queue.qsize())
+
+    def _run(self) -> None:
+        while True:
+            record = self._queue.get()
+            if record is None:
+                return
+            topic, name, message, log_time_ns, publish_time_ns = record
+            started = time.perf_counter()
+            try:
+                data = message if isinstance(message, bytes) else serialize_message(message)
+                self._log.write_serialized(topic, name, data, log_time_ns, publish_time_ns)
+                self.written += 1
+            except Exception as error:  # noqa: B902 - a bad record must not end the log
+                self.errors += 1
+                self.last_error = f'{topic}: {error}'
+            self.write_time_s += time.perf_counter() - started
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Write what is queued, then close the McapLog (summary written); idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._queue.put(None)
+        self._thread.join(timeout_s)
+        self._log.close()
+
+
+def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[Any],
+                     check: Callable[[str, Any, Mapping[str, Any]], Optional[str]] = check_value
+                     ) -> SetParametersResult:
+    """
+    Judge a parameter change of ``node`` (an on-set-parameters callback's work).
+
+    ``check(name, value, others)`` gives the reason to reject a value (None: accept), with
+    the others as they would be after the change; descriptors have already checked
+    read-only and ranges.
+    """
+    values = {name: node.get_parameter(name).value for name in specs
+              if node.has_parameter(name)}
+    values.update({parameter.name: parameter.value for parameter in parameters})
+    for parameter in parameters:
+        reason = check(parameter.name, parameter.value, values)
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+    return SetParametersResult(successful=True)
+
+
+def open_log(settings: Any, prefix: str,
+             topics: Sequence[Tuple[str, str, str]]) -> Tuple[Optional[LogThread], str]:
+    """
+    Open a node's MCAP log and its writer thread; (None, '') when logging is off.
+
+    ``settings`` has log_to_mcap, mcap_path, log_dir, mcap_flush_messages and mcap_flush_s;
+    an empty mcap_path names the file <log_dir>/<prefix>_<UTC time>_<pid>.mcap. ``topics``
+    are (resolved name, type name, 'sensor_data' or 'reliable') to register up front.
+    """
+    if not settings.log_to_mcap:
+        return None, ''
+    path = Path(settings.mcap_path) if settings.mcap_path else (
+        Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
+            f'{prefix}_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
+                  flush_every_s=settings.mcap_flush_s)
+    for topic, name, qos in topics:
+        log.register(topic, name, qos=qos)
+    return LogThread(log), str(path)
+
+
+def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None) -> int:
+    """
+    Run the node ``factory(ros_arguments=...)`` builds until SIGINT or SIGTERM.
+
+    ``ros_arguments`` is the command line (``args``, or sys.argv), from which the node reads
+    its ``--params-file`` and ``-p`` values. The exit code is 2 when it cannot start (bad
+    parameters, unwritable log), else 0 after its ``close()`` (which must stop its threads
+    and finalize its log) and a clean shutdown.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
+    try:
+        node = factory(ros_arguments=list(sys.argv if args is None else args))
+    except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
+            OSError) as error:
+        print(f'{name}: {error}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

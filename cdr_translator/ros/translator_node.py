@@ -1,0 +1,225 @@
+"""
+translator_node: wrenches in, the translator's loaded shape out, every run logged to MCAP.
+
+Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
+with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
+``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
+defines their content). Wrenches are checked in the subscription callback
+(cdr_translator.interface.processing: the same checks, frames and follower-load solve as the
+offline replay) and handed to a solver thread through a one-slot mailbox: when they arrive
+faster than the solver, the newest wins and the others are counted as skipped. Every
+received wrench and every published message goes to an MCAP file through a log thread.
+Only cdr_translator.ros imports rclpy or ROS message classes.
+"""
+
+from pathlib import Path
+import sys
+import threading
+import time
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from geometry_msgs.msg import WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+
+from .parameters import descriptor, ros_parameter_sources, SPECS
+from .runtime import check_parameters, fill_message, LatestMailbox, LogThread, open_log, OUTPUTS
+from .runtime import run, SHUTDOWN_JOIN_S, type_name
+from ..fidelity import FidelitySolver
+from ..interface import messages
+from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
+from ..interface.settings import TranslatorSettings
+from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
+from ..result import SolveResult
+from ..solver import check_wrench
+
+
+class TranslatorNode(Node):
+    """The translator as a ROS 2 node; ``close()`` stops it and finalizes the MCAP log."""
+
+    def __init__(self, params_path: Path = DEFAULT_PARAMS_PATH,
+                 ros_arguments: Sequence[str] = (), **kwargs: Any) -> None:
+        """
+        Declare parameters, warm up, then subscribe.
+
+        The values are TranslatorSettings' reading of ``params_path`` (the shipped defaults)
+        and of the ``--params-file``/``-p`` of ``ros_arguments`` (the command line), for this
+        node's fully qualified name: the rules the CLI and replay apply to the same files.
+        """
+        super().__init__(NODE_NAME, **kwargs)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        files, overrides = ros_parameter_sources(ros_arguments)
+        settings = TranslatorSettings.from_params_files(
+            files, namespace=self.get_namespace(), defaults_path=params_path,
+            node_name=self.get_name(), overrides=overrides)
+        values = {name: self.declare_parameter(name, value,
+                                               descriptor(SPECS[name], value)).value
+                  for name, value in settings.values().items()}
+        self._settings = TranslatorSettings.from_values(values)
+        self.solver = FidelitySolver(self._settings.params, fidelity=self._settings.fidelity,
+                                     max_position_error=self._settings.max_position_error,
+                                     max_angle_error_deg=self._settings.max_angle_error,
+                                     time_limit_s=self._settings.solve_time_limit_s)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
+        self.received = self.rejected = self.solved = self.failed = 0
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
+                                                                  reliable)
+                                     for topic, message_class in OUTPUTS.items()}
+        self._mailbox = LatestMailbox()
+        self._warm_up()
+        self._log, self.mcap_path = self._open_log()
+        self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
+        self._worker.start()
+        self._subscription = self.create_subscription(
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, qos_profile_sensor_data,
+            raw=True)
+        self.get_logger().info(
+            f'ready: {self._subscription.topic_name} -> '
+            f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
+            f'MCAP log {self.mcap_path or "off"}')
+
+    # parameters ------------------------------------------------------------------------------
+    def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
+        """Reject a change with the reason (descriptors have checked read-only and ranges)."""
+        return check_parameters(self, SPECS, parameters)
+
+    def _apply_parameters(self, parameters: List[Parameter]) -> None:
+        """Take accepted run-time values into a new settings snapshot."""
+        self._settings = self._settings.with_values(
+            **{parameter.name: parameter.value for parameter in parameters})
+        self.solver.time_limit_s = self._settings.solve_time_limit_s
+
+    # start-up --------------------------------------------------------------------------------
+    def _warm_up(self) -> None:
+        """Solve once (compiles or loads the kernels) and build every output, then forget."""
+        result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
+        self._output_messages(result, {'sec': 0, 'nanosec': 0}, True, True, self._counts())
+        self.solver.reset()
+
+    def _open_log(self) -> Tuple[Optional[LogThread], str]:
+        """Open the MCAP log (unless disabled) and register the wrench and output topics."""
+        topics = [(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
+                   'sensor_data')]
+        topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
+                   for topic, publisher in self._publishers_by_topic.items()]
+        return open_log(self._settings, 'translator', topics)
+
+    # input -----------------------------------------------------------------------------------
+    def _on_wrench(self, data: bytes, info: dict) -> None:
+        """Log the wrench as received; reject it with a diagnostic or hand it to the solver."""
+        received_ns = info.get('received_timestamp') or time.time_ns()
+        self.received += 1
+        if self._log is not None:
+            self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
+                             received_ns, info.get('source_timestamp'))
+        force, moment, frame_id, stamp = messages.wrench_from_message(
+            deserialize_message(data, WrenchStamped))
+        settings = self._settings
+        try:
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+        except ValueError as error:
+            self.rejected += 1
+            self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
+            self._publish_all(_filled(messages.rejection_messages(
+                stamp, f'rejected: {error}', self._counts())))
+            return
+        self._mailbox.put((stamp, force, moment, end_disk))
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: solve the newest wrench, publish and log what it gives."""
+        while True:
+            item = self._mailbox.take()
+            if item is None:
+                return
+            try:
+                self._process(*item)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish_all(_filled(messages.rejection_messages(
+                    item[0], f'internal error: {error!r}', self._counts())))
+
+    def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
+                 end_disk: bool) -> None:
+        """Solve one wrench; publish and log what it gives."""
+        want_compliance = self._settings.log_compliance or any(
+            self._publishers_by_topic[topic].get_subscription_count() > 0
+            for topic in (messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC))
+        want_backbones = (self._settings.log_backbones or self._publishers_by_topic[
+            messages.BACKBONES_TOPIC].get_subscription_count() > 0)
+        result, solves = solve_wrench(self.solver, force, moment, end_disk, self._rotation,
+                                      want_compliance)
+        if result.converged:
+            self.solved += 1
+            self._rotation = result.frames['de'][:3, :3]
+        else:
+            self.failed += 1
+            self.get_logger().error(f'no equilibrium: {result.message}',
+                                    throttle_duration_sec=1.0)
+        extra = self._counts()
+        if end_disk:
+            extra['follower_solves'] = solves
+        self._publish_all(self._output_messages(result, stamp, want_compliance,
+                                                want_backbones, extra))
+
+    # output ----------------------------------------------------------------------------------
+    def _counts(self) -> Dict[str, int]:
+        """Return the running message counts reported with every diagnostic."""
+        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+
+    def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
+                         want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
+        """Fill the messages of one solve (interface.messages defines their content)."""
+        return _filled(messages.output_messages(
+            result, stamp, self._settings.base_frame, compliance=want_compliance,
+            backbones_params=self.solver.params if want_backbones else None,
+            extra_values=extra))
+
+    def _publish_all(self, topic_messages: List[Tuple[str, Any]]) -> None:
+        """Publish output messages and queue them for the MCAP log."""
+        for topic, message in topic_messages:
+            publisher = self._publishers_by_topic[topic]
+            publisher.publish(message)
+            if self._log is not None:
+                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), message,
+                                 time.time_ns())
+
+    # shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop taking wrenches, let the running solve finish, finalize the MCAP file."""
+        self.destroy_subscription(self._subscription)
+        self._mailbox.close()
+        self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log is not None:
+            self._log.close()
+            log = self._log
+            self.get_logger().info(
+                f'MCAP log {self.mcap_path} closed: {log.written} records ({log.errors} '
+                f'failed); handing a record to the log thread took '
+                f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
+                f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
+                f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record')
+
+
+def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
+    """Turn interface.messages' (topic, type, dict) triples into (topic, rclpy message)."""
+    return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built]
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Run translator_node until SIGINT or SIGTERM; return the process exit code."""
+    return run(TranslatorNode, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
