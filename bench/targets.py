@@ -15,8 +15,9 @@ Prints, and writes to bench/results/targets.md:
 * the paper baseline (method='paper', cold 12 N) for the ratio, unless --skip-paper.
 
 Every solve here is a whole solve: stability verdict and error estimate included. The
-machine is shared (2 cores, several agents at once): the figures carry that noise, the
-ratios measured in the same run much less.
+exact and forward-difference solvers take turns sample by sample, so both see the same
+load: the machine is shared (2 cores, several agents at once) and its absolute figures
+carry that noise; the ratios much less.
 """
 
 import argparse
@@ -65,44 +66,64 @@ def jacobian_times(params: TranslatorParams) -> Dict[str, float]:
     return times
 
 
-def warm_sequence(solver: TranslatorSolver, sequence: np.ndarray,
-                  overhead: bool = False) -> Dict[str, float]:
-    """Median warm solve along ``sequence``; with ``overhead`` also stability+estimate."""
-    solver.reset()
-    solver.solve(sequence[0][:3], sequence[0][3:])
-    spent = []
-    if overhead:  # time the two per-solve extras inside every solve
-        for name in ('_stability', '_estimate_error'):
-            original = getattr(solver, name)
-
-            def timed(*args, _original=original, **kwargs):
-                started = time.perf_counter()
-                value = _original(*args, **kwargs)
-                spent.append(time.perf_counter() - started)
-                return value
-            setattr(solver, name, timed)
-    times, extras = [], []
-    for wrench in sequence:
-        spent.clear()
-        started = time.perf_counter()
-        result = solver.solve(wrench[:3], wrench[3:])
-        times.append(time.perf_counter() - started)
-        extras.append(sum(spent))
-        assert result.converged, result.message
+def _instrument(solver: TranslatorSolver, spent: List[float]) -> None:
+    """Time the two per-solve extras (stability verdict, error estimate) into ``spent``."""
     for name in ('_stability', '_estimate_error'):
-        solver.__dict__.pop(name, None)
-    return {'median_s': _median(times), 'overhead_median_s': _median(extras),
-            'overhead_fraction': _median(extras) / _median(times)}
+        original = getattr(solver, name)
+
+        def timed(*args, _original=original, **kwargs):
+            started = time.perf_counter()
+            value = _original(*args, **kwargs)
+            spent.append(time.perf_counter() - started)
+            return value
+        setattr(solver, name, timed)
 
 
-def cold_cases(solver: TranslatorSolver) -> Dict[float, float]:
-    """Median of 5 cold solves per Table II case."""
+def warm_sequences(solvers: Dict[str, TranslatorSolver],
+                   sequence: np.ndarray) -> Dict[str, Dict[str, float]]:
+    """
+    Median warm solve along ``sequence`` per solver, and its stability+estimate share.
+
+    The solvers take turns sample by sample, so that they see the same machine load.
+    """
+    spent: Dict[str, List[float]] = {name: [] for name in solvers}
+    times: Dict[str, List[float]] = {name: [] for name in solvers}
+    extras: Dict[str, List[float]] = {name: [] for name in solvers}
+    for name, solver in solvers.items():
+        solver.reset()
+        solver.solve(sequence[0][:3], sequence[0][3:])
+        _instrument(solver, spent[name])
+    for wrench in sequence:
+        for name, solver in solvers.items():
+            spent[name].clear()
+            started = time.perf_counter()
+            result = solver.solve(wrench[:3], wrench[3:])
+            times[name].append(time.perf_counter() - started)
+            extras[name].append(sum(spent[name]))
+            assert result.converged, result.message
     out = {}
+    for name, solver in solvers.items():
+        for method in ('_stability', '_estimate_error'):
+            solver.__dict__.pop(method, None)
+        out[name] = {'median_s': _median(times[name]),
+                     'overhead_median_s': _median(extras[name]),
+                     'overhead_fraction': _median(extras[name]) / _median(times[name])}
+    return out
+
+
+def cold_cases(solvers: Dict[str, TranslatorSolver]) -> Dict[str, Dict[float, float]]:
+    """Median of 5 cold solves per Table II case, per solver (taking turns)."""
+    out: Dict[str, Dict[float, float]] = {name: {} for name in solvers}
     for case in TABLE_II:
-        def cold():
-            solver.reset()
-            assert solver.solve(case.force).converged
-        out[case.force[0]] = _time(cold, 5)
+        samples: Dict[str, List[float]] = {name: [] for name in solvers}
+        for _ in range(5):
+            for name, solver in solvers.items():
+                solver.reset()
+                started = time.perf_counter()
+                assert solver.solve(case.force).converged
+                samples[name].append(time.perf_counter() - started)
+        for name in solvers:
+            out[name][case.force[0]] = _median(samples[name])
     return out
 
 
@@ -116,17 +137,21 @@ def compliance_time(solver: TranslatorSolver, sequence: np.ndarray) -> float:
     return _median(samples)
 
 
-def spacers(params: TranslatorParams, count: int, sequence: np.ndarray,
-            jacobian: str) -> Dict[str, float]:
+def spacers(params: TranslatorParams, count: int, sequence: np.ndarray) -> Dict[str, dict]:
     """Cold 20 N and warm (first 200 sequence samples) with ``count`` spacer disks."""
     changed = params.with_changes(spacers_per_joint=count, tube_length=0.1383 - 0.02 * (count - 1))
-    solver = TranslatorSolver(changed, jacobian=jacobian)
-
-    def cold():
-        solver.reset()
-        assert solver.solve((20.0, 0.0, 0.0)).converged
-    return {'cold_s': _time(cold, 3),
-            'warm_s': warm_sequence(solver, sequence[:200])['median_s']}
+    solvers = {jacobian: TranslatorSolver(changed, jacobian=jacobian)
+               for jacobian in ('exact', 'fd')}
+    cold: Dict[str, List[float]] = {name: [] for name in solvers}
+    for _ in range(3):
+        for name, solver in solvers.items():
+            solver.reset()
+            started = time.perf_counter()
+            assert solver.solve((20.0, 0.0, 0.0)).converged
+            cold[name].append(time.perf_counter() - started)
+    warm = warm_sequences(solvers, sequence[:200])
+    return {name: {'cold_s': _median(cold[name]), 'warm_s': warm[name]['median_s']}
+            for name in solvers}
 
 
 def spacer_slope(params: TranslatorParams) -> Dict[int, float]:
@@ -167,13 +192,14 @@ def main() -> None:
     started = time.perf_counter()
     jac = jacobian_times(params)
     jac3 = jacobian_times(params.with_changes(spacers_per_joint=3, tube_length=0.0983))
-    rows = {}
-    for jacobian in ('exact', 'fd'):
-        solver = TranslatorSolver(params, jacobian=jacobian)
-        rows[jacobian] = {'warm': warm_sequence(solver, sequence, overhead=True),
-                          'cold': cold_cases(solver),
-                          'compliance': compliance_time(solver, sequence),
-                          'spacers3': spacers(params, 3, sequence, jacobian)}
+    solvers = {jacobian: TranslatorSolver(params, jacobian=jacobian)
+               for jacobian in ('exact', 'fd')}
+    warm = warm_sequences(solvers, sequence)
+    cold = cold_cases(solvers)
+    three = spacers(params, 3, sequence)
+    rows = {name: {'warm': warm[name], 'cold': cold[name],
+                   'compliance': compliance_time(solver, sequence),
+                   'spacers3': three[name]} for name, solver in solvers.items()}
     paper = None if args.skip_paper else paper_baseline(params)
     slope = spacer_slope(params) if args.spacers_slope else None
     exact, fd = rows['exact'], rows['fd']

@@ -210,15 +210,22 @@ def _store_frame(rot, p, frame):
 
 
 @jit
-def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
-                        inv_kse, inv_kbt, out, points, frames):
+def _gather_station(x, t, nst):
     """
-    Shoot once through the translator and write the residual vector into ``out``.
+    Return station t's unknowns contiguously, secondary by secondary.
 
-    ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
-    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    In ``x`` they are laid out with stride STATION_WIDTH * nst (see the module docstring).
     """
-    nst = 2 * spacers + 1
+    col = np.empty(4 * STATION_WIDTH)
+    for i in range(4):
+        for c in range(STATION_WIDTH):
+            col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t) + c]
+    return col
+
+
+@jit
+def _base_state(x, pitch_radius):
+    """Return hole positions and the rods' state (p, R, n, m) at the base disk."""
     hole = np.zeros((4, 3))
     for i in range(4):
         angle = 0.5 * math.pi * i
@@ -235,6 +242,20 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             m[k, c] = x[6 * k + 3 + c]
         if k > 0:
             p[k, :] = hole[k - 1]
+    return hole, p, rot, n, m
+
+
+@jit
+def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, out, points, frames):
+    """
+    Shoot once through the translator and write the residual vector into ``out``.
+
+    ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
+    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    """
+    nst = 2 * spacers + 1
+    hole, p, rot, n, m = _base_state(x, pitch_radius)
     _store_frame(rot[0], p[0], frames[0])
     secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
     used = np.zeros(4)
@@ -260,14 +281,8 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
                 _store_frame(rot[0], p[0], frames[3])
                 _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
                 continue
-            # the station's unknowns and residuals are laid out secondary by secondary
-            # with stride STATION_WIDTH * nst; gather them contiguously for the helpers
-            col = np.empty(4 * STATION_WIDTH)
+            col = _gather_station(x, t, nst)
             res = np.empty(4 * STATION_WIDTH)
-            for i in range(4):
-                for c in range(STATION_WIDTH):
-                    col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS
-                                                   + STATION_WIDTH * (i * nst + t) + c]
             if joint == 0 and station == spacers:
                 _store_frame(rot[0], p[0], frames[1])
                 _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
@@ -597,15 +612,7 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     """
     size = x.shape[0]
     nst = 2 * spacers + 1
-    hole = np.zeros((4, 3))
-    for i in range(4):
-        angle = 0.5 * math.pi * i
-        hole[i, 0] = pitch_radius * math.cos(angle)
-        hole[i, 1] = pitch_radius * math.sin(angle)
-    p = np.zeros((N_RODS, 3))
-    rot = np.zeros((N_RODS, 3, 3))
-    n = np.empty((N_RODS, 3))
-    m = np.empty((N_RODS, 3))
+    hole, p, rot, n, m = _base_state(x, pitch_radius)
     tp = np.zeros((N_RODS, 3, size))
     trot = np.zeros((N_RODS, 3, 3, size))
     tn = np.zeros((N_RODS, 3, size))
@@ -620,13 +627,8 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     lm = np.empty((3, LOCAL_DIRECTIONS))
     for k in range(N_RODS):
         for c in range(3):
-            rot[k, c, c] = 1.0
-            n[k, c] = x[6 * k + c]
-            m[k, c] = x[6 * k + 3 + c]
             tn[k, c, 6 * k + c] = 1.0
             tm[k, c, 6 * k + 3 + c] = 1.0
-        if k > 0:
-            p[k, :] = hole[k - 1]
     _store_frame(rot[0], p[0], frames[0])
     secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
     used = np.zeros(4)
@@ -671,12 +673,8 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
                 _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, 4 * STATION_WIDTH * nst)
                 _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
                 continue
-            col = np.empty(4 * STATION_WIDTH)
+            col = _gather_station(x, t, nst)
             res = np.empty(4 * STATION_WIDTH)
-            for i in range(4):
-                for c in range(STATION_WIDTH):
-                    col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS
-                                                   + STATION_WIDTH * (i * nst + t) + c]
             if joint == 0 and station == spacers:
                 _store_frame(rot[0], p[0], frames[1])
                 _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp,

@@ -16,22 +16,31 @@ from ._jit import jit
 
 
 @jit
-def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
-    """Write dp/ds and dR/ds of Eq. (6) for pose (p, rot) into ``dp`` and ``drot``."""
-    # m(s) = m_start - (p - p_start) x n
+def local_strains(p, rot, n, m_start, p_start, inv_kse, inv_kbt):
+    """
+    Return (p - p_start, m, v, u) at pose (p, rot) as 12 scalars (Eq. 3-5).
+
+    m(s) = m_start - (p - p_start) x n; local strains v = e3 + Kse^-1 R^T n,
+    u = Kbt^-1 R^T m.
+    """
     dx = p[0] - p_start[0]
     dy = p[1] - p_start[1]
     dz = p[2] - p_start[2]
     mx = m_start[0] - (dy * n[2] - dz * n[1])
     my = m_start[1] - (dz * n[0] - dx * n[2])
     mz = m_start[2] - (dx * n[1] - dy * n[0])
-    # local strains v = e3 + Kse^-1 R^T n, u = Kbt^-1 R^T m
     v0 = inv_kse[0] * (rot[0, 0] * n[0] + rot[1, 0] * n[1] + rot[2, 0] * n[2])
     v1 = inv_kse[1] * (rot[0, 1] * n[0] + rot[1, 1] * n[1] + rot[2, 1] * n[2])
     v2 = 1.0 + inv_kse[2] * (rot[0, 2] * n[0] + rot[1, 2] * n[1] + rot[2, 2] * n[2])
     u0 = inv_kbt[0] * (rot[0, 0] * mx + rot[1, 0] * my + rot[2, 0] * mz)
     u1 = inv_kbt[1] * (rot[0, 1] * mx + rot[1, 1] * my + rot[2, 1] * mz)
     u2 = inv_kbt[2] * (rot[0, 2] * mx + rot[1, 2] * my + rot[2, 2] * mz)
+    return dx, dy, dz, mx, my, mz, v0, v1, v2, u0, u1, u2
+
+
+@jit
+def pose_rates(rot, v0, v1, v2, u0, u1, u2, dp, drot):
+    """Write p' = R v and R' = R [u]x (Eq. 6) into ``dp`` and ``drot``."""
     for i in range(3):
         r0 = rot[i, 0]
         r1 = rot[i, 1]
@@ -41,6 +50,14 @@ def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
         drot[i, 0] = r1 * u2 - r2 * u1
         drot[i, 1] = r2 * u0 - r0 * u2
         drot[i, 2] = r0 * u1 - r1 * u0
+
+
+@jit
+def pose_derivative(p, rot, n, m_start, p_start, inv_kse, inv_kbt, dp, drot):
+    """Write dp/ds and dR/ds of Eq. (6) for pose (p, rot) into ``dp`` and ``drot``."""
+    _, _, _, _, _, _, v0, v1, v2, u0, u1, u2 = local_strains(p, rot, n, m_start, p_start,
+                                                             inv_kse, inv_kbt)
+    pose_rates(rot, v0, v1, v2, u0, u1, u2, dp, drot)
 
 
 @jit
@@ -119,26 +136,9 @@ def pose_derivative_tangent(p, rot, tp, trot, n, m_start, p_start, tn, tm_start,
     dm = dm_start - dp x n - (p - p_start) x dn, dv = Kse^-1 (dR^T n + R^T dn),
     du = Kbt^-1 (dR^T m + R^T dm), d(p') = dR v + R dv, d(R') = dR [u]x + R [du]x.
     """
-    dx = p[0] - p_start[0]
-    dy = p[1] - p_start[1]
-    dz = p[2] - p_start[2]
-    mx = m_start[0] - (dy * n[2] - dz * n[1])
-    my = m_start[1] - (dz * n[0] - dx * n[2])
-    mz = m_start[2] - (dx * n[1] - dy * n[0])
-    v0 = inv_kse[0] * (rot[0, 0] * n[0] + rot[1, 0] * n[1] + rot[2, 0] * n[2])
-    v1 = inv_kse[1] * (rot[0, 1] * n[0] + rot[1, 1] * n[1] + rot[2, 1] * n[2])
-    v2 = 1.0 + inv_kse[2] * (rot[0, 2] * n[0] + rot[1, 2] * n[1] + rot[2, 2] * n[2])
-    u0 = inv_kbt[0] * (rot[0, 0] * mx + rot[1, 0] * my + rot[2, 0] * mz)
-    u1 = inv_kbt[1] * (rot[0, 1] * mx + rot[1, 1] * my + rot[2, 1] * mz)
-    u2 = inv_kbt[2] * (rot[0, 2] * mx + rot[1, 2] * my + rot[2, 2] * mz)
-    for i in range(3):
-        r0 = rot[i, 0]
-        r1 = rot[i, 1]
-        r2 = rot[i, 2]
-        dp[i] = r0 * v0 + r1 * v1 + r2 * v2
-        drot[i, 0] = r1 * u2 - r2 * u1
-        drot[i, 1] = r2 * u0 - r0 * u2
-        drot[i, 2] = r0 * u1 - r1 * u0
+    dx, dy, dz, mx, my, mz, v0, v1, v2, u0, u1, u2 = local_strains(p, rot, n, m_start,
+                                                                   p_start, inv_kse, inv_kbt)
+    pose_rates(rot, v0, v1, v2, u0, u1, u2, dp, drot)
     tv = np.empty(3)
     tu = np.empty(3)
     for d in range(tp.shape[1]):

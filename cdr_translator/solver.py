@@ -21,9 +21,9 @@ import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
 from threadpoolctl import ThreadpoolController
 
-from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from . import stability
 from ._jit import interpreted_kernels
+from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
 from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
@@ -279,7 +279,7 @@ class TranslatorSolver:
         pose = outcome.pose[0] if outcome.pose is not None else None
         frames = np.stack([result.frames[name] for name in FRAME_NAMES])
         estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
-                                     outcome.lu, pose)
+                                  outcome.lu, pose)
         result.error_estimate_m = estimate.position_m
         result.error_estimate_deg = estimate.angle_deg
         target = self.accuracy
@@ -301,8 +301,8 @@ class TranslatorSolver:
         estimate, current, refined = self._last_estimate, result, None
         assert estimate is not None  # _estimate_error ran first
         for _ in range(MAX_REFINEMENTS):
-            steps = refined_steps(estimate, self.accuracy.position_m,
-                                           self.accuracy.angle_deg, MAX_REFINED_STEPS)
+            steps = refined_steps(estimate, self.accuracy.position_m, self.accuracy.angle_deg,
+                                  MAX_REFINED_STEPS)
             remaining = deadline - time.perf_counter()
             if steps <= estimate.steps or remaining <= 0.0:
                 break
