@@ -29,6 +29,7 @@ from typing import Optional
 import numpy as np
 
 from . import stability
+from ._jit import jit
 from .problem import Problem
 
 
@@ -69,22 +70,60 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
     si = np.abs(defect * problem.residual_scale)
     if not np.all(np.isfinite(si)):
         return ErrorEstimate(math.inf, math.inf, steps, other)
-    kind = problem.residual_kind
-    positions = [float(si[kind == 0].max(initial=0.0))]
-    angles = [float(si[kind == 1].max(initial=0.0))]
-    # the tube faces and the end disk: centre distances and rotation angles between shots
-    positions.append(float(np.linalg.norm(frames_other[1:, :3, 3] - frames[1:, :3, 3],
-                                          axis=1).max()))
-    angles.append(max(_angle(frames[k, :3, :3], frames_other[k, :3, :3]) for k in (1, 2, 3)))
+    position, angle = _fixed_x_measures(si, problem.residual_kind, frames, frames_other)
     if lu is not None and pose is not None:
         # the end disk of the other discretization's solution: one Newton step from x_N
-        change = pose @ stability.solve_lu(lu, -defect)
-        change[:3] += frames_other[3, :3, 3] - frames[3, :3, 3]
-        change[3:] += (frames_other[3, :3, :3] - frames[3, :3, :3]).ravel()
-        twist = stability.pose_twist(change, frames[3, :3, :3])
-        positions.append(float(np.linalg.norm(twist[:3])))
-        angles.append(float(np.linalg.norm(twist[3:])))
-    return ErrorEstimate(factor * max(positions), factor * max(angles), steps, other)
+        moved, turned = _solution_measures(pose @ stability.solve_lu(lu, -defect), frames[3],
+                                           frames_other[3])
+        position, angle = max(position, moved), max(angle, turned)
+    return ErrorEstimate(factor * position, factor * angle, steps, other)
+
+
+@jit
+def _fixed_x_measures(si, kind, frames, frames_other):
+    """
+    Largest position and angle differences at fixed unknowns (m, rad).
+
+    The disk-condition defects ``si`` by ``kind`` (0 positions, 1 angles), and the centre
+    distance and rotation angle between the two shots' frames {pm}, {dm}, {de}.
+    """
+    position = 0.0
+    angle = 0.0
+    for row in range(si.shape[0]):
+        if kind[row] == 0:
+            position = max(position, si[row])
+        elif kind[row] == 1:
+            angle = max(angle, si[row])
+    for k in range(1, 4):
+        distance = 0.0
+        for c in range(3):
+            distance += (frames_other[k, c, 3] - frames[k, c, 3]) ** 2
+        position = max(position, math.sqrt(distance))
+        angle = max(angle, _angle(frames[k], frames_other[k]))
+    return position, angle
+
+
+@jit
+def _solution_measures(change, frame, frame_other):
+    """
+    Centre distance and rotation angle of the end disk of the other solution (m, rad).
+
+    ``change`` (12) is dT/dx dx; the shots' frame difference is added, and the rotation
+    part turned into a spatial angle with the convention of stability.pose_twist.
+    """
+    distance = 0.0
+    for c in range(3):
+        distance += (change[c] + frame_other[c, 3] - frame[c, 3]) ** 2
+    spin = np.zeros((3, 3))  # dR R^T
+    for a in range(3):
+        for b in range(3):
+            for c in range(3):
+                d_rot = change[3 + 3 * a + c] + frame_other[a, c] - frame[a, c]
+                spin[a, b] += d_rot * frame[b, c]
+    wx = 0.5 * (spin[2, 1] - spin[1, 2])
+    wy = 0.5 * (spin[0, 2] - spin[2, 0])
+    wz = 0.5 * (spin[1, 0] - spin[0, 1])
+    return math.sqrt(distance), math.sqrt(wx * wx + wy * wy + wz * wz)
 
 
 #: Largest factor by which one refinement multiplies the steps: the refined solve starts
@@ -93,9 +132,14 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
 MAX_GROWTH = 3.0
 
 
-def _angle(first: np.ndarray, second: np.ndarray) -> float:
-    """Rotation angle of first^T second: atan2(|vee of its skew part|, (trace - 1) / 2)."""
-    relative = first.T @ second
+@jit
+def _angle(first, second):
+    """Rotation angle of first^T second (3x3 blocks): atan2(|vee skew|, (trace - 1) / 2)."""
+    relative = np.zeros((3, 3))
+    for a in range(3):
+        for b in range(3):
+            for c in range(3):
+                relative[a, b] += first[c, a] * second[c, b]
     sine = 0.5 * math.sqrt((relative[2, 1] - relative[1, 2]) ** 2
                            + (relative[0, 2] - relative[2, 0]) ** 2
                            + (relative[1, 0] - relative[0, 1]) ** 2)
