@@ -6,7 +6,7 @@ VENV   := .venv
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 
-.PHONY: setup test demo clean bags hard-cases bench
+.PHONY: setup test demo clean bags hard-cases bench atlas-scale
 
 setup: $(STAMP)
 
@@ -26,7 +26,7 @@ $(STAMP): requirements.txt setup.py setup.cfg
 test: setup
 	$(VPY) -m pytest tests
 
-# The whole hard-case suite (about a minute): bench/results/hard_cases.md and the README table.
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
@@ -36,6 +36,12 @@ hard-cases: setup
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
+
+# Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
+# `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
+# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/robot.md).
+atlas-scale: setup
+	$(VPY) -m bench.atlas_scale
 
 # Table II, then translator_node live over DDS on two sample bags, recorded to cdr_runs/.
 demo: setup

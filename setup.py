@@ -31,7 +31,9 @@ setup(
         'translator leg of a Continuum Delta Robot.'
     ),
     license='Apache-2.0',
-    extras_require={'test': ['pytest']},
+    # the robot atlas (cdr_translator/robot/atlas.py) only; make setup installs them
+    extras_require={'test': ['pytest'],
+                    'atlas': ['dask', 'distributed', 'xarray', 'zarr', 'tqdm', 'matplotlib']},
     entry_points={
         'console_scripts': [
             'translator_node = cdr_translator.ros.translator_node:main',

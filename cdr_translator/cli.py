@@ -7,17 +7,23 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
     python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
+    python -m cdr_translator delta-ik --target X Y Z [--payload FX FY FZ] [--params FILE] [--json]
+    python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
+                                   --out PATH.zarr [--workers K] [--scheduler ADDRESS]
+                                   [--chunk-size M] [--plot]
 
 Exit codes: 0 converged (and, for ``solve``, stable), 3 not converged (the result is still
 printed), 2 bad input, 4 ``solve`` converged to an unstable equilibrium (``stable: false``
 in the output: past a bifurcation no stable branch was found; docs/stability.md).
+delta-ik: 0 only when the target is reached; an unreachable target prints the nearest
+reachable point and exits 3. atlas: 0 when every sample converged, 3 otherwise.
 """
 
 import argparse
 import json
 import math
 import sys
-from typing import List, Optional
+from typing import Any, Callable, List, Optional, Tuple, Union
 
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .fidelity import FidelitySolver
@@ -25,6 +31,7 @@ from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
 from .robot.delta import DeltaResult, DeltaRobot
+from .robot.inverse import InverseResult
 from .solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
@@ -61,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
                        help='an eigen-twist at least this fraction of the most compliant one '
                             'is a primary mobility (default: %(default)s)')
     solve.add_argument('--fidelity', choices=('full', 'rod', 'cc', 'auto'), default='full',
-                       help='model level (README "Speed against error"); auto: the cheapest '
+                       help='model level (docs/performance.md); auto: the cheapest '
                             'level within --max-position-error and --max-angle-error')
     solve.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
                        help='error budget of --fidelity auto: end-disk position, m')
@@ -74,20 +81,57 @@ def _parser() -> argparse.ArgumentParser:
                                               'pose and leg loads for slider positions')
     delta.add_argument('--sliders', nargs=3, type=float, required=True,
                        metavar=('Q1', 'Q2', 'Q3'), help='slider positions from home, m')
-    delta.add_argument('--payload', nargs=3, type=float, default=(0.0, 0.0, 0.0),
-                       metavar=('FX', 'FY', 'FZ'), help='force on the platform, N, world frame')
-    delta.add_argument('--payload-moment', nargs=3, type=float, default=(0.0, 0.0, 0.0),
-                       metavar=('MX', 'MY', 'MZ'), help='moment on the platform, N m, world frame')
-    delta.add_argument('--payload-offset', nargs=3, type=float, default=(0.0, 0.0, 0.0),
-                       metavar=('X', 'Y', 'Z'),
-                       help='where the force acts, m, platform frame (default: its centre)')
-    delta.add_argument('--time-limit', type=float, default=30.0,
-                       help='give up after this many seconds (default: %(default)s)')
     delta.add_argument('--json', action='store_true', help='print one JSON object')
-    for command in (solve, paper, delta):
+    inverse = commands.add_parser('delta-ik', help='Continuum Delta Robot inverse statics: '
+                                                   'slider positions for a platform target')
+    inverse.add_argument('--target', nargs=3, type=float, required=True,
+                         metavar=('X', 'Y', 'Z'), help='platform centre, m, world frame')
+    inverse.add_argument('--json', action='store_true', help='print one JSON object')
+    for command in (delta, inverse):
+        _add_payload_arguments(command)
+    atlas = commands.add_parser(
+        'atlas', help='Continuum Delta Robot workspace / stiffness atlas over the slider box '
+                      'x payloads x params files, on Dask, into Zarr')
+    atlas.add_argument('--grid', type=int, required=True, metavar='N',
+                       help='N slider positions per axis over the stroke (N^3 samples)')
+    atlas.add_argument('--payload', nargs=3, type=float, action='append', default=None,
+                       metavar=('FX', 'FY', 'FZ'),
+                       help='force on the platform, N, world frame; repeat for several '
+                            '(default: none)')
+    atlas.add_argument('--params', action='append', default=None, metavar='FILE',
+                       help='ROS 2 params YAML; repeat for design variants (default: '
+                            f'{DEFAULT_PARAMS_PATH})')
+    atlas.add_argument('--out', required=True, metavar='PATH.zarr', help='Zarr store')
+    atlas.add_argument('--workers', type=int, default=None, metavar='K',
+                       help='worker processes of the local cluster (default: one per core)')
+    atlas.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                       help='use this running Dask scheduler (e.g. tcp://10.0.0.5:8786)')
+    atlas.add_argument('--chunk-size', type=int, default=None, metavar='M',
+                       help='samples per chunk (default: N*N, one slider-3 layer)')
+    atlas.add_argument('--time-limit', type=float, default=30.0,
+                       help='per forward solve, s (default: %(default)s)')
+    atlas.add_argument('--plot', action='store_true',
+                       help='draw the workspace and stiffness maps (PNG beside the store)')
+    atlas.add_argument('--no-progress', action='store_true', help='no progress bar')
+    for command in (solve, paper, delta, inverse):
         command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
                              help='ROS 2 params YAML (default: %(default)s)')
     return parser
+
+
+def _add_payload_arguments(command: argparse.ArgumentParser) -> None:
+    """Add the payload and time-limit options shared by delta and delta-ik."""
+    command.add_argument('--payload', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                         metavar=('FX', 'FY', 'FZ'), help='force on the platform, N, world frame')
+    command.add_argument('--payload-moment', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                         metavar=('MX', 'MY', 'MZ'),
+                         help='moment on the platform, N m, world frame')
+    command.add_argument('--payload-offset', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+                         metavar=('X', 'Y', 'Z'),
+                         help='where the force acts, m, platform frame (default: its centre)')
+    command.add_argument('--time-limit', type=float, default=30.0,
+                         help='give up a forward solve after this many seconds '
+                              '(default: %(default)s)')
 
 
 def _table(result: SolveResult) -> str:
@@ -139,6 +183,7 @@ def _delta_table(result: DeltaResult) -> str:
             ('equilibrium residual', f"{data['equilibrium_residual_norm']:.3e} (N, N m)"),
             ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "
                            f"({data['leg_solves']} leg solves)")]
+    rows.extend(_stability_rows(data))
     for leg, ((pj, dj), wrench) in enumerate(zip(data['leg_bending_deg'],
                                                  data['leg_tip_wrench']), start=1):
         rows.append((f'leg {leg} PJ / DJ bending', f'{pj:.3f} deg / {dj:.3f} deg'))
@@ -146,6 +191,38 @@ def _delta_table(result: DeltaResult) -> str:
                      '[' + ', '.join(f'{v:.4f}' for v in wrench[:3]) + '] N'))
         rows.append((f'leg {leg} tip moment (leg frame)',
                      '[' + ', '.join(f'{v:.5f}' for v in wrench[3:]) + '] N m'))
+    width = max(len(name) for name, _ in rows)
+    return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
+
+
+def _stability_rows(data: dict) -> List[Tuple[str, str]]:
+    """Rows for the platform compliance eigenvalues and the stability verdict."""
+    eigenvalues = data['platform_compliance_eigenvalues']
+    if eigenvalues is None:
+        return [('stable', 'not computed')]
+    return [('stable (closed chain)', f"{data['stable']} (stiffness margin "
+                                      f"{data['stiffness_margin_n_per_m']:.4g} N/m)"),
+            ('compliance eig. transl.', '  '.join(
+                f'{v:.4e}' for v in eigenvalues['translation_m_per_n']) + ' m/N'),
+            ('compliance eig. rot.', '  '.join(
+                f'{v:.4e}' for v in eigenvalues['rotation_rad_per_nm']) + ' rad/(N m)')]
+
+
+def _inverse_table(result: InverseResult) -> str:
+    data = result.to_dict()
+    rows = [('converged', f"{data['converged']} ({data['message']})"),
+            ('reachable', str(data['reachable'])),
+            ('sliders', _mm(data['sliders_m'])),
+            ('target', _mm(data['target_m'])),
+            ('platform position', _mm(data['platform_position_m'])),
+            ('position error', f"{data['position_error_m']:.3e} m"),
+            ('platform rotation', f"{data['platform_rotation_deg']:.4f} deg (parasitic)"),
+            ('binding limits', ', '.join(data['binding_limits']) or 'none'),
+            ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "
+                           f"({data['iterations']} iterations, "
+                           f"{data['forward_solves']} forward solves)")]
+    if 'stable' in data:
+        rows.extend(_stability_rows(data))
     width = max(len(name) for name, _ in rows)
     return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
 
@@ -196,16 +273,27 @@ def _paper_comparison(params: TranslatorParams) -> str:
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; return the exit code."""
     args = _parser().parse_args(argv)
+    result: Any  # SolveResult, DeltaResult or InverseResult, printed by its table
+    table: Callable[[Any], str]
+    solver: Union[TranslatorSolver, FidelitySolver]
+    if args.command == 'atlas':
+        from .robot.atlas import run_cli  # Dask, xarray and zarr only for this command
+        return run_cli(args)
     try:
         params = TranslatorParams.from_yaml(args.params)
         if args.command == 'paper':
             print(_paper_comparison(params))
             return EXIT_CONVERGED
-        if args.command == 'delta':
+        if args.command in ('delta', 'delta-ik'):
             robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
-            result = robot.solve(args.sliders, args.payload, args.payload_moment,
-                                 args.payload_offset)
-            table = _delta_table
+            if args.command == 'delta':
+                result = robot.solve(args.sliders, args.payload, args.payload_moment,
+                                     args.payload_offset, compliance=True)
+                table = _delta_table
+            else:
+                result = robot.inverse(args.target, args.payload, args.payload_moment,
+                                       args.payload_offset)
+                table = _inverse_table
         else:
             options = {'compliance': args.compliance,
                        'sparsity_threshold': args.sparsity_threshold,
@@ -227,7 +315,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
     print(json.dumps(result.to_dict()) if args.json else table(result))
-    if not result.converged:
+    if not (result.converged and getattr(result, 'reachable', True)):
         return EXIT_NOT_CONVERGED
     if getattr(result, 'stable', None) is False and args.command == 'solve':
         return EXIT_UNSTABLE

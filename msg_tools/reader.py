@@ -9,18 +9,28 @@ read from the start: every complete chunk and message up to the first unreadable
 kept, a damaged chunk is skipped as long as its record length can be trusted. Messages come
 in file order (the order the recorder received them). ``ReadReport`` tells how the file
 was read and what was lost.
+
+Duplicates (the same channel, sequence, log time and bytes as a message already read, e.g.
+from a chunk written twice) are skipped and counted: a chunk identical to an earlier one
+anywhere in the file, and single messages within a window of the last ``DUPLICATE_WINDOW``
+messages, so memory stays bounded however long the file. ``check_data_crc`` also checks
+the data-section CRC of the DataEnd record (an extra streaming pass for an indexed read).
 """
 
+from collections import deque
 from dataclasses import dataclass, field
 import io
+import itertools
 from pathlib import Path
 import struct
-from typing import Callable, Dict, Iterator, List, Optional, Tuple, Union
+from typing import Callable, Deque, Dict, Iterable, Iterator, List, Optional, Set, Tuple, Union
+import zlib
 
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
-from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.stream_reader import CRCValidationError, get_chunk_data_stream, StreamReader
 from mcap_ros2.decoder import DecoderFactory
 import zstandard
 
@@ -29,6 +39,71 @@ import zstandard
 #: (ValueError) and McapError for the rest.
 READ_ERRORS = (McapError, struct.error, zstandard.ZstdError, ValueError, RuntimeError,
                EOFError, OSError, MemoryError)
+
+#: Messages remembered (as small fingerprints) to recognize a duplicate outside a copied
+#: chunk; about 100 bytes each.
+DUPLICATE_WINDOW = 16384
+
+
+def chunk_records(chunk: Chunk) -> Iterator[McapRecord]:
+    """
+    Yield the schema, channel and message records of ``chunk`` one at a time.
+
+    mcap's ``breakup_chunk`` without its list: the chunk is decompressed and its CRC
+    checked at the first ``next()`` (errors there mean the whole chunk is unreadable), then
+    records are parsed as they are consumed, so memory holds one chunk's bytes, not one
+    object per message of it.
+    """
+    stream, length = get_chunk_data_stream(chunk, validate_crc=True)
+    readers: Dict[int, Callable[[int], McapRecord]] = {
+        Opcode.CHANNEL: lambda size: Channel.read(stream),
+        Opcode.MESSAGE: lambda size: Message.read(stream, size),
+        Opcode.SCHEMA: lambda size: Schema.read(stream)}
+    while stream.count < length:
+        opcode = stream.read1()
+        size = stream.read8()
+        read = readers.get(opcode)
+        if read is None:
+            stream.read(size)
+        else:
+            yield read(size)
+
+
+class Duplicates:
+    """
+    Recognize messages read before: whole chunks anywhere, single messages in a window.
+
+    A message is a duplicate when its channel, sequence, log time and bytes equal those of
+    an earlier one. Memory: one fingerprint per distinct chunk plus ``window`` messages.
+    """
+
+    def __init__(self, window: Optional[int] = None) -> None:
+        """Start with nothing seen; ``window`` defaults to ``DUPLICATE_WINDOW``."""
+        self.window = DUPLICATE_WINDOW if window is None else window
+        self._chunks: Set[Tuple[int, int, int, int, int]] = set()
+        self._recent: Set[Tuple[int, int, int, int, int]] = set()
+        self._order: Deque[Tuple[int, int, int, int, int]] = deque()
+
+    def chunk_seen(self, chunk: Chunk) -> bool:
+        """Tell whether an identical chunk was read before (and remember this one)."""
+        key = (len(chunk.data), zlib.crc32(chunk.data), chunk.uncompressed_crc,
+               chunk.message_start_time, chunk.message_end_time)
+        if key in self._chunks:
+            return True
+        self._chunks.add(key)
+        return False
+
+    def message_seen(self, message: Message) -> bool:
+        """Tell whether the same message is in the window (and remember this one)."""
+        key = (message.channel_id, message.sequence, message.log_time,
+               len(message.data), zlib.crc32(message.data))
+        if key in self._recent:
+            return True
+        self._recent.add(key)
+        self._order.append(key)
+        if len(self._order) > self.window:
+            self._recent.discard(self._order.popleft())
+        return False
 
 
 @dataclass(frozen=True)
@@ -64,6 +139,7 @@ class ReadReport:
     messages_read: int = 0
     messages_expected: Optional[int] = None
     unread_bytes: int = 0
+    duplicates: int = 0
     problems: List[str] = field(default_factory=list)
 
     @property
@@ -75,8 +151,8 @@ class ReadReport:
 
     @property
     def complete(self) -> bool:
-        """Tell whether the file was read through its index and nothing was lost."""
-        return self.mode == 'indexed' and not self.problems
+        """Tell whether the file was read through its index, intact, nothing lost or doubled."""
+        return self.mode == 'indexed' and not self.problems and not self.duplicates
 
     def describe(self) -> str:
         """Return a one-paragraph, human-readable account of the read."""
@@ -91,6 +167,9 @@ class ReadReport:
                  'messages lost after the last complete chunk' if self.unread_bytes else '']
         if self.unread_bytes:
             parts.append(f'{self.unread_bytes} of {self.size_bytes} bytes unreadable')
+        if self.duplicates:
+            parts.append(f'{self.duplicates} duplicate messages skipped (same channel, '
+                         'sequence, log time and bytes as one read before)')
         return '; '.join([head] + [part for part in parts if part] + self.problems)
 
 
@@ -99,18 +178,25 @@ class McapSource:
     The messages of one MCAP file, read by index or salvaged by streaming.
 
     ``messages()`` may be iterated once; ``report`` is complete when it ends. ``topics``
-    (optional) keeps only those channels.
+    (optional) keeps only those channels; ``check_data_crc`` also checks the data-section
+    CRC.
     """
 
-    def __init__(self, path: Union[str, Path], topics: Optional[List[str]] = None) -> None:
+    def __init__(self, path: Union[str, Path], topics: Optional[List[str]] = None,
+                 check_data_crc: bool = False) -> None:
         """Open ``path`` lazily; ValueError if it does not exist."""
         self.path = Path(path)
         if not self.path.is_file():
             raise ValueError(f'no such MCAP file: {self.path}')
         self.topics = set(topics) if topics is not None else None
+        self.check_data_crc = check_data_crc
         self.report = ReadReport(str(self.path), self.path.stat().st_size)
         self.schemas: Dict[int, Schema] = {}
         self.channels: Dict[int, Channel] = {}
+        self.duplicates = Duplicates()
+        #: After ``messages()`` with ``check_data_crc``: 'valid', 'mismatch', 'absent' (the
+        #: writer stored none) or 'unchecked' (the data section could not be read through).
+        self.data_crc = 'unchecked'
 
     # public -------------------------------------------------------------------------------
     def messages(self) -> Iterator[RawMessage]:
@@ -119,35 +205,40 @@ class McapSource:
             summary, reason = self._summary(stream)
             if summary is not None:
                 yield from self._indexed(stream, summary)
+                if self.check_data_crc:
+                    stream.seek(0)
+                    self._check_data_section(stream)
             else:
                 self.report.mode, self.report.reason = 'salvaged', reason
                 stream.seek(0)
                 yield from self._streamed(stream)
 
-    def channel_overview(self) -> Tuple[Dict[int, Channel], Dict[int, Schema],
-                                        Optional[Dict[int, int]], Optional[Tuple[int, int]]]:
+    def channel_overview(self, verify: bool = False
+                         ) -> Tuple[Dict[int, Channel], Dict[int, Schema],
+                                    Optional[Dict[int, int]], Optional[Tuple[int, int]]]:
         """
         Return channels, schemas, per-channel counts and the (start, end) log time in ns.
 
-        From the summary when it is readable; otherwise by reading every message (the
-        counts and time range of what can be salvaged).
+        From the summary when it is readable and ``verify`` is False; otherwise by reading
+        every message (CRCs checked: the counts and time range of what can be read).
         """
         with open(self.path, 'rb') as stream:
             summary, _ = self._summary(stream)
-        if summary is not None and summary.statistics is not None:
+        if not verify and summary is not None and summary.statistics is not None:
             statistics = summary.statistics
             span = ((statistics.message_start_time, statistics.message_end_time)
                     if statistics.message_count else None)
             return (dict(summary.channels), dict(summary.schemas),
                     dict(statistics.channel_message_counts), span)
         counts: Dict[int, int] = {}
-        start = end = None
+        start: Optional[int] = None
+        end: Optional[int] = None
         for message in self.messages():
             counts[message.channel.id] = counts.get(message.channel.id, 0) + 1
             start = message.log_time_ns if start is None else min(start, message.log_time_ns)
             end = message.log_time_ns if end is None else max(end, message.log_time_ns)
         return (dict(self.channels), dict(self.schemas), counts,
-                (start, end) if start is not None else None)
+                (start, end) if start is not None and end is not None else None)
 
     # indexed ------------------------------------------------------------------------------
     def _summary(self, stream: io.BufferedReader):
@@ -177,25 +268,50 @@ class McapSource:
                 chunk = next(StreamReader(stream, skip_magic=True, emit_chunks=True).records)
                 if not isinstance(chunk, Chunk):
                     raise McapError(f'found a {type(chunk).__name__} record')
-                records = breakup_chunk(chunk, validate_crc=True)
+                records = chunk_records(chunk)
+                first = next(records, None)   # decompressed and CRC-checked here
             except READ_ERRORS as error:
                 self.report.problems.append(
                     f'chunk at byte {index.chunk_start_offset} unreadable '
                     f'({_error_text(error)}): its messages are lost')
                 continue
-            yield from self._records(records)
+            yield from self._chunk(index.chunk_start_offset, chunk, first, records)
+
+    def _check_data_section(self, stream: io.BufferedReader) -> None:
+        """Stream the records up to DataEnd with CRCs on; set ``data_crc`` and report."""
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True,
+                              record_size_limit=max(self.report.size_bytes, 1))
+        try:
+            for record in reader.records:
+                if isinstance(record, DataEnd):
+                    self.data_crc = 'valid' if record.data_section_crc else 'absent'
+                    return
+        except CRCValidationError as error:
+            self._data_crc_mismatch(error)
+        except READ_ERRORS as error:
+            self.report.problems.append(
+                f'data section not readable through ({_error_text(error)})')
+
+    def _data_crc_mismatch(self, error: BaseException) -> None:
+        """Record a data-section CRC mismatch."""
+        self.data_crc = 'mismatch'
+        self.report.problems.append(f'data-section CRC mismatch ({_error_text(error)}): '
+                                    'some record outside the messages read is damaged')
 
     # streamed -----------------------------------------------------------------------------
     def _streamed(self, stream: io.BufferedReader) -> Iterator[RawMessage]:
         """Yield the messages of every complete record up to the first unreadable one."""
         position = 0
-        reader = StreamReader(stream, emit_chunks=True,
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=self.check_data_crc,
                               record_size_limit=max(self.report.size_bytes, 1))
         records = reader.records
         while True:
             try:
                 record = next(records)
             except StopIteration:
+                return
+            except CRCValidationError as error:
+                self._data_crc_mismatch(error)
                 return
             except READ_ERRORS as error:
                 self.report.unread_bytes = max(self.report.size_bytes - position, 0)
@@ -206,19 +322,35 @@ class McapSource:
             end = stream.tell()
             if isinstance(record, Chunk):
                 try:
-                    chunk_records = breakup_chunk(record, validate_crc=True)
+                    inside = chunk_records(record)
+                    first = next(inside, None)   # decompressed and CRC-checked here
                 except READ_ERRORS as error:
                     self.report.problems.append(
                         f'chunk at byte {position} unreadable ({_error_text(error)}): '
                         f'its messages are lost')
                     position = end
                     continue
-                yield from self._records(chunk_records)
-            elif not isinstance(record, (DataEnd, Footer)):
+                yield from self._chunk(position, record, first, inside)
+            elif isinstance(record, DataEnd):
+                if self.check_data_crc:
+                    self.data_crc = 'valid' if record.data_section_crc else 'absent'
+            elif not isinstance(record, Footer):
                 yield from self._records([record])
             position = end
 
     # shared -------------------------------------------------------------------------------
+    def _chunk(self, offset: int, chunk: Chunk, first: Optional[McapRecord],
+               records: Iterator[McapRecord]) -> Iterator[RawMessage]:
+        """Yield the messages of a CRC-checked chunk; a record that does not parse ends it."""
+        if first is None:
+            return
+        copied = self.duplicates.chunk_seen(chunk)
+        try:
+            yield from self._records(itertools.chain([first], records), copied)
+        except READ_ERRORS as error:
+            self.report.problems.append(f'chunk at byte {offset}: a record does not parse '
+                                        f'({_error_text(error)}); the rest of it is lost')
+
     def _wanted(self, channel_id: int) -> bool:
         """Tell whether messages of ``channel_id`` pass the topic filter."""
         if self.topics is None:
@@ -226,8 +358,9 @@ class McapSource:
         channel = self.channels.get(channel_id)
         return channel is not None and channel.topic in self.topics
 
-    def _records(self, records) -> Iterator[RawMessage]:
-        """Track schemas and channels; yield the wanted messages."""
+    def _records(self, records: Iterable, copied_chunk: bool = False
+                 ) -> Iterator[RawMessage]:
+        """Track schemas and channels; yield the wanted messages that are not duplicates."""
         for record in records:
             if isinstance(record, Schema):
                 self.schemas[record.id] = record
@@ -240,6 +373,9 @@ class McapSource:
                         f'a message on unknown channel {record.channel_id} was skipped')
                     continue
                 if not self._wanted(record.channel_id):
+                    continue
+                if copied_chunk or self.duplicates.message_seen(record):
+                    self.report.duplicates += 1
                     continue
                 self.report.messages_read += 1
                 yield RawMessage(channel, self.schemas.get(channel.schema_id),

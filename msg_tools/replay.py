@@ -8,20 +8,27 @@ limit) and writes a new MCAP holding the input messages and every output the nod
 request, backbones) with header stamps equal to the input stamps and log times equal to the
 input log times. Output topics take the input topic's namespace ('/robot/wrench' gives
 '/robot/end_disk_pose'). Optionally a CSV row per message and a plot. No rclpy needed.
+
+Memory stays bounded however long the input: messages stream through, the statistics are
+running ones (solve-time percentiles from a log-spaced histogram), the plotted series is
+thinned to at most ``SERIES_LIMIT`` points and at most ``WARNING_LIMIT`` per-message
+warnings are kept. Exit codes: see ``EXIT_CODES`` and docs/replay.md.
 """
 
 import csv
 from dataclasses import dataclass, field
 import math
+import os
 from pathlib import Path
 import sys
+import tempfile
 import time
-from typing import Dict, IO, List, Optional, Sequence, Tuple, Union
+from typing import Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
-from msg_tools.mcap_log import McapLog
+from msg_tools.mcap_log import LogStatus, McapLog
 from msg_tools.reader import Decoders, McapSource, ReadReport
 import numpy as np
 
@@ -35,24 +42,109 @@ CSV_COLUMNS = (
     + [f'compliance_eigenvalue_{k}' for k in range(1, 7)])
 
 
+#: Exit codes of ``python -m msg_tools replay`` (docs/replay.md).
+EXIT_OK = 0
+EXIT_DAMAGED_INPUT = 1
+EXIT_USAGE = 2
+EXIT_NOTHING_SOLVED = 3
+EXIT_INTERRUPTED = 130
+EXIT_CODES: Dict[int, str] = {
+    EXIT_OK: 'all good: the input was intact and at least one wrench converged',
+    EXIT_DAMAGED_INPUT: 'the input was damaged (unreadable chunks, cut, duplicates); '
+                        'everything readable was replayed',
+    EXIT_USAGE: 'bad arguments, no usable input, or an output that cannot be written '
+                '(checked before reading; or a write error during the replay)',
+    EXIT_NOTHING_SOLVED: 'nothing could be decoded or solved: no wrench gave a converged '
+                         'solve (all undecodable, rejected or not converged, or none)',
+    EXIT_INTERRUPTED: 'interrupted by Ctrl-C; the outputs are finalized and hold what was '
+                      'done',
+}
+
+#: Most points kept in ``Series`` (thinned by halves beyond that).
+SERIES_LIMIT = 5_000
+#: Most per-message warnings kept (the rest are counted).
+WARNING_LIMIT = 20
+
+
 class ReplayError(ValueError):
     """The input cannot be replayed at all (no such file, no usable wrench topic)."""
 
 
+class OutputError(ReplayError):
+    """An output file cannot be written (found before reading, or a write error)."""
+
+
 @dataclass
 class Series:
-    """Time series of the converged messages, for the plots."""
+    """
+    Time series of the converged messages, for the plots; at most ``limit`` points.
+
+    Beyond ``limit`` every other point is dropped and the stride doubles, except the
+    message indices in ``keep`` (the shapes asked for).
+    """
 
     time_s: List[float] = field(default_factory=list)
     joints: List[List[float]] = field(default_factory=list)
     position: List[List[float]] = field(default_factory=list)
     index: List[int] = field(default_factory=list)
     wrench: List[np.ndarray] = field(default_factory=list)
+    limit: int = field(default_factory=lambda: SERIES_LIMIT)
+    keep: Collection[int] = ()
+    stride: int = 1
+
+    def add(self, index: int, time_s: float, joints: List[float], position: List[float],
+            wrench: np.ndarray) -> None:
+        """Append a converged message when it falls on the stride (or is to be kept)."""
+        if index % self.stride and index not in self.keep:
+            return
+        self.time_s.append(time_s)
+        self.joints.append(joints)
+        self.position.append(position)
+        self.index.append(index)
+        self.wrench.append(wrench)
+        if len(self.index) > self.limit:
+            self.stride *= 2
+            chosen = [k for k, kept in enumerate(self.index)
+                      if kept % self.stride == 0 or kept in self.keep]
+            for name in ('time_s', 'joints', 'position', 'index', 'wrench'):
+                values = getattr(self, name)
+                setattr(self, name, [values[k] for k in chosen])
+
+
+class TimeStats:
+    """Count, maximum and percentiles (within 1.2 %) of durations, in constant memory."""
+
+    LOW_S, DECADES, PER_DECADE = 1e-7, 10, 200
+
+    def __init__(self) -> None:
+        """Start empty."""
+        self.count = 0
+        self.max_s = 0.0
+        self._bins = np.zeros(self.DECADES * self.PER_DECADE + 2, dtype=np.int64)
+
+    def add(self, seconds: float) -> None:
+        """Count one duration."""
+        self.count += 1
+        self.max_s = max(self.max_s, seconds)
+        position = (math.log10(max(seconds, self.LOW_S)) - math.log10(self.LOW_S)) * \
+            self.PER_DECADE
+        self._bins[min(int(position) + 1, len(self._bins) - 1)] += 1
+
+    def percentile(self, q: float) -> float:
+        """Return the ``q`` percentile in s (the geometric middle of its bin)."""
+        if not self.count:
+            return math.nan
+        rank = max(math.ceil(q / 100.0 * self.count), 1)
+        position = int(np.searchsorted(np.cumsum(self._bins), rank))
+        if position == 0:
+            return self.LOW_S
+        value = self.LOW_S * 10 ** ((position - 0.5) / self.PER_DECADE)
+        return min(value, self.max_s)
 
 
 @dataclass
 class ReplaySummary:
-    """Counts, timings and ranges of one replay."""
+    """Counts, timings and ranges of one replay (constant memory whatever the input)."""
 
     input_report: ReadReport
     topics: List[str]
@@ -62,15 +154,49 @@ class ReplaySummary:
     not_converged: int = 0
     rejected: int = 0
     undecodable: int = 0
-    solve_times_s: List[float] = field(default_factory=list)
+    solve_times: TimeStats = field(default_factory=TimeStats)
     wall_s: float = 0.0
     interrupted: bool = False
     series: Series = field(default_factory=Series)
+    warnings_dropped: int = 0
+    joints_range: Optional[np.ndarray] = None
+    position_range: Optional[np.ndarray] = None
+    output_status: Optional[LogStatus] = None
+    output_error: str = ''
 
     @property
     def throughput(self) -> float:
         """Messages per second of wall time (reading, solving and writing)."""
         return self.messages / self.wall_s if self.wall_s > 0 else math.nan
+
+    def warn(self, text: str) -> None:
+        """Keep a per-message warning (the first ``WARNING_LIMIT``; the rest are counted)."""
+        if len(self.warnings) < WARNING_LIMIT:
+            self.warnings.append(text)
+        else:
+            self.warnings_dropped += 1
+
+    def converged(self, joints: List[float], position: List[float]) -> None:
+        """Widen the running joint (rad) and position (m) ranges."""
+        values = np.array(joints + position)
+        if self.joints_range is None or self.position_range is None:
+            self.joints_range = np.array([values[:5], values[:5]])
+            self.position_range = np.array([values[5:], values[5:]])
+            return
+        self.joints_range = np.array([np.minimum(self.joints_range[0], values[:5]),
+                                      np.maximum(self.joints_range[1], values[:5])])
+        self.position_range = np.array([np.minimum(self.position_range[0], values[5:]),
+                                        np.maximum(self.position_range[1], values[5:])])
+
+    def exit_code(self) -> int:
+        """Return the exit code (``EXIT_CODES``) this replay ends with."""
+        if self.output_error or (self.output_status is not None and self.output_status.lost):
+            return EXIT_USAGE
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        if not self.solved:
+            return EXIT_NOTHING_SOLVED
+        return EXIT_OK if self.input_report.complete else EXIT_DAMAGED_INPUT
 
     def table(self) -> str:
         """Return the summary table printed at the end of a replay."""
@@ -80,24 +206,27 @@ class ReplaySummary:
                 ('solved (converged)', str(self.solved)),
                 ('not converged', str(self.not_converged)),
                 ('rejected (bad input)', str(self.rejected)),
-                ('undecodable', str(self.undecodable))]
-        if self.solve_times_s:
-            p50, p90, p99 = np.percentile(1e3 * np.array(self.solve_times_s), [50, 90, 99])
+                ('undecodable', str(self.undecodable)),
+                ('duplicates skipped', str(self.input_report.duplicates))]
+        if self.solve_times.count:
+            p50, p90, p99 = (1e3 * self.solve_times.percentile(q) for q in (50, 90, 99))
             rows.append(('solve time ms p50/p90/p99/max',
                          f'{p50:.3f} / {p90:.3f} / {p99:.3f} / '
-                         f'{1e3 * max(self.solve_times_s):.3f}'))
-        if self.series.joints:
-            joints = np.degrees(np.array(self.series.joints))
+                         f'{1e3 * self.solve_times.max_s:.3f}'))
+        if self.joints_range is not None and self.position_range is not None:
+            joints = np.degrees(self.joints_range)
             for column, name in enumerate(messages.JOINT_NAMES):
                 rows.append((f'{name} deg min..max',
-                             f'{joints[:, column].min():.3f} .. {joints[:, column].max():.3f}'))
-            position = 1e3 * np.array(self.series.position)
+                             f'{joints[0, column]:.3f} .. {joints[1, column]:.3f}'))
+            position = 1e3 * self.position_range
             for column, axis in enumerate('xyz'):
                 rows.append((f'end disk {axis} mm min..max',
-                             f'{position[:, column].min():.3f} .. '
-                             f'{position[:, column].max():.3f}'))
+                             f'{position[0, column]:.3f} .. {position[1, column]:.3f}'))
         rows.append(('wall time s', f'{self.wall_s:.3f}'))
         rows.append(('throughput msg/s', f'{self.throughput:.1f}'))
+        if self.output_status is not None:
+            rows.append(('output records', f'{self.output_status.written} written, '
+                                           f'{self.output_status.lost} lost'))
         if self.interrupted:
             rows.append(('interrupted', 'yes (Ctrl-C): the output holds what was done'))
         width = max(len(name) for name, _ in rows)
@@ -207,89 +336,130 @@ def _csv_row(index: int, raw, force, moment, frame_id, stamp_ns, outcome) -> lis
     return row
 
 
+def check_output(path: Union[str, Path], what: str) -> None:
+    """
+    Make sure ``path`` can be written before any input is read; OutputError if not.
+
+    Creates the missing folders (as the writers would) and a probe file next to ``path``,
+    so a read-only folder, a file in the way or a folder given as ``path`` are found.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise OutputError(f'cannot write the {what} {target}: it is a folder')
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=target.parent):
+            pass
+        if target.exists() and not os.access(target, os.W_OK):
+            raise PermissionError(f'{target} is not writable')
+    except OSError as error:
+        reason = error.strerror or str(error)
+        where = f' ({error.filename})' if getattr(error, 'filename', None) else ''
+        raise OutputError(f'cannot write the {what} {target}: {reason}{where}') from None
+
+
 def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
            topics: Optional[Sequence[str]] = None,
            params_path: Union[str, Path, None] = None, compliance: bool = True,
            backbones: bool = False, csv_path: Union[str, Path, None] = None,
            progress: Optional[IO[str]] = None, flush_every_messages: int = 1000,
-           flush_every_s: float = 2.0) -> ReplaySummary:
+           flush_every_s: float = 2.0, plot_samples: Collection[int] = ()) -> ReplaySummary:
     """
     Replay ``input_path`` into ``output_path``; return the summary.
 
-    ReplayError when nothing can be replayed. A KeyboardInterrupt stops the replay early:
-    the output MCAP (and CSV) are still finalized, and ``summary.interrupted`` is True.
+    ReplayError when nothing can be replayed (OutputError when an output cannot be
+    written: checked before the input is read). A write error during the replay ends it
+    with ``summary.output_error`` or ``summary.output_status.lost`` set. A
+    KeyboardInterrupt stops the replay early: the output MCAP (and CSV) are still
+    finalized, and ``summary.interrupted`` is True. ``plot_samples``: message indices kept
+    in ``summary.series`` whatever its thinning.
     """
     if not Path(input_path).is_file():
         raise ReplayError(f'no such MCAP file: {input_path}')
+    if Path(output_path).resolve() == Path(input_path).resolve():
+        raise OutputError('the output file must not be the input file')
+    check_output(output_path, 'output MCAP')
+    if csv_path:
+        check_output(csv_path, 'CSV')
     source = McapSource(input_path)
     chosen, warnings, total = select_topics(source, topics)
-    if Path(output_path).resolve() == Path(input_path).resolve():
-        raise ReplayError('the output file must not be the input file')
     settings = TranslatorSettings.from_params_file(params_path)
     params = settings.params
     source = McapSource(input_path, topics=chosen)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
     summary = ReplaySummary(source.report, chosen, warnings)
+    summary.series.keep = frozenset(plot_samples)
     decoders = Decoders()
     bar = Progress(progress, total) if progress is not None else None
     started = time.perf_counter()
     first_stamp_ns = None
-    csv_file = open(csv_path, 'w', newline='') if csv_path else None
+    try:
+        csv_file = open(csv_path, 'w', newline='') if csv_path else None
+        log = McapLog(output_path, flush_every_messages=flush_every_messages,
+                      flush_every_s=flush_every_s, if_exists='overwrite')
+    except OSError as error:
+        raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
     try:
         table = csv.writer(csv_file) if csv_file else None
         if table:
             table.writerow(CSV_COLUMNS)
-        with McapLog(output_path, flush_every_messages=flush_every_messages,
-                     flush_every_s=flush_every_s) as log:
-            for topic in chosen:
-                log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
-            try:
-                for index, raw in enumerate(source.messages()):
-                    summary.messages += 1
-                    log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
-                                         raw.log_time_ns, raw.publish_time_ns)
-                    try:
-                        force, moment, frame_id, stamp = messages.wrench_from_message(
-                            decoders.decode(raw))
-                    except (ValueError, AttributeError, TypeError) as error:
-                        summary.undecodable += 1
-                        summary.warnings.append(f'message {index} on {raw.topic}: {error}')
-                        if table:
-                            table.writerow([index, raw.topic, '', raw.log_time_ns, '']
-                                           + [''] * 6 + ['undecodable', str(error)])
-                        continue
-                    outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
-                    for name, type_name, message in outcome.outputs:
-                        log.write(output_topic(raw.topic, name), type_name, message,
-                                  raw.log_time_ns, raw.log_time_ns)
-                    stamp_ns = messages.stamp_to_ns(stamp)
-                    result = outcome.result
-                    if result is None:
-                        summary.rejected += 1
-                    elif not result.converged:
-                        summary.not_converged += 1
-                        summary.solve_times_s.append(result.solve_time_s)
-                    else:
-                        summary.solved += 1
-                        summary.solve_times_s.append(result.solve_time_s)
-                        first_stamp_ns = stamp_ns if first_stamp_ns is None else first_stamp_ns
-                        series = summary.series
-                        series.time_s.append(1e-9 * (stamp_ns - first_stamp_ns))
-                        series.joints.append(messages.joint_positions(result))
-                        series.position.append(result.end_disk_position.tolist())
-                        series.index.append(index)
-                        series.wrench.append(np.concatenate([result.force, result.moment]))
+        for topic in chosen:
+            log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
+        try:
+            for index, raw in enumerate(source.messages()):
+                summary.messages += 1
+                log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
+                                     raw.log_time_ns, raw.publish_time_ns)
+                try:
+                    force, moment, frame_id, stamp = messages.wrench_from_message(
+                        decoders.decode(raw))
+                except (ValueError, AttributeError, TypeError) as error:
+                    summary.undecodable += 1
+                    summary.warn(f'message {index} on {raw.topic}: {error}')
                     if table:
-                        table.writerow(_csv_row(index, raw, force, moment, frame_id,
-                                                stamp_ns, outcome))
-                    if bar:
-                        bar.update(summary.messages)
-            except KeyboardInterrupt:
-                summary.interrupted = True
+                        table.writerow([index, raw.topic, '', raw.log_time_ns, '']
+                                       + [''] * 6 + ['undecodable', str(error)])
+                    continue
+                outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
+                for name, type_name, message in outcome.outputs:
+                    log.write(output_topic(raw.topic, name), type_name, message,
+                              raw.log_time_ns, raw.log_time_ns)
+                stamp_ns = messages.stamp_to_ns(stamp)
+                result = outcome.result
+                if result is None:
+                    summary.rejected += 1
+                elif not result.converged:
+                    summary.not_converged += 1
+                    summary.solve_times.add(result.solve_time_s)
+                else:
+                    summary.solved += 1
+                    summary.solve_times.add(result.solve_time_s)
+                    first_stamp_ns = stamp_ns if first_stamp_ns is None else first_stamp_ns
+                    joints = messages.joint_positions(result)
+                    position = result.end_disk_position.tolist()
+                    summary.converged(joints, position)
+                    summary.series.add(index, 1e-9 * (stamp_ns - first_stamp_ns), joints,
+                                       position, np.concatenate([result.force, result.moment]))
+                if table:
+                    table.writerow(_csv_row(index, raw, force, moment, frame_id,
+                                            stamp_ns, outcome))
+                if bar:
+                    bar.update(summary.messages)
+                if not log.status().ok:
+                    summary.output_error = f'output MCAP: {log.status().message}'
+                    break
+        except KeyboardInterrupt:
+            summary.interrupted = True
+        except OSError as error:   # the CSV (the MCAP writer reports through its status)
+            summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
     finally:
+        summary.output_status = log.close()
         if csv_file:
-            csv_file.close()
+            try:
+                csv_file.close()
+            except OSError as error:
+                summary.output_error = summary.output_error or f'CSV {csv_path}: {error}'
         if bar:
             bar.close(summary.messages)
         summary.wall_s = time.perf_counter() - started
@@ -301,14 +471,20 @@ def main_replay(args) -> int:
     stream = sys.stderr if (args.progress == 'always' or (
         args.progress == 'auto' and sys.stderr.isatty())) else None
     try:
+        if args.plot:
+            check_output(args.plot, 'plot')
         summary = replay(args.input, args.out, topics=args.topic, params_path=args.params,
                          compliance=not args.no_compliance, backbones=args.backbones,
-                         csv_path=args.csv, progress=stream)
+                         csv_path=args.csv, progress=stream,
+                         plot_samples=args.plot_samples or ())
     except (ReplayError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
-        return 2
+        return EXIT_USAGE
     for warning in summary.warnings:
         print(f'warning: {warning}', file=sys.stderr)
+    if summary.warnings_dropped:
+        print(f'warning: {summary.warnings_dropped} more such warnings not shown',
+              file=sys.stderr)
     if not summary.input_report.complete:
         print(f'warning: {summary.input_report.describe()}', file=sys.stderr)
     print(summary.table())
@@ -321,6 +497,14 @@ def main_replay(args) -> int:
             print(f'wrote {args.plot} (deflected shapes of messages {samples})')
         else:
             print('warning: nothing converged, no plot written', file=sys.stderr)
-    if summary.interrupted:
-        return 130
-    return 0 if summary.input_report.complete else 1
+    code = summary.exit_code()
+    if summary.output_error or code == EXIT_USAGE:
+        status = summary.output_status
+        print(f'error: {summary.output_error or ""}'
+              + (f' output MCAP {status.describe()}' if status is not None else ''),
+              file=sys.stderr)
+    elif code == EXIT_NOTHING_SOLVED:
+        print(f'error: nothing could be solved: {summary.messages} messages read, '
+              f'{summary.undecodable} undecodable, {summary.rejected} rejected, '
+              f'{summary.not_converged} not converged', file=sys.stderr)
+    return code

@@ -113,7 +113,8 @@ def write_wrenches(path: Union[str, Path], samples: Sequence[Sample],
                    topic: str = '/' + messages.WRENCH_TOPIC,
                    metadata: Optional[dict] = None) -> int:
     """Write ``samples`` as WrenchStamped (sensor-data QoS) to a new MCAP; return the count."""
-    with McapLog(path, flush_every_messages=0, flush_every_s=0.0) as log:
+    with McapLog(path, flush_every_messages=0, flush_every_s=0.0,
+                 if_exists='overwrite') as log:
         log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
         for sample in samples:
             log.write(topic, messages.WRENCH_TYPE,

@@ -1,6 +1,15 @@
 """
 What cdr_node reads and publishes, as plain message dicts (no rclpy): topics and builders.
 
+Forward statics: ``sliders`` and ``platform_wrench`` in, ``platform_pose``,
+``leg_bending_angles``, ``leg_tip_wrenches`` and ``/diagnostics`` out. Inverse statics:
+``target_position`` (geometry_msgs/PointStamped, the platform centre wanted, world frame)
+in, ``slider_command`` (sensor_msgs/JointState, one position per slider, m, named
+``SLIDER_NAMES``) and ``predicted_platform_pose`` (geometry_msgs/PoseStamped: where the
+platform goes under the current payload at those sliders, its parasitic rotation
+included) out, with a diagnostic; an unreachable target publishes no command, only an
+ERROR diagnostic naming the nearest reachable point and the binding stroke limits.
+
 The dict shapes are cdr_translator.interface.messages' (the translator node's), which this
 module reuses for headers, diagnostics and each leg's joint angles; the node fills rclpy
 messages from them and logs those.
@@ -13,12 +22,17 @@ import numpy as np
 from . import messages
 from .. import geometry
 from ..robot.delta import DeltaResult
+from ..robot.inverse import InverseResult
 
 #: Inputs: the payload on the platform, and the slider positions.
 PLATFORM_WRENCH_TOPIC = 'platform_wrench'
 SLIDERS_TOPIC = 'sliders'
+#: Input of the inverse statics: the platform target position.
+TARGET_TOPIC = 'target_position'
 #: Outputs (relative names, /diagnostics absolute as in every ROS 2 node).
 PLATFORM_POSE_TOPIC = 'platform_pose'
+SLIDER_COMMAND_TOPIC = 'slider_command'
+PREDICTED_POSE_TOPIC = 'predicted_platform_pose'
 LEG_ANGLES_TOPIC = 'leg_bending_angles'
 LEG_WRENCHES_TOPIC = 'leg_tip_wrenches'
 DIAGNOSTICS_TOPIC = messages.DIAGNOSTICS_TOPIC
@@ -32,6 +46,8 @@ LEG_JOINT_NAMES = tuple(f'leg{leg}_{name}' for leg in (1, 2, 3)
 
 #: DiagnosticStatus name of the robot's status.
 DIAGNOSTIC_NAME = 'cdr_node: forward statics'
+#: DiagnosticStatus name of an inverse-statics answer.
+INVERSE_DIAGNOSTIC_NAME = 'cdr_node: inverse statics'
 
 
 def sliders_from_joint_state(names: Sequence[str], positions: Sequence[float]) -> np.ndarray:
@@ -54,6 +70,72 @@ def sliders_from_joint_state(names: Sequence[str], positions: Sequence[float]) -
                          'positions')
     by_name = dict(zip(names, positions))
     return np.array([by_name[name] for name in SLIDER_NAMES])
+
+
+def target_from_point(message: Any) -> Tuple[np.ndarray, str, dict]:
+    """
+    Return (target (3,) m, frame_id, stamp) of a PointStamped dict or decoded message.
+
+    Values as given (NaN included): the inverse solver validates them.
+    """
+    head = messages._get(message, 'header')
+    point = messages._get(message, 'point')
+    stamp = messages._get(head, 'stamp')
+    return (np.array([float(messages._get(point, axis)) for axis in 'xyz']),
+            str(messages._get(head, 'frame_id')),
+            {'sec': int(messages._get(stamp, 'sec')),
+             'nanosec': int(messages._get(stamp, 'nanosec'))})
+
+
+def point_message(target: Sequence[float], stamp: Mapping[str, int], frame_id: str) -> dict:
+    """Return a geometry_msgs/PointStamped dict of a target position (m)."""
+    return {'header': messages.header(stamp, frame_id),
+            'point': dict(zip('xyz', map(float, target)))}
+
+
+def slider_command_message(result: InverseResult, stamp: Mapping[str, int],
+                           frame_id: str) -> dict:
+    """Return the JointState commanding the sliders (m, legs 1 to 3)."""
+    return {'header': messages.header(stamp, frame_id), 'name': list(SLIDER_NAMES),
+            'position': [float(value) for value in result.sliders], 'velocity': [],
+            'effort': []}
+
+
+def inverse_output_messages(result: InverseResult, stamp: Mapping[str, int], frame_id: str,
+                            extra_values: Optional[Mapping[str, Any]] = None
+                            ) -> List[Tuple[str, str, dict]]:
+    """
+    Return (topic, type, message) of everything published for one inverse solve.
+
+    A reached target gives the slider command and the predicted platform pose (with its
+    parasitic rotation); every result gives a diagnostic: OK, WARN when the predicted pose
+    is not stable, ERROR (no command) when the target is unreachable or the solve failed.
+    """
+    built = []
+    forward = result.forward
+    reached = result.converged and result.reachable and forward is not None
+    if reached and forward is not None:
+        built = [(SLIDER_COMMAND_TOPIC, messages.JOINT_STATE_TYPE,
+                  slider_command_message(result, stamp, frame_id)),
+                 (PREDICTED_POSE_TOPIC, messages.POSE_TYPE,
+                  platform_pose_message(forward, stamp, frame_id))]
+    values = {'converged': bool(result.converged), 'reachable': bool(result.reachable),
+              'position_error_m': float(result.position_error),
+              'platform_rotation_deg': float(np.degrees(result.platform_rotation_angle)),
+              'binding_limits': ', '.join(result.binding) or 'none',
+              'iterations': int(result.iterations),
+              'forward_solves': int(result.forward_solves),
+              'solve_time_ms': 1e3 * float(result.solve_time_s)}
+    stable = None if result.forward is None else result.forward.stable
+    if stable is not None:
+        values['stable'] = bool(stable)
+    values.update(extra_values or {})
+    level = messages.ERROR if not reached else (messages.WARN if stable is False
+                                                else messages.OK)
+    built.append((DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
+                  messages.diagnostics_message(stamp, level, result.message, values,
+                                               name=INVERSE_DIAGNOSTIC_NAME)))
+    return built
 
 
 def platform_pose_message(result: DeltaResult, stamp: Mapping[str, int],

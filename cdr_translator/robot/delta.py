@@ -32,9 +32,11 @@ import time
 from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg import lu_factor, lu_solve
 from scipy.spatial.transform import Rotation
 
+from .inverse import InverseResult, InverseSolver
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .. import geometry
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
@@ -46,6 +48,10 @@ SIZE = 24
 
 #: Smallest fraction of the remaining input change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
+
+#: Names of the 12 inputs whose sensitivities ``DeltaResult.input_sensitivity`` holds.
+INPUT_NAMES = ('slider 1', 'slider 2', 'slider 3', 'force x', 'force y', 'force z',
+               'moment x', 'moment y', 'moment z', 'offset x', 'offset y', 'offset z')
 
 
 def _skew(vector: np.ndarray) -> np.ndarray:
@@ -93,6 +99,26 @@ class DeltaResult:
     per leg, the solved end-disk pose minus the platform attachment pose in {pe_i}
     (position m, rotation vector rad). Failure to converge is a result (``converged``
     False, ``message`` says why) holding the best iterate found.
+
+    With ``solve(..., compliance=True)`` (a converged solve) the linearization of the
+    assembled closed chain at the solution is added, from a fresh Newton Jacobian J (the
+    legs enter through their 6x6 compliances):
+
+    * ``platform_compliance`` (6, 6): C maps a small extra wrench [f; m] on the platform,
+      force at the platform origin, components in {w}, to the small twist [v; w] of the
+      platform: v the displacement of its origin, w its rotation (R <- exp([w]) R), in {w}.
+      C = -(J^-1)[pose, equilibrium]. SI: C[:3, :3] m/N, C[:3, 3:] m/(N m), C[3:, :3] rad/N,
+      C[3:, 3:] rad/(N m) (the translator's convention, cdr_translator/compliance.py, moved
+      from the end disk in {pe} to the platform in {w}). Dead-load geometric stiffness of
+      the payload and the leg reactions' moment arms are included.
+    * ``input_sensitivity`` (6, 12): d[platform position; rotation] / d[inputs], inputs
+      ``INPUT_NAMES`` (sliders m, force N, moment N m, offset m); the inverse statics
+      Newton uses its slider columns.
+    * ``stable``: the robot's stability verdict: the symmetric part of the platform
+      stiffness K = C^-1, rotations expressed as displacements over the leg stack height H
+      (K_s = S K S, S = diag(1, 1, 1, 1/H, 1/H, 1/H)), is positive definite; its smallest
+      eigenvalue is ``stiffness_margin`` (N/m). A singular J (no compliance) is unstable
+      (``stable`` False, ``message`` says so). None when not computed.
     """
 
     converged: bool
@@ -105,12 +131,35 @@ class DeltaResult:
     platform_position: np.ndarray
     platform_rotation: np.ndarray
     home_position: np.ndarray
-    leg_results: Tuple[SolveResult, SolveResult, SolveResult]
+    leg_results: Tuple[SolveResult, ...]
     leg_tip_wrenches: np.ndarray
     equilibrium_residual: np.ndarray
     compatibility_residual: np.ndarray
     solve_time_s: float
     leg_solves: int
+    platform_compliance: Optional[np.ndarray] = None
+    input_sensitivity: Optional[np.ndarray] = None
+    stable: Optional[bool] = None
+    stiffness_margin: float = math.nan
+
+    @property
+    def compliance_eigenvalues(self) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Eigenvalues of the symmetric parts of C's translational (m/N) and rotational blocks.
+
+        Ascending; NaN when the compliance was not computed.
+        """
+        if self.platform_compliance is None:
+            return np.full(3, np.nan), np.full(3, np.nan)
+        matrix = self.platform_compliance
+        translation, rotation = matrix[:3, :3], matrix[3:, 3:]
+        return (np.linalg.eigvalsh(0.5 * (translation + translation.T)),
+                np.linalg.eigvalsh(0.5 * (rotation + rotation.T)))
+
+    @property
+    def leg_axial_forces(self) -> np.ndarray:
+        """(3,): tension of each leg at its end disk, the tip force along {pe_i} z (N)."""
+        return self.leg_tip_wrenches[:, 2].copy()
 
     @property
     def platform_rotation_angle(self) -> float:
@@ -166,6 +215,23 @@ class DeltaResult:
             'payload_offset_m': self.payload_offset.tolist(),
             'solve_time_s': float(self.solve_time_s),
             'leg_solves': int(self.leg_solves),
+            **self._linearization_dict(),
+        }
+
+    def _linearization_dict(self) -> dict:
+        """Return the compliance / stability keys (None when not computed)."""
+        if self.platform_compliance is None:
+            return {'stable': self.stable, 'platform_compliance': None,
+                    'platform_compliance_eigenvalues': None,
+                    'stiffness_margin_n_per_m': None}
+        translation, rotation = self.compliance_eigenvalues
+        return {
+            'stable': bool(self.stable),
+            'platform_compliance': self.platform_compliance.tolist(),
+            'platform_compliance_eigenvalues': {
+                'translation_m_per_n': translation.tolist(),
+                'rotation_rad_per_nm': rotation.tolist()},
+            'stiffness_margin_n_per_m': float(self.stiffness_margin),
         }
 
 
@@ -182,6 +248,13 @@ class _State:
         """Apply a step [dp; dphi; dw_1; dw_2; dw_3] (legs not yet solved)."""
         return _State(self.position + step[:3], _rotation_matrix(step[3:6]) @ self.rotation,
                       self.wrenches + step[6:].reshape(3, 6))
+
+
+def _solved(state: _State) -> List[SolveResult]:
+    """Return the legs solved under ``state`` (a residual is only taken after solving them)."""
+    if state.legs is None:
+        raise RuntimeError('the legs have not been solved under this state')
+    return state.legs
 
 
 @dataclass
@@ -256,7 +329,8 @@ class DeltaRobot:
         self._leg_solves = 0
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
-        self._lu = None
+        self._lu: Optional[tuple] = None
+        self._inverse = InverseSolver(self)
 
     @classmethod
     def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH,
@@ -273,6 +347,7 @@ class DeltaRobot:
         """Forget the previous solution: the next solve starts from home."""
         self._previous = None
         self._lu = None
+        self._inverse.reset()
         for solver in self.leg_solvers:
             solver.reset()
 
@@ -280,13 +355,15 @@ class DeltaRobot:
     def solve(self, sliders: Sequence[float], payload_force: Sequence[float],
               payload_moment: Sequence[float] = (0.0, 0.0, 0.0),
               payload_offset: Sequence[float] = (0.0, 0.0, 0.0),
-              warm_start: bool = True) -> DeltaResult:
+              warm_start: bool = True, compliance: bool = False) -> DeltaResult:
         """
         Solve the platform pose for slider positions (m) and a payload on the platform.
 
         ``payload_force`` (N) and ``payload_moment`` (N m) are in {w}; the force acts at
         ``payload_offset`` (m), a point fixed in the platform frame {p} (default: the
-        platform origin). Bad input raises ValueError; non-convergence is a result.
+        platform origin). ``compliance`` adds the platform compliance, the input
+        sensitivity and the stability verdict (see DeltaResult; three more leg solves).
+        Bad input raises ValueError; non-convergence is a result.
         """
         offset = np.asarray(payload_offset, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
@@ -303,7 +380,61 @@ class DeltaRobot:
             outcome = self._continuation(inputs)
         if outcome.converged:
             self._previous = (outcome.state, inputs)
-        return self._result(outcome, inputs, time.perf_counter() - started)
+        result = self._result(outcome, inputs, time.perf_counter() - started)
+        if compliance and outcome.converged:
+            with np.errstate(over='ignore', invalid='ignore'):
+                self._linearize(result, outcome.state, inputs)
+            result.solve_time_s = time.perf_counter() - started
+            result.leg_solves = self._leg_solves
+        return result
+
+    def _linearize(self, result: DeltaResult, state: _State, inputs: np.ndarray) -> None:
+        """Add the compliance, input sensitivity and stability verdict to ``result``."""
+        try:
+            jacobian = self._jacobian(state, inputs)
+            lu = lu_factor(jacobian / self._r_scale[:, None] * self._x_scale[None, :],
+                           check_finite=False)
+            right = np.zeros((SIZE, 18))
+            right[:, :12] = self._input_sensitivity(state, inputs)
+            right[18:, 12:] = np.eye(6)
+            solved = -self._x_scale[:6, None] * lu_solve(
+                lu, right / self._r_scale[:, None], check_finite=False)[:6]
+        except (_Deadline, _LegFailure, np.linalg.LinAlgError, ValueError) as error:
+            result.stable = False
+            result.message += f'; no platform compliance: {error}'
+            return
+        if not np.all(np.isfinite(solved)):
+            result.stable = False
+            result.message += '; no platform compliance: the Newton Jacobian is singular'
+            return
+        result.input_sensitivity = solved[:, :12]
+        result.platform_compliance = solved[:, 12:]
+        scale = np.concatenate([np.ones(3), np.full(3, 1.0 / self.params.stack_height)])
+        try:
+            stiffness = np.linalg.inv(result.platform_compliance)
+        except np.linalg.LinAlgError:
+            result.stable = False
+            result.message += '; the platform compliance is singular'
+            return
+        scaled = scale[:, None] * stiffness * scale[None, :]
+        result.stiffness_margin = float(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[0])
+        result.stable = bool(result.stiffness_margin > 0.0)
+
+    def inverse(self, platform_position: ArrayLike,
+                payload_force: ArrayLike = (0.0, 0.0, 0.0),
+                payload_moment: ArrayLike = (0.0, 0.0, 0.0),
+                payload_offset: ArrayLike = (0.0, 0.0, 0.0),
+                warm_start: bool = True) -> InverseResult:
+        """
+        Inverse statics: slider positions putting the platform origin at ``platform_position``.
+
+        Target in m in {w}, payload as in ``solve``. Successive calls warm-start along a
+        path; the sliders stay within the stroke. An unreachable target is a result
+        (``reachable`` False) at the nearest reachable point, naming the binding stroke
+        limits; bad input raises ValueError. See cdr_translator.robot.inverse.
+        """
+        return self._inverse.solve(platform_position, payload_force, payload_moment,
+                                   payload_offset, warm_start)
 
     # continuation ----------------------------------------------------------------------------
     def _home_state(self) -> _State:
@@ -321,11 +452,13 @@ class DeltaRobot:
         dx = -J^-1 (dr/du) du, and Newton corrects it; a failed step is halved, a good one
         doubled.
         """
+        if self._previous is None:
+            raise RuntimeError('continuation needs a previous solution')
         state, start = self._previous
         lu = self._lu
         done, step, iterations = 0.0, 1.0, 0
         current = start
-        outcome = None
+        outcome: Optional[_Outcome] = None
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
@@ -351,6 +484,8 @@ class DeltaRobot:
                                    f'sliders and payload: {outcome.message}')
                 return outcome
         self._lu = lu
+        if outcome is None:  # cannot happen: the loop runs at least once
+            raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
         return outcome
 
@@ -366,10 +501,10 @@ class DeltaRobot:
         residual-norm test rejects far from the solution.
         """
         try:
-            self._solve_legs(state)
+            legs = self._solve_legs(state)
         except _Deadline as error:
             return _Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), lu)
-        if not all(leg.converged for leg in state.legs):
+        if not all(leg.converged for leg in legs):
             return _Outcome(state, np.full(SIZE, np.inf), 0, False,
                             'a leg did not converge at the predicted wrenches', lu)
         residual = self._residual(state, inputs)
@@ -416,8 +551,7 @@ class DeltaRobot:
         scale = 1.0
         for _ in range(10):
             trial = state.moved(scale * self._x_scale * step)
-            self._solve_legs(trial)
-            if all(leg.converged for leg in trial.legs):
+            if all(leg.converged for leg in self._solve_legs(trial)):
                 residual = self._residual(trial, inputs)
                 simplified = lu_solve(lu, residual / self._r_scale, check_finite=False)
                 contraction = float(np.linalg.norm(simplified)) / norm
@@ -433,9 +567,11 @@ class DeltaRobot:
                     and np.abs(compatibility[:, 1]).max() <= self.rotation_tolerance)
 
     # legs ------------------------------------------------------------------------------------
-    def _solve_legs(self, state: _State) -> None:
-        """Solve each leg under its wrench (warm-started) and store the results in ``state``."""
-        state.legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
+    def _solve_legs(self, state: _State) -> List[SolveResult]:
+        """Solve each leg under its wrench (warm-started); store the results in ``state`` too."""
+        legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
+        state.legs = legs
+        return legs
 
     def _solve_leg(self, k: int, wrench: np.ndarray, compliance: bool = False) -> SolveResult:
         remaining = self._deadline - time.perf_counter()
@@ -482,7 +618,7 @@ class DeltaRobot:
         sliders, force, moment, offset = inputs[:3], inputs[3:6], inputs[6:9], inputs[9:]
         residual = np.empty(SIZE)
         for k, (rotation, position) in enumerate(self._targets(state, sliders)):
-            frame = state.legs[k].frames['de']
+            frame = _solved(state)[k].frames['de']
             residual[6 * k:6 * k + 3] = frame[:3, 3] - position
             residual[6 * k + 3:6 * k + 6] = _rotation_vector(frame[:3, :3] @ rotation.T)
         forces, arms = self._reactions(state)

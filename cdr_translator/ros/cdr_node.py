@@ -7,7 +7,11 @@ the platform origin, in the world frame), both with sensor-data QoS, and publish
 reliable with depth 10, ``platform_pose``, ``leg_bending_angles``, ``leg_tip_wrenches``
 and ``/diagnostics`` (cdr_messages defines their content). Every accepted input triggers a
 solve with the latest value of the other (sliders at home and no payload until the first
-message of each). The translator node's parts do the rest: the latest-wins mailbox and
+message of each). Inverse statics: ``target_position`` (geometry_msgs/PointStamped, world
+frame, sensor-data QoS) is solved under the latest payload and answered on
+``slider_command`` (sensor_msgs/JointState) and ``predicted_platform_pose``, warm-started
+along the path of targets; an unreachable target is an ERROR diagnostic (no command).
+The translator node's parts do the rest: the latest-wins mailbox and
 solver thread pattern, message filling, MCAP log thread and ``run`` loop (runtime.py); the
 parameters are CdrSettings' (cdr_translator.interface.settings).
 """
@@ -17,7 +21,7 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PointStamped, WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -27,13 +31,15 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from .parameters import descriptor, ros_parameter_sources
-from .runtime import check_parameters, fill_message, LatestMailbox, open_log, OUTPUTS, run
+from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
 from .runtime import SHUTDOWN_JOIN_S, type_name
 from ..interface import cdr_messages, messages
 from ..interface.processing import check_magnitude
 from ..interface.settings import CDR_SPECS, CdrSettings
 from ..params import DEFAULT_PARAMS_PATH
 from ..robot.delta import DeltaRobot
+from ..robot.inverse import check_target
 from ..robot.params import CDR_NODE_NAME, check_sliders
 from ..solver import check_wrench
 
@@ -43,7 +49,12 @@ CDR_OUTPUTS = {
     cdr_messages.LEG_ANGLES_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
     cdr_messages.LEG_WRENCHES_TOPIC: OUTPUTS[messages.COMPLIANCE_TOPIC],
     cdr_messages.DIAGNOSTICS_TOPIC: OUTPUTS[messages.DIAGNOSTICS_TOPIC],
+    cdr_messages.SLIDER_COMMAND_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
+    cdr_messages.PREDICTED_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
 }
+
+#: Mailbox item kinds: a forward solve (sliders) or an inverse one (target position).
+FORWARD, INVERSE = 'forward', 'inverse'
 
 
 class CdrNode(Node):
@@ -80,21 +91,28 @@ class CdrNode(Node):
                                                                   reliable)
                                      for topic, message_class in CDR_OUTPUTS.items()}
         self._mailbox = LatestMailbox()
-        self.robot.solve(self._sliders, (0.0, 0.0, -1.0))  # loads the compiled kernels
+        # loads the compiled kernels, the compliance's too (inverse statics use it)
+        self.robot.solve(self._sliders, (0.0, 0.0, -1.0), compliance=True)
         self.robot.reset()
         inputs = {cdr_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
-                  cdr_messages.SLIDERS_TOPIC: JointState}
+                  cdr_messages.SLIDERS_TOPIC: JointState,
+                  cdr_messages.TARGET_TOPIC: PointStamped}
         topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
                   for topic, message_class in inputs.items()]
         topics += [(publisher.topic_name, type_name(CDR_OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
         self._log, self.mcap_path = open_log(self._settings, 'cdr', topics)
+        self._log_watch = LogWatch(self._log) if self._log is not None else None
+        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
+                           if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._subscriptions = [
             self.create_subscription(WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC,
                                      self._on_wrench, qos_profile_sensor_data, raw=True),
             self.create_subscription(JointState, cdr_messages.SLIDERS_TOPIC, self._on_sliders,
+                                     qos_profile_sensor_data, raw=True),
+            self.create_subscription(PointStamped, cdr_messages.TARGET_TOPIC, self._on_target,
                                      qos_profile_sensor_data, raw=True)]
         self.get_logger().info(
             f'ready: {", ".join(s.topic_name for s in self._subscriptions)} -> '
@@ -111,6 +129,11 @@ class CdrNode(Node):
         self._settings = self._settings.with_values(
             **{parameter.name: parameter.value for parameter in parameters})
         self.robot.time_limit_s = self._settings.solve_time_limit_s
+
+    def _check_log(self) -> None:
+        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
+        self._publish(log_health(self._log_watch, self.get_logger(), CDR_NODE_NAME,
+                                 self._counts()))
 
     # input -----------------------------------------------------------------------------------
     def _log_input(self, index: int, data: bytes, info: dict) -> None:
@@ -138,7 +161,7 @@ class CdrNode(Node):
             return
         with self._inputs_lock:
             self._payload = (force, moment)
-            self._mailbox.put((stamp, self._sliders, force, moment))
+            self._mailbox.put((FORWARD, stamp, self._sliders, force, moment))
 
     def _on_sliders(self, data: bytes, info: dict) -> None:
         """Log the slider positions as received; reject them with a diagnostic or solve."""
@@ -154,7 +177,24 @@ class CdrNode(Node):
             return
         with self._inputs_lock:
             self._sliders = sliders
-            self._mailbox.put((stamp, sliders, *self._payload))
+            self._mailbox.put((FORWARD, stamp, sliders, *self._payload))
+
+    def _on_target(self, data: bytes, info: dict) -> None:
+        """Log the target as received; reject it with a diagnostic or solve the inverse."""
+        self._log_input(2, data, info)
+        target, frame_id, stamp = cdr_messages.target_from_point(
+            deserialize_message(data, PointStamped))
+        world = self._settings.world_frame
+        try:
+            if frame_id not in ('', world):
+                raise ValueError(f'target frame_id {frame_id!r} is not the world frame '
+                                 f'{world!r} (no tf here)')
+            check_target(target)
+        except ValueError as error:
+            self._reject(stamp, 'target', error)
+            return
+        with self._inputs_lock:
+            self._mailbox.put((INVERSE, stamp, target, *self._payload))
 
     def _reject(self, stamp: dict, what: str, error: Exception) -> None:
         self.rejected += 1
@@ -169,9 +209,12 @@ class CdrNode(Node):
             item = self._mailbox.take()
             if item is None:
                 return
-            stamp, sliders, force, moment = item
+            kind, stamp, inputs, force, moment = item
             try:
-                result = self.robot.solve(sliders, force, moment)
+                if kind == INVERSE:
+                    self._answer_target(stamp, inputs, force, moment)
+                    continue
+                result = self.robot.solve(inputs, force, moment)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
                 self.get_logger().error(f'solver thread: {error!r}')
@@ -187,11 +230,25 @@ class CdrNode(Node):
             self._publish(cdr_messages.output_messages(
                 result, stamp, self._settings.world_frame, self._counts()))
 
+    def _answer_target(self, stamp: dict, target: np.ndarray, force: np.ndarray,
+                       moment: np.ndarray) -> None:
+        """Solve the inverse statics for ``target`` and publish the command or the reason."""
+        result = self.robot.inverse(target, force, moment)
+        if result.converged and result.reachable:
+            self.solved += 1
+        else:
+            self.failed += 1
+            self.get_logger().error(f'target not reached: {result.message}',
+                                    throttle_duration_sec=1.0)
+        self._publish(cdr_messages.inverse_output_messages(
+            result, stamp, self._settings.world_frame, self._counts()))
+
     # output ----------------------------------------------------------------------------------
     def _counts(self) -> Dict[str, int]:
         """Return the running message counts reported with every diagnostic."""
         return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
+                **log_lost(getattr(self, '_log', None))}
 
     def _publish(self, built: Sequence[Tuple[str, str, dict]]) -> None:
         """Fill, publish and queue for the MCAP log the (topic, type, dict) of cdr_messages."""
@@ -209,10 +266,15 @@ class CdrNode(Node):
             self.destroy_subscription(subscription)
         self._mailbox.close()
         self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log_timer is not None:
+            self.destroy_timer(self._log_timer)
         if self._log is not None:
             self._log.close()
-            self.get_logger().info(f'MCAP log {self.mcap_path} closed: {self._log.written} '
-                                   f'records ({self._log.errors} failed)')
+            complete, line = self._log.closing_line()
+            if complete:
+                self.get_logger().info(line)
+            else:
+                self.get_logger().error(line)
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:

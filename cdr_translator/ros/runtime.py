@@ -17,11 +17,11 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
-from msg_tools.mcap_log import McapLog
+from msg_tools.mcap_log import LogStatus, McapLog
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -53,6 +53,9 @@ SHUTDOWN_JOIN_S = 5.0
 #: Records the MCAP log thread may hold before a producer waits (never dropped, never
 #: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
 LOG_QUEUE_CAPACITY = 20000
+
+#: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
+LOG_CHECK_PERIOD_S = 1.0
 
 
 class LatestMailbox:
@@ -149,6 +152,13 @@ class LogThread:
     waits rather than drop a record. The McapLog itself flushes completed chunks every N
     messages and T seconds. ``enqueue_wait_s`` and ``write_time_s`` measure whether logging
     ever holds up the solver.
+
+    Log times never go back on a channel (what MCAP readers and ``mcap doctor`` expect): a
+    record whose log time is earlier than the previous one of its topic (two producer
+    threads, or rmw receive stamps out of step) is written with that previous time and
+    counted in ``reordered``. Write errors do not stop the thread: the McapLog counts what
+    it could not write (``status()``), ``errors`` counts records that could not even be
+    serialized.
     """
 
     def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY) -> None:
@@ -158,14 +168,22 @@ class LogThread:
         self.submitted = 0
         self.written = 0
         self.errors = 0
+        self.reordered = 0
         self.last_error = ''
         self.max_depth = 0
         self.enqueue_wait_s = 0.0
         self.max_enqueue_wait_s = 0.0
         self.write_time_s = 0.0
+        self._last_log_time: Dict[str, int] = {}
         self._closed = False
+        self._final: Optional[LogStatus] = None
         self._thread = threading.Thread(target=self._run, name='mcap_log', daemon=True)
         self._thread.start()
+
+    @property
+    def path(self) -> str:
+        """Return the file being written (a new one after a write error)."""
+        return str(self._log.path)
 
     def submit(self, topic: str, type_name: str, message: Any, log_time_ns: int,
                publish_time_ns: Optional[int] = None) -> None:
@@ -179,12 +197,18 @@ class LogThread:
         self.max_depth = max(self.max_depth, self._queue.qsize())
 
     def _run(self) -> None:
+        """Write queued records until the ``None`` that close() queues."""
         while True:
             record = self._queue.get()
             if record is None:
                 return
             topic, name, message, log_time_ns, publish_time_ns = record
             started = time.perf_counter()
+            previous = self._last_log_time.get(topic, 0)
+            if log_time_ns < previous:
+                log_time_ns = previous
+                self.reordered += 1
+            self._last_log_time[topic] = log_time_ns
             try:
                 data = message if isinstance(message, bytes) else serialize_message(message)
                 self._log.write_serialized(topic, name, data, log_time_ns, publish_time_ns)
@@ -194,14 +218,93 @@ class LogThread:
                 self.last_error = f'{topic}: {error}'
             self.write_time_s += time.perf_counter() - started
 
-    def close(self, timeout_s: float = 10.0) -> None:
-        """Write what is queued, then close the McapLog (summary written); idempotent."""
-        if self._closed:
-            return
+    def status(self) -> LogStatus:
+        """Return the McapLog's status: records written and lost, the last error."""
+        return self._final if self._final is not None else self._log.status()
+
+    def close(self, timeout_s: float = 10.0) -> LogStatus:
+        """Write what is queued, close the McapLog (summary written); idempotent, no raise."""
+        if self._final is not None:
+            return self._final
         self._closed = True
         self._queue.put(None)
         self._thread.join(timeout_s)
-        self._log.close()
+        self._final = self._log.close()
+        return self._final
+
+    def closing_line(self) -> Tuple[bool, str]:
+        """Return (all written, the node's closing log line) after ``close()``."""
+        status = self.status()
+        lost = status.lost + self.errors
+        text = (f'MCAP log closed: {status.written} records written, {lost} lost '
+                f'({status.lost} not written, {self.errors} not serializable) in '
+                f'{", ".join(status.files)}')
+        if status.message:
+            text += f'; {status.message}'
+        return lost == 0, text
+
+
+class LogWatch:
+    """
+    The MCAP log's health as diagnostics: ERROR while writing fails, WARN once it resumed.
+
+    ``check()`` (called about once a second) returns (level, message, values) to publish,
+    or None when there is nothing to say: nothing is published while the log is fine.
+    """
+
+    def __init__(self, log: LogThread) -> None:
+        """Watch ``log``."""
+        self.log = log
+        self._reported_lost = 0
+        self._reported_errors = 0
+        self._failing = False
+
+    def check(self) -> Optional[Tuple[int, str, Dict[str, Any]]]:
+        """Return the diagnostic to publish now, if any (an error between two checks too)."""
+        status = self.log.status()
+        lost = status.lost + self.log.errors
+        values: Dict[str, Any] = {'mcap_file': status.path, 'records_written': status.written,
+                                  'records_lost': lost, 'write_errors': status.errors}
+        if not status.ok or status.errors > self._reported_errors:
+            self._failing = True
+            self._reported_lost = lost
+            self._reported_errors = status.errors
+            return messages.ERROR, f'MCAP log: {status.message}', values
+        if self._failing or lost > self._reported_lost:
+            self._failing = False
+            self._reported_lost = lost
+            text = status.message or self.log.last_error
+            return messages.WARN, f'MCAP log: {lost} records lost so far; {text}', values
+        return None
+
+
+def log_health(watch: Optional[LogWatch], logger: Any, node_name: str,
+               counts: Mapping[str, Any]) -> List[Tuple[str, str, dict]]:
+    """
+    Check the MCAP log (a node's timer work); return the diagnostic to publish, if any.
+
+    The status is named '<node_name>: mcap_log'; ERROR is also logged (throttled), WARN
+    once. ``counts`` (the node's running counts) are added to its values.
+    """
+    found = watch.check() if watch is not None else None
+    if found is None:
+        return []
+    level, text, values = found
+    if level == messages.ERROR:
+        logger.error(text, throttle_duration_sec=10.0)
+    else:
+        logger.warning(text)
+    return [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
+             messages.diagnostics_message(messages.stamp_from_ns(time.time_ns()), level, text,
+                                          {**values, **counts},
+                                          name=f'{node_name}: mcap_log'))]
+
+
+def log_lost(log: Optional[LogThread]) -> Dict[str, int]:
+    """Return ``{'log_records_lost': N}`` for a node's diagnostics ({} without a log)."""
+    if log is None:
+        return {}
+    return {'log_records_lost': log.status().lost + log.errors}
 
 
 def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[Any],
@@ -230,20 +333,24 @@ def open_log(settings: Any, prefix: str,
     Open a node's MCAP log and its writer thread; (None, '') when logging is off.
 
     ``settings`` has log_to_mcap, mcap_path, log_dir, mcap_flush_messages and mcap_flush_s;
-    an empty mcap_path names the file <log_dir>/<prefix>_<UTC time>_<pid>.mcap. ``topics``
-    are (resolved name, type name, 'sensor_data' or 'reliable') to register up front.
+    an empty mcap_path names the file <log_dir>/<prefix>_<UTC time>_<pid>.mcap (another
+    free name if that exists). A given mcap_path is created exclusively: an existing file
+    (an earlier run's log) or one another writer holds is an OSError naming it (and the
+    holder's PID), which ``run`` turns into exit code 2. ``topics`` are (resolved name, type
+    name, 'sensor_data' or 'reliable') to register up front. The path returned is the file
+    actually written.
     """
     if not settings.log_to_mcap:
         return None, ''
     path = Path(settings.mcap_path) if settings.mcap_path else (
         Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
             f'{prefix}_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
-    path.parent.mkdir(parents=True, exist_ok=True)
     log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
-                  flush_every_s=settings.mcap_flush_s)
+                  flush_every_s=settings.mcap_flush_s,
+                  if_exists='fail' if settings.mcap_path else 'rename')
     for topic, name, qos in topics:
         log.register(topic, name, qos=qos)
-    return LogThread(log), str(path)
+    return LogThread(log), str(log.path)
 
 
 def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None) -> int:

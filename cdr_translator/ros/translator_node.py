@@ -27,8 +27,9 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from .parameters import descriptor, ros_parameter_sources, SPECS
-from .runtime import check_parameters, fill_message, LatestMailbox, LogThread, open_log, OUTPUTS
-from .runtime import run, SHUTDOWN_JOIN_S, type_name
+from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
+from .runtime import SHUTDOWN_JOIN_S, type_name
 from ..fidelity import FidelitySolver
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
@@ -74,6 +75,9 @@ class TranslatorNode(Node):
         self._mailbox = LatestMailbox()
         self._warm_up()
         self._log, self.mcap_path = self._open_log()
+        self._log_watch = LogWatch(self._log) if self._log is not None else None
+        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
+                           if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._subscription = self.create_subscription(
@@ -109,6 +113,11 @@ class TranslatorNode(Node):
         topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
         return open_log(self._settings, 'translator', topics)
+
+    def _check_log(self) -> None:
+        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
+        self._publish_all(_filled(log_health(self._log_watch, self.get_logger(), NODE_NAME,
+                                             self._counts())))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes, info: dict) -> None:
@@ -175,7 +184,8 @@ class TranslatorNode(Node):
     def _counts(self) -> Dict[str, int]:
         """Return the running message counts reported with every diagnostic."""
         return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                'not_converged': self.failed, 'skipped': self._mailbox.skipped}
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
+                **log_lost(getattr(self, '_log', None))}
 
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
@@ -200,15 +210,21 @@ class TranslatorNode(Node):
         self.destroy_subscription(self._subscription)
         self._mailbox.close()
         self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log_timer is not None:
+            self.destroy_timer(self._log_timer)
         if self._log is not None:
-            self._log.close()
             log = self._log
-            self.get_logger().info(
-                f'MCAP log {self.mcap_path} closed: {log.written} records ({log.errors} '
-                f'failed); handing a record to the log thread took '
-                f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
-                f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
-                f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record')
+            log.close()
+            complete, line = log.closing_line()
+            text = (f'{line}; handing a record to the log thread took '
+                    f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
+                    f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
+                    f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record; '
+                    f'{log.reordered} log times held back to keep each channel in order')
+            if complete:
+                self.get_logger().info(text)
+            else:
+                self.get_logger().error(text)
 
 
 def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:

@@ -12,7 +12,8 @@ through discretization error, :func:`run_case` can re-solve it on a finer grid
 :func:`critical_compression` finds the axial buckling load of the straight translator
 (where the shooting Jacobian becomes singular) and :func:`euler_critical_load` gives the
 closed-form Euler estimate of the same structure. ``bench/hard_cases.py`` runs it all and
-writes the README table; ``tests/test_hard_cases.py`` runs the quick cases.
+writes bench/results/hard_cases.md and the summary in docs/hard_cases.md;
+``tests/studies/test_hard_cases.py`` runs the quick cases.
 """
 
 from dataclasses import dataclass
@@ -257,7 +258,7 @@ def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[b
     structure's stiffness crossing zero anywhere makes the Jacobian singular; an odd number
     of such crossings flips the determinant's sign, which catches internal modes the end
     disk does not feel. A symmetric pair of internal crossings would escape the second test
-    (the four-fold symmetry allows one); that limit is stated in the README.
+    (the four-fold symmetry allows one); that limit is stated in docs/hard_cases.md.
     """
     if not result.converged:
         return None, 'not converged'

@@ -16,12 +16,11 @@ from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import InputSettings, WrenchProcessor
 from cdr_translator.params import DEFAULT_PARAMS_PATH
+from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.reader import make_reader
-from mcap.writer import Writer
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
 from msg_tools.__main__ import main
-from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay, ReplayError
@@ -58,21 +57,7 @@ def _run(*args, no_ros=False, timeout=300):
     return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
 
 
-def _chunked(path, count=40, every=10):
-    """Write ``count`` wrenches in chunks of ``every`` messages; return the stamps (ns)."""
-    stamps = [synth.DEFAULT_START_NS + 10_000_000 * k for k in range(count)]
-    with McapLog(path, flush_every_messages=every, flush_every_s=0.0) as log:
-        for k, stamp in enumerate(stamps):
-            log.write('/wrench', messages.WRENCH_TYPE, messages.wrench_message(
-                [0.2 * k, 0.0, 0.0], [0.0, 0.0, 0.0], '', messages.stamp_from_ns(stamp)),
-                log_time_ns=stamp)
-    return stamps
-
-
-def _chunk_offsets(path):
-    with open(path, 'rb') as stream:
-        indexes = make_reader(stream).get_summary().chunk_indexes
-    return sorted((i.chunk_start_offset, i.chunk_length) for i in indexes)
+_chunked, _chunk_offsets = write_chunked, chunk_offsets
 
 
 # ---------------------------------------------------------------------------- reader
@@ -292,15 +277,7 @@ def test_missing_topic_and_wrong_schema(tmp_path, capsys):
 def test_undecodable_messages_are_counted(tmp_path):
     """A channel called WrenchStamped whose definition is something else: counted, skipped."""
     bag = tmp_path / 'odd.mcap'
-    with open(bag, 'wb') as stream:
-        writer = Writer(stream)
-        writer.start(profile='ros2')
-        schema = writer.register_schema(messages.WRENCH_TYPE, 'ros2msg', b'int32 a')
-        channel = writer.register_channel('/wrench', 'cdr', schema)
-        for k in range(3):
-            writer.add_message(channel, log_time=k, publish_time=k,
-                               data=b'\x00\x01\x00\x00' + k.to_bytes(4, 'little'))
-        writer.finish()
+    write_undecodable(bag, 3)
     summary = replay(bag, tmp_path / 'out.mcap', compliance=False)
     assert (summary.messages, summary.undecodable, summary.solved) == (3, 3, 0)
     assert 'cannot' in summary.warnings[0] or 'has no attribute' in summary.warnings[0]

@@ -1,5 +1,6 @@
 """cdr_node: its message dicts without ROS, then the node over real DDS (own domain)."""
 
+from contextlib import contextmanager
 import math
 import os
 import signal
@@ -11,7 +12,7 @@ from cdr_translator.interface import messages
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, WrenchStamped
 from mcap.reader import make_reader
 import numpy as np
 import pytest
@@ -90,11 +91,15 @@ class Client:
                                                   qos_profile_sensor_data)
         self.wrench = self.node.create_publisher(
             WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC, qos_profile_sensor_data)
+        self.target = self.node.create_publisher(PointStamped, cdr_messages.TARGET_TOPIC,
+                                                 qos_profile_sensor_data)
         self.received = {}
         reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         outputs = {cdr_messages.PLATFORM_POSE_TOPIC: PoseStamped,
                    cdr_messages.LEG_ANGLES_TOPIC: JointState,
-                   cdr_messages.DIAGNOSTICS_TOPIC: DiagnosticArray}
+                   cdr_messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+                   cdr_messages.SLIDER_COMMAND_TOPIC: JointState,
+                   cdr_messages.PREDICTED_POSE_TOPIC: PoseStamped}
         for topic, message_class in outputs.items():
             self.node.create_subscription(
                 message_class, topic,
@@ -109,13 +114,20 @@ class Client:
                 if (message.header.stamp.sec, message.header.stamp.nanosec)
                 == (stamp['sec'], stamp['nanosec'])]
 
-    def send_until_answered(self, publish, timeout_s):
-        """Publish (best effort) every 0.25 s until a diagnostic answers; return the stamp."""
+    def send_until_answered(self, publish, timeout_s, period_s=0.25, same_stamp=False):
+        """
+        Publish (best effort) every ``period_s`` until a diagnostic answers; return the stamp.
+
+        Each publication gets a new stamp, or (``same_stamp``, for solves slower than the
+        period) they all carry the first one.
+        """
         deadline = time.monotonic() + timeout_s
+        stamp = messages.stamp_from_ns(time.time_ns())
         while time.monotonic() < deadline:
-            stamp = messages.stamp_from_ns(time.time_ns())
+            if not same_stamp:
+                stamp = messages.stamp_from_ns(time.time_ns())
             publish(stamp)
-            answer_by = time.monotonic() + 0.25
+            answer_by = time.monotonic() + period_s
             while time.monotonic() < answer_by:
                 self.executor.spin_once(timeout_sec=0.05)
                 if self.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp):
@@ -137,6 +149,23 @@ class Client:
         message.wrench.force.x, message.wrench.force.y, message.wrench.force.z = force
         self.wrench.publish(message)
 
+    def publish_target(self, target, stamp, frame_id=''):
+        """Publish a target_position PointStamped."""
+        message = PointStamped()
+        message.header.stamp.sec, message.header.stamp.nanosec = stamp['sec'], stamp['nanosec']
+        message.header.frame_id = frame_id
+        message.point.x, message.point.y, message.point.z = (float(v) for v in target)
+        self.target.publish(message)
+
+    def wait_for(self, topic, stamp, timeout_s):
+        """Spin until a message of ``topic`` stamped ``stamp`` came; return it."""
+        deadline = time.monotonic() + timeout_s
+        while not self.stamped(topic, stamp) and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+        found = self.stamped(topic, stamp)
+        assert found, f'no {topic} stamped {stamp} in {timeout_s} s'
+        return found[0]
+
     def close(self):
         """Shut the context down."""
         self.executor.shutdown(timeout_sec=1.0)
@@ -144,15 +173,14 @@ class Client:
         rclpy.try_shutdown(context=self.context)
 
 
-def diagnostic(client, stamp):
-    """Return (level, message, values) of the diagnostic answering ``stamp``."""
-    status = client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp)[0].status[0]
-    return (status.level[0] if isinstance(status.level, bytes) else status.level,
-            status.message, {pair.key: pair.value for pair in status.values})
+@contextmanager
+def node_session(tmp_path):
+    """
+    Start cdr_node (MCAP log in ``tmp_path``) in its own ROS domain and a Client for it.
 
-
-def test_node_round_trip(tmp_path, solved):
-    """Sliders then a payload in; the pose equals the library's; bad input; clean SIGINT."""
+    Yield (node, client, mcap path); afterwards close the client, kill the node if it still
+    runs and restore the environment.
+    """
     env = isolated_ros_env()
     saved = {key: os.environ.get(key) for key in env}
     os.environ.update(env)
@@ -161,6 +189,36 @@ def test_node_round_trip(tmp_path, solved):
     client = None
     try:
         client = Client()
+        yield node, client, mcap
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def topic_counts(mcap):
+    """Return {topic: message count} of a finalized MCAP file."""
+    with open(mcap, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    counts = summary.statistics.channel_message_counts
+    return {summary.channels[channel].topic: count for channel, count in counts.items()}
+
+
+def diagnostic(client, stamp):
+    """Return (level, message, values) of the (last) diagnostic answering ``stamp``."""
+    status = client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp)[-1].status[0]
+    return (status.level[0] if isinstance(status.level, bytes) else status.level,
+            status.message, {pair.key: pair.value for pair in status.values})
+
+
+def test_node_round_trip(tmp_path, solved):
+    """Sliders then a payload in; the pose equals the library's; bad input; clean SIGINT."""
+    with node_session(tmp_path) as (node, client, mcap):
         client.send_until_answered(
             lambda stamp: client.publish_sliders((0.002, 0.01, -0.005), stamp,
                                                  ('slider_3', 'slider_1', 'slider_2')),
@@ -190,20 +248,82 @@ def test_node_round_trip(tmp_path, solved):
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and "'elsewhere' is not the world frame" in text
         assert node.stop(signal.SIGINT) == 0, node.text()
-    finally:
-        if client is not None:
-            client.close()
-        node.kill()
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-    with open(mcap, 'rb') as stream:
-        summary = make_reader(stream).get_summary()
-    topics = {channel.topic for channel in summary.channels.values()}
+    by_topic = topic_counts(mcap)
     assert {'/sliders', '/platform_wrench', '/platform_pose', '/leg_bending_angles',
-            '/leg_tip_wrenches', '/diagnostics'} <= topics
-    counts = summary.statistics.channel_message_counts
-    by_topic = {summary.channels[channel].topic: count for channel, count in counts.items()}
+            '/leg_tip_wrenches', '/diagnostics'} <= set(by_topic)
     assert by_topic['/platform_pose'] >= 2 and by_topic['/sliders'] >= 2
+
+
+def test_inverse_output_messages():
+    """A reached target: command and predicted pose; unreachable: an ERROR only."""
+    robot = DeltaRobot()
+    target = robot.solve((0.004, -0.002, 0.001), (0.0, 0.0, -9.81)).platform_position
+    stamp = {'sec': 3, 'nanosec': 4}
+    reached = robot.inverse(target, (0.0, 0.0, -9.81))
+    built = {topic: message for topic, _, message in
+             cdr_messages.inverse_output_messages(reached, stamp, 'world')}
+    assert set(built) == {cdr_messages.SLIDER_COMMAND_TOPIC, cdr_messages.PREDICTED_POSE_TOPIC,
+                          cdr_messages.DIAGNOSTICS_TOPIC}
+    command = built[cdr_messages.SLIDER_COMMAND_TOPIC]
+    assert command['name'] == list(cdr_messages.SLIDER_NAMES)
+    assert np.allclose(command['position'], [0.004, -0.002, 0.001], atol=1e-8)
+    pose = built[cdr_messages.PREDICTED_POSE_TOPIC]['pose']['position']
+    assert np.allclose([pose[axis] for axis in 'xyz'], target, atol=1e-9)
+    unreachable = robot.inverse((0.0, 0.0, -0.3), (0.0, 0.0, -9.81))
+    built = cdr_messages.inverse_output_messages(unreachable, stamp, 'world')
+    assert [topic for topic, _, _ in built] == [cdr_messages.DIAGNOSTICS_TOPIC]
+    status = built[0][2]['status'][0]
+    assert status['level'] == messages.ERROR and 'unreachable' in status['message']
+    assert status['name'] == cdr_messages.INVERSE_DIAGNOSTIC_NAME
+    point = cdr_messages.point_message(target, stamp, 'world')
+    parsed, frame_id, parsed_stamp = cdr_messages.target_from_point(point)
+    assert parsed.tolist() == target.tolist() and frame_id == 'world' and parsed_stamp == stamp
+
+
+def test_node_inverse_round_trip(tmp_path):
+    """
+    Inverse statics over DDS: target in, slider command and predicted pose out.
+
+    The commanded sliders, sent back, put the platform at the target (forward(inverse(x))
+    = x within 1e-6 m); an unreachable or bad target is an ERROR with no command.
+    """
+    payload = (0.5, -0.5, -9.81)
+    true_sliders = np.array([0.008, -0.004, 0.012])
+    target = DeltaRobot().solve(true_sliders, payload).platform_position
+    with node_session(tmp_path) as (node, client, mcap):
+        client.send_until_answered(lambda stamp: client.publish_wrench(payload, stamp),
+                                   START_TIMEOUT_S)
+        stamp = client.send_until_answered(
+            lambda stamp: client.publish_target(target, stamp, 'cdr_base'), ANSWER_TIMEOUT_S,
+            period_s=1.0, same_stamp=True)
+        command = client.wait_for(cdr_messages.SLIDER_COMMAND_TOPIC, stamp, ANSWER_TIMEOUT_S)
+        predicted = client.wait_for(cdr_messages.PREDICTED_POSE_TOPIC, stamp, ANSWER_TIMEOUT_S)
+        assert list(command.name) == list(cdr_messages.SLIDER_NAMES)
+        assert np.allclose(command.position, true_sliders, atol=1e-7)
+        position = predicted.pose.position
+        assert np.allclose([position.x, position.y, position.z], target, atol=1e-9)
+        level, _, values = diagnostic(client, stamp)
+        assert level == messages.OK and values['reachable'] == 'true'
+        # the command, sent back as slider positions, puts the platform at the target
+        forward = client.send_until_answered(
+            lambda stamp: client.publish_sliders(command.position, stamp), ANSWER_TIMEOUT_S)
+        pose = client.wait_for(cdr_messages.PLATFORM_POSE_TOPIC, forward, ANSWER_TIMEOUT_S)
+        reached = [pose.pose.position.x, pose.pose.position.y, pose.pose.position.z]
+        assert np.linalg.norm(np.array(reached) - target) < 1e-6
+        # unreachable: an ERROR naming the binding limits, no command
+        far = client.send_until_answered(
+            lambda stamp: client.publish_target((0.0, 0.0, -0.3), stamp), ANSWER_TIMEOUT_S,
+            period_s=5.0, same_stamp=True)
+        level, text, values = diagnostic(client, far)
+        assert level == messages.ERROR and 'unreachable' in text and 'stroke limit' in text
+        assert values['reachable'] == 'false'
+        assert not client.stamped(cdr_messages.SLIDER_COMMAND_TOPIC, far)
+        bad = client.send_until_answered(
+            lambda stamp: client.publish_target((0.0, math.nan, -0.1), stamp),
+            ANSWER_TIMEOUT_S)
+        level, text, _ = diagnostic(client, bad)
+        assert level == messages.ERROR and 'target y coordinate is nan' in text
+        assert node.stop(signal.SIGINT) == 0, node.text()
+    by_topic = topic_counts(mcap)
+    assert by_topic['/target_position'] >= 3
+    assert by_topic['/slider_command'] >= 1 and by_topic['/predicted_platform_pose'] >= 1

@@ -6,14 +6,13 @@ A partial file or a ``/**:`` one is taken key by key over the shipped defaults b
 integer where ROS declares a double stops all three with exit code 2 and the same message.
 """
 
-import os
 from pathlib import Path
 import subprocess
 import sys
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages
-from cdr_translator.ros.client import isolated_ros_env, NodeProcess, TranslatorClient
+from cdr_translator.ros.client import NodeProcess, TranslatorClient
 import numpy as np
 import pytest
 import yaml
@@ -36,21 +35,6 @@ BAD = {
                 'max_force must be a double, got integer 50 (write 50.0)'),
 }
 FORCE = (6.0, 0.0, 0.0)
-
-
-@pytest.fixture(scope='module')
-def ros_env():
-    """Give this module its own DDS domain, limited to this machine (for the client too)."""
-    env = isolated_ros_env()
-    keys = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
-    saved = {key: os.environ.get(key) for key in keys}
-    os.environ.update({key: env[key] for key in keys})
-    yield env
-    for key, value in saved.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
 
 
 def write(tmp_path, document):

@@ -8,7 +8,6 @@ bounded; none of the assertions depends on timing.
 """
 
 import math
-import os
 from pathlib import Path
 import signal
 import subprocess
@@ -18,12 +17,12 @@ import time
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
-from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.ros.client import MODULE_COMMAND, SCRIPT_COMMAND, TranslatorClient
+from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay
+from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -32,65 +31,9 @@ from rclpy.parameter_client import AsyncParameterClient
 from scipy.spatial.transform import Rotation
 import yaml
 
-#: The first solve may compile the kernels (cached on disk after), DDS discovery takes
-#: seconds on a loaded machine: generous bounds, never waited for in full when all is well.
-START_TIMEOUT_S = 120.0
 ROOT = Path(__file__).resolve().parents[2]
-ANSWER_TIMEOUT_S = 30.0
-POSE = messages.END_DISK_POSE_TOPIC
-ANGLES = messages.BENDING_ANGLES_TOPIC
 EIGENVALUES = messages.COMPLIANCE_EIGENVALUES_TOPIC
-DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
-
-
-@pytest.fixture(scope='module', autouse=True)
-def ros_env():
-    """Give this test module its own DDS domain, limited to this machine."""
-    env = isolated_ros_env()
-    keys = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
-    saved = {key: os.environ.get(key) for key in keys}
-    os.environ.update(env)
-    yield env
-    for key, value in saved.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
-
-
-class Running:
-    """A node process and a connected client; both are torn down on exit."""
-
-    def __init__(self, tmp_path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS),
-                 command=MODULE_COMMAND):
-        self.mcap = tmp_path / 'run.mcap'
-        self.node = NodeProcess(['-p', f'mcap_path:={self.mcap}', *ros_args], env,
-                                tmp_path / 'node.log', command)
-        self.client = None
-        try:
-            self.client = TranslatorClient(topics)
-            assert self.client.handshake(START_TIMEOUT_S), self.node.text()
-        except BaseException:
-            self.__exit__()
-            raise
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc_info):
-        if self.client is not None:
-            self.client.close()
-        self.node.kill()
-
-    def answer(self, topic, stamp):
-        """Wait for the message of ``topic`` stamped ``stamp``; return it."""
-        assert self.client.wait_for(lambda: self.client.messages_stamped(topic, stamp),
-                                    ANSWER_TIMEOUT_S), (topic, stamp, self.node.text())
-        return self.client.messages_stamped(topic, stamp)[0]
-
-    def last_diagnostic(self):
-        """Return the key/values of the last diagnostic received."""
-        return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])
+pytestmark = pytest.mark.usefixtures('ros_env')
 
 
 def pose_arrays(pose_message):

@@ -1,0 +1,326 @@
+"""
+Workspace / stiffness atlas of the Continuum Delta Robot on Dask, stored in Zarr.
+
+    python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
+                                   --out PATH.zarr [--workers K] [--scheduler ADDRESS]
+                                   [--chunk-size M] [--plot]
+
+The samples (cdr_translator.robot.samples: slider grid x payloads x params files) are cut
+into chunks of consecutive, neighbouring samples; each chunk is one Dask task,
+``samples.solve_chunk``, warm-started within the chunk. By default the tasks run on an
+in-process ``LocalCluster`` with one single-threaded worker process per core;
+``--scheduler ADDRESS`` submits them to a running Dask cluster instead (the same code on
+many machines: the workers need this package importable, and nothing else).
+
+Results come back to this process, which writes each chunk into its own region of an
+xarray Dataset in a Zarr store (dimension ``sample``; zarr chunks = atlas chunks, so region
+writes never share a zarr chunk), then marks it in ``chunk_done``. A run that is
+interrupted and started again with the same arguments opens the store, checks that it
+describes the same sweep, and computes only the chunks not marked done. At most two chunks
+per worker are in flight, so memory stays bounded on the workers, the scheduler and here,
+whatever the size of the atlas. Only this module (and the ``atlas`` command) imports
+Dask, xarray and zarr.
+"""
+
+import argparse
+import json
+import math
+import os
+from pathlib import Path
+import sys
+import time
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from .samples import (AtlasSpec, chunk_bounds, RESULT_VARIABLES, solve_chunk,
+                      workspace_volumes)
+from ..params import DEFAULT_PARAMS_PATH, ParameterError
+
+#: Exit codes of the atlas command (as the other commands').
+EXIT_CONVERGED, EXIT_BAD_INPUT, EXIT_NOT_CONVERGED = 0, 2, 3
+
+#: Chunks in flight per worker.
+IN_FLIGHT_PER_WORKER = 2
+
+#: How long to wait for a running cluster to offer a worker (s).
+WORKER_WAIT_S = 120.0
+
+#: Zarr format of new stores: 2, whose fixed-length string type (the messages) is specified.
+ZARR_FORMAT = 2
+
+#: Trailing dimension names of the result variables, by trailing shape.
+_DIMS = {(): (), (3,): ('axis',), (3, 2): ('leg', 'joint'), (3, 3): ('axis', 'slider')}
+
+
+def _result_dims(name: str) -> Tuple[str, ...]:
+    shape = RESULT_VARIABLES[name][0]
+    if name == 'leg_axial_force':
+        return ('sample', 'leg')
+    if name.startswith('compliance_eigenvalues'):
+        return ('sample', 'eigen')
+    return ('sample',) + _DIMS[shape]
+
+
+def _template(spec: AtlasSpec, chunk_size: int):
+    """Build the Dataset the store starts from: inputs written, results lazy (not computed)."""
+    import dask.array as da
+    import xarray as xr
+    inputs = spec.inputs()
+    size = spec.size
+    bounds = chunk_bounds(size, chunk_size)
+    data = {
+        'sliders': (('sample', 'slider'), inputs['sliders'],
+                    {'units': 'm', 'description': 'slider positions from home'}),
+        'payload': (('sample', 'axis'), inputs['payload'],
+                    {'units': 'N', 'description': 'force on the platform origin, {w}'}),
+        'variant': (('sample',), inputs['variant'].astype('int32'),
+                    {'description': 'index into the params_files attribute'}),
+        'grid_index': (('sample', 'slider'), inputs['grid_index'].astype('int32'),
+                       {'description': 'slider grid indices of the sample'}),
+    }
+    variables = {name: xr.Variable(dims, values, attrs)
+                 for name, (dims, values, attrs) in data.items()}
+    for name, (shape, dtype, units, description) in RESULT_VARIABLES.items():
+        lazy = da.zeros((size,) + shape, dtype=dtype, chunks=(chunk_size,) + shape)
+        attrs = {'description': description}
+        if units:
+            attrs['units'] = units
+        variables[name] = xr.Variable(_result_dims(name), lazy, attrs)
+    variables['chunk_done'] = xr.Variable(
+        ('chunk',), da.zeros(len(bounds), dtype=bool, chunks=1),
+        {'description': 'the chunk is solved and written'})
+    dataset = xr.Dataset(variables)
+    dataset.attrs.update({'atlas_spec': json.dumps(spec.to_attrs()),
+                          'chunk_size': chunk_size,
+                          'frames': 'world frame {w}: z up the robot axis, platform below',
+                          'description': 'Continuum Delta Robot atlas (cdr_translator)'})
+    return dataset
+
+
+def open_or_create(path: Path, spec: AtlasSpec, chunk_size: int) -> np.ndarray:
+    """
+    Return ``chunk_done`` of the store at ``path``, creating the store if it is not there.
+
+    A store made for another sweep or chunk size is ValueError naming the path.
+    """
+    import xarray as xr
+    if path.exists():
+        try:
+            existing = xr.open_zarr(path, consolidated=False)
+        except (OSError, ValueError, KeyError) as error:
+            raise ValueError(f'{path} exists but is not an atlas store ({error}); '
+                             'choose another --out') from error
+        if (existing.attrs.get('atlas_spec') != json.dumps(spec.to_attrs())
+                or existing.attrs.get('chunk_size') != chunk_size):
+            raise ValueError(f'{path} holds an atlas of another sweep or chunk size; choose '
+                             'another --out or repeat its arguments to resume it')
+        return existing['chunk_done'].values.astype(bool)
+    encoding = {'message': {'chunks': (chunk_size,)}}
+    _template(spec, chunk_size).to_zarr(path, mode='w-', compute=False, consolidated=False,
+                                        zarr_format=ZARR_FORMAT,
+                                        encoding=encoding)
+    return np.zeros(len(chunk_bounds(spec.size, chunk_size)), dtype=bool)
+
+
+def write_chunk(path: Path, index: int, start: int, stop: int,
+                results: Dict[str, np.ndarray]) -> None:
+    """Write one chunk's results into its region, then mark the chunk done."""
+    import xarray as xr
+    variables = {name: (_result_dims(name), values) for name, values in results.items()}
+    xr.Dataset(variables).to_zarr(path, region={'sample': slice(start, stop)},
+                                  consolidated=False)
+    xr.Dataset({'chunk_done': (('chunk',), np.ones(1, dtype=bool))}).to_zarr(
+        path, region={'chunk': slice(index, index + 1)}, consolidated=False)
+
+
+def _client(workers: Optional[int], scheduler: Optional[str]):
+    """Return a Dask client of the running cluster at ``scheduler`` or of a new LocalCluster."""
+    from distributed import Client, LocalCluster
+    if scheduler is not None:
+        client = Client(scheduler, timeout='30s')
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+        return client, None
+    count = workers if workers is not None else (os.cpu_count() or 1)
+    if count < 1:
+        raise ValueError(f'workers must be at least 1, got {count}')
+    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                           dashboard_address=None, memory_limit='2GiB')
+    return Client(cluster), cluster
+
+
+def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
+              workers: Optional[int] = None, scheduler: Optional[str] = None,
+              progress: bool = True, client=None) -> dict:
+    """
+    Compute the missing chunks of the atlas ``spec`` into the Zarr store ``out``.
+
+    The chunks run on ``client`` (a distributed.Client, left open) if given, else on the
+    cluster at ``scheduler``, else on a new LocalCluster of ``workers`` processes. Return a
+    summary: chunks total / already done / computed, samples computed, wall time (including
+    starting a cluster), samples per second, and the number of workers used.
+    """
+    chunk_size = chunk_size if chunk_size is not None else spec.grid ** 2
+    bounds = chunk_bounds(spec.size, chunk_size)
+    done = open_or_create(out, spec, chunk_size)
+    missing = [index for index, finished in enumerate(done) if not finished]
+    summary = {'chunks': len(bounds), 'already_done': len(bounds) - len(missing),
+               'computed_chunks': 0, 'computed_samples': 0, 'wall_time_s': 0.0,
+               'samples_per_s': math.nan, 'workers': 0}
+    if not missing:
+        return summary
+    from distributed import as_completed
+    from tqdm import tqdm
+    started = time.perf_counter()
+    owned = client is None
+    cluster = None
+    if owned:
+        client, cluster = _client(workers, scheduler)
+    try:
+        count = max(1, len(client.scheduler_info(n_workers=-1)['workers']))
+        summary['workers'] = count
+        pending = iter(missing)
+        window = as_completed()
+        index_of = {}
+
+        def submit() -> None:
+            index = next(pending, None)
+            if index is not None:
+                start, stop = bounds[index]
+                future = client.submit(solve_chunk, spec, start, stop, pure=False,
+                                       key=f'atlas-chunk-{index}-{time.time_ns()}')
+                index_of[future.key] = index
+                window.add(future)
+
+        for _ in range(IN_FLIGHT_PER_WORKER * count):
+            submit()
+        bar = tqdm(total=sum(bounds[i][1] - bounds[i][0] for i in missing), unit='sample',
+                   disable=not progress, file=sys.stderr, desc='atlas')
+        for future in window:
+            index = index_of.pop(future.key)
+            results = future.result()
+            future.release()
+            start, stop = bounds[index]
+            write_chunk(out, index, start, stop, results)
+            summary['computed_chunks'] += 1
+            summary['computed_samples'] += stop - start
+            bar.update(stop - start)
+            submit()
+        bar.close()
+    finally:
+        if owned:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    elapsed = time.perf_counter() - started
+    summary['wall_time_s'] = elapsed
+    summary['samples_per_s'] = summary['computed_samples'] / elapsed
+    return summary
+
+
+def load_results(out: Path) -> Tuple[AtlasSpec, Dict[str, np.ndarray]]:
+    """Read an atlas store back: its spec and every variable as a numpy array."""
+    import xarray as xr
+    dataset = xr.open_zarr(out, consolidated=False)
+    attrs = json.loads(dataset.attrs['atlas_spec'])
+    spec = AtlasSpec(attrs['grid'], tuple(tuple(p) for p in attrs['payloads']),
+                     tuple(attrs['params_files']), tuple(attrs['strokes']),
+                     attrs['time_limit_s'])
+    return spec, {name: dataset[name].values for name in dataset.data_vars}
+
+
+def plot_atlas(out: Path) -> List[Path]:
+    """
+    Draw the atlas next to the store: PATH_workspace.png and PATH_stiffness.png.
+
+    Workspace: platform positions of the first (variant, payload) block coloured by the
+    stability verdict and by the parasitic rotation, with the workspace volume in the
+    title. Stiffness: the smallest translational stiffness (1 / largest translational
+    compliance eigenvalue, N/m) and the stiffness margin in xz and xy projections.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    spec, results = load_results(out)
+    volume = workspace_volumes(spec, results)[0]
+    block = slice(0, spec.block)
+    position = 1e3 * results['platform_position'][block]
+    converged = results['converged'][block]
+    stable = results['stable'][block]
+    rotation = np.degrees(results['parasitic_rotation'][block])
+    stem = out.with_suffix('')
+    paths = [Path(f'{stem}_workspace.png'), Path(f'{stem}_stiffness.png')]
+    payload = ', '.join(f'{v:g}' for v in spec.payloads[0])
+    figure = plt.figure(figsize=(12, 5.5))
+    axes = figure.add_subplot(1, 2, 1, projection='3d')
+    colours = np.where(~converged, 'grey', np.where(stable, 'tab:green', 'tab:red'))
+    axes.scatter(*position.T, c=colours, s=8)
+    axes.set_title(f'stability (green stable, red unstable, grey not converged)\n'
+                   f'{int(stable.sum())}/{spec.block} stable', fontsize=9)
+    axes.set_xlabel('x (mm)')
+    axes.set_ylabel('y (mm)')
+    axes.set_zlabel('z (mm)')
+    axes = figure.add_subplot(1, 2, 2, projection='3d')
+    points = axes.scatter(*position[converged].T, c=rotation[converged], s=8, cmap='viridis')
+    figure.colorbar(points, ax=axes, shrink=0.6, label='parasitic rotation (deg)')
+    axes.set_title('parasitic rotation of the platform', fontsize=9)
+    axes.set_xlabel('x (mm)')
+    axes.set_ylabel('y (mm)')
+    axes.set_zlabel('z (mm)')
+    figure.suptitle(
+        f'CDR workspace, grid {spec.grid}^3 over +-{1e3 * spec.strokes[0]:g} mm sliders, '
+        f'payload [{payload}] N\nworkspace volume '
+        f'{1e6 * volume["convex_hull_m3"]:.1f} cm^3 (convex '
+        f'hull of converged stable samples), {1e6 * volume["jacobian_m3"]:.1f} cm^3 '
+        '(integral of |det dp/dq| over the slider box)', fontsize=9)
+    figure.tight_layout()
+    figure.savefig(paths[0], dpi=110)
+    plt.close(figure)
+    stiffness = 1.0 / results['compliance_eigenvalues_translation'][block][:, -1]
+    margin = results['stiffness_margin'][block]
+    figure, axes = plt.subplots(2, 2, figsize=(11, 9))
+    for row, (values, label) in enumerate(((stiffness, 'smallest translational stiffness '
+                                                       '(N/m)'),
+                                           (margin, 'stiffness margin (N/m)'))):
+        for column, (i, j, names) in enumerate(((0, 2, ('x', 'z')), (0, 1, ('x', 'y')))):
+            plot = axes[row, column]
+            shown = converged & np.isfinite(values)
+            points = plot.scatter(position[shown, i], position[shown, j], c=values[shown],
+                                  s=12, cmap='plasma')
+            figure.colorbar(points, ax=plot, label=label)
+            plot.set_xlabel(f'{names[0]} (mm)')
+            plot.set_ylabel(f'{names[1]} (mm)')
+            plot.set_aspect('equal', adjustable='datalim')
+    figure.suptitle(f'CDR stiffness maps, payload [{payload}] N (projections of the '
+                    f'{spec.grid}^3 slider grid)', fontsize=10)
+    figure.tight_layout()
+    figure.savefig(paths[1], dpi=110)
+    plt.close(figure)
+    return paths
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    """Run the ``atlas`` command, print a JSON summary (and plot); return the exit code."""
+    try:
+        spec = AtlasSpec.build(args.grid, args.payload or [(0.0, 0.0, 0.0)],
+                               args.params or [str(DEFAULT_PARAMS_PATH)], args.time_limit)
+        if args.chunk_size is not None and args.chunk_size < 1:
+            raise ValueError(f'--chunk-size must be at least 1, got {args.chunk_size}')
+        out = Path(args.out)
+        summary = run_atlas(spec, out, args.chunk_size, args.workers, args.scheduler,
+                            progress=not args.no_progress)
+    except (ParameterError, ValueError) as error:
+        print(f'error: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (OSError, TimeoutError) as error:  # no scheduler there, or no worker in time
+        print(f'error: Dask cluster {args.scheduler or "(local)"}: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    spec, results = load_results(out)
+    summary['samples'] = spec.size
+    summary['converged'] = int(results['converged'].sum())
+    summary['stable'] = int(results['stable'].sum())
+    summary['workspace_volumes'] = workspace_volumes(spec, results)
+    if args.plot:
+        summary['plots'] = [str(path) for path in plot_atlas(out)]
+    print(json.dumps(summary))
+    return EXIT_CONVERGED if summary['converged'] == spec.size else EXIT_NOT_CONVERGED

@@ -1,0 +1,31 @@
+"""Errors of msg_tools' MCAP writer (ROS-free; nothing here imports cdr_translator)."""
+
+from pathlib import Path
+from typing import Union
+
+
+class LogFileError(OSError):
+    """An MCAP log file cannot be opened for writing; the message says which and why."""
+
+
+class LogFileBusyError(LogFileError):
+    """Another writer holds the lock of the file; ``holder`` describes it (PID, command)."""
+
+    def __init__(self, path: Union[str, Path], holder: str) -> None:
+        """Name the file and its holder."""
+        self.path = str(path)
+        self.holder = holder
+        super().__init__(f'{self.path} is being written by another writer ({holder}); '
+                         'one writer per file: give each writer its own path, or leave the '
+                         'path empty for an auto-named file')
+
+
+class LogFileExistsError(LogFileError):
+    """The file exists and the writer was not allowed to overwrite or rename."""
+
+    def __init__(self, path: Union[str, Path]) -> None:
+        """Name the file."""
+        self.path = str(path)
+        super().__init__(f'{self.path} already exists and is not overwritten (a finished log '
+                         'of an earlier run?); remove it, choose another path, or ask for an '
+                         'auto-named file')

@@ -1,0 +1,21 @@
+"""Fixtures of the node tests."""
+
+import os
+
+from cdr_translator.ros.client import isolated_ros_env
+import pytest
+
+
+@pytest.fixture(scope='module')
+def ros_env():
+    """Give the requesting test module its own DDS domain, limited to this machine."""
+    env = isolated_ros_env()
+    keys = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
+    saved = {key: os.environ.get(key) for key in keys}
+    os.environ.update({key: env[key] for key in keys})
+    yield env
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value

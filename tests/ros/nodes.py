@@ -1,0 +1,63 @@
+"""A translator_node child process with a connected client, for the node tests."""
+
+from pathlib import Path
+from typing import Optional
+
+from cdr_translator.interface import messages
+from cdr_translator.ros.client import diagnostic_values, MODULE_COMMAND, NodeProcess
+from cdr_translator.ros.client import TranslatorClient
+
+#: The first solve may compile the kernels (cached on disk after), DDS discovery takes
+#: seconds on a loaded machine: generous bounds, never waited for in full when all is well.
+START_TIMEOUT_S = 120.0
+ANSWER_TIMEOUT_S = 30.0
+POSE = messages.END_DISK_POSE_TOPIC
+ANGLES = messages.BENDING_ANGLES_TOPIC
+DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
+
+
+class Running:
+    """
+    A node process and a connected client; both are torn down on exit.
+
+    The node logs to ``mcap`` (default ``tmp_path / 'run.mcap'``) and prints to
+    ``tmp_path / '<name>.log'``.
+    """
+
+    def __init__(self, tmp_path: Path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS),
+                 command=MODULE_COMMAND, mcap: Optional[Path] = None, name: str = 'node'):
+        """Start the node and wait for its first answer."""
+        self.mcap = tmp_path / 'run.mcap' if mcap is None else mcap
+        self.node = NodeProcess(['-p', f'mcap_path:={self.mcap}', *ros_args], env,
+                                tmp_path / f'{name}.log', command)
+        self.client = None
+        try:
+            self.client = TranslatorClient(topics)
+            assert self.client.handshake(START_TIMEOUT_S), self.node.text()
+        except BaseException:
+            self.__exit__()
+            raise
+
+    def __enter__(self):
+        """Return self."""
+        return self
+
+    def __exit__(self, *exc_info):
+        """Close the client, kill the node if it still runs."""
+        if self.client is not None:
+            self.client.close()
+        self.node.kill()
+
+    def answered(self, topic, stamp) -> bool:
+        """Wait for the message of ``topic`` stamped ``stamp``; False on timeout."""
+        return self.client.wait_for(lambda: self.client.messages_stamped(topic, stamp),
+                                    ANSWER_TIMEOUT_S)
+
+    def answer(self, topic, stamp):
+        """Wait for the message of ``topic`` stamped ``stamp``; return it."""
+        assert self.answered(topic, stamp), (topic, stamp, self.node.text())
+        return self.client.messages_stamped(topic, stamp)[0]
+
+    def last_diagnostic(self):
+        """Return the key/values of the last diagnostic received."""
+        return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])

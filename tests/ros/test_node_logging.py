@@ -1,0 +1,170 @@
+"""
+translator_node's MCAP log (issue 14): one writer per file, write errors as diagnostics.
+
+Also a clean shutdown that states what was written and lost, and log times in order per
+channel.
+
+Each test runs the node as a child process in this module's own ROS_DOMAIN_ID (localhost
+discovery); every wait is bounded.
+"""
+
+import re
+import signal
+import sys
+import time
+
+from cdr_translator.interface import messages
+from cdr_translator.params import NODE_NAME
+from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
+from cdr_translator.ros.runtime import LogThread
+from mcap.reader import make_reader
+from msg_tools.mcap_log import McapLog
+from msg_tools.reader import McapSource
+from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
+
+LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
+CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost')
+
+#: The node under RLIMIT_FSIZE (the kernel's EFBIG once a file reaches the limit; SIGXFSZ
+#: ignored so that it is an error, not a kill): a real write error without root.
+LIMITED_COMMAND = (sys.executable, '-c', (
+    'import resource, runpy, signal, sys\n'
+    'signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n'
+    'resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, resource.RLIM_INFINITY))\n'
+    'sys.argv = ["translator_node"] + sys.argv[1:]\n'
+    'runpy.run_module("cdr_translator.ros.translator_node", run_name="__main__")\n'))
+
+
+def log_diagnostics(run):
+    """Return the /diagnostics statuses about the MCAP log ``run``'s client received."""
+    return [message.status[0] for message, _ in run.client.received[DIAGNOSTICS]
+            if message.status[0].name == LOG_DIAGNOSTIC]
+
+
+def _closing(text):
+    """Return (written, lost) of the node's closing MCAP log line."""
+    found = CLOSED.findall(text)
+    assert len(found) == 1, text
+    return tuple(map(int, found[0]))
+
+
+def test_second_node_on_the_same_path_stops_at_start(tmp_path, ros_env):
+    """Two legs given one mcap_path: the second exits 2 naming the file and the first's PID."""
+    path = tmp_path / 'leg.mcap'
+    with Running(tmp_path, ros_env, mcap=path, name='first') as first:
+        with NodeProcess(['-p', f'mcap_path:={path}'], ros_env, tmp_path / 'second.log') as second:
+            assert second.process.wait(START_TIMEOUT_S) == 2, second.text()
+            text = second.text()
+            assert f'{path} is being written by another writer (PID {first.node.process.pid}' \
+                in text and 'Traceback' not in text
+        stamp = first.client.publish((5.0, 0.0, 0.0))
+        assert first.answered(POSE, stamp)
+        assert first.node.stop(signal.SIGINT) == 0
+        written, lost = _closing(first.node.text())
+    source = McapSource(path)
+    assert sum(1 for _ in source.messages()) == written and lost == 0
+    assert source.report.complete
+    # the finished log is not overwritten by a later run either
+    with NodeProcess(['-p', f'mcap_path:={path}'], ros_env, tmp_path / 'third.log') as third:
+        assert third.process.wait(START_TIMEOUT_S) == 2, third.text()
+        assert 'already exists' in third.text()
+
+
+def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_env):
+    """The MCAP file hits the file-size limit: ERROR diagnostic, poses go on, exit 0."""
+    path = tmp_path / 'run.mcap'
+    ros_args = ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
+                '-p', 'mcap_flush_messages:=20']
+    with Running(tmp_path, ros_env, ros_args, command=LIMITED_COMMAND, mcap=path) as run:
+        stamps = []
+        for index in range(1500):
+            stamps.append(run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0)))
+            assert run.answered(POSE, stamps[-1]), run.node.text()
+            if any(status.level == bytes([messages.ERROR]) for status in log_diagnostics(run)):
+                break
+        errors = [status for status in log_diagnostics(run)
+                  if status.level == bytes([messages.ERROR])]
+        assert errors, run.node.text()
+        assert 'File too large' in errors[0].message
+        values = {pair.key: pair.value for pair in errors[0].values}
+        assert int(values['records_lost']) > 0 and int(values['received']) > 0
+        for index in range(1000):   # still solving and publishing; a new file after 1 s
+            stamp = run.client.publish((3.0 + 0.01 * (index % 100), 0.0, 0.0))
+            assert run.answered(POSE, stamp), run.node.text()
+            if any('resumed in' in status.message for status in log_diagnostics(run)):
+                break
+        assert any(status.level == bytes([messages.WARN]) and 'resumed in' in status.message
+                   for status in log_diagnostics(run)), run.node.text()
+        assert run.answered(DIAGNOSTICS, stamp)
+        last = diagnostic_values(run.client.messages_stamped(DIAGNOSTICS, stamp)[0])
+        assert int(last['log_records_lost']) > 0
+        assert run.node.stop(signal.SIGINT) == 0, run.node.text()
+        text = run.node.text()
+    assert 'Traceback' not in text
+    written, lost = _closing(text)
+    assert written > 0 and lost > 0
+    files = sorted(tmp_path.glob('run*.mcap'))
+    assert len(files) >= 2, files   # resumed in run_1.mcap after the first error
+    readable = 0
+    for file in files:
+        source = McapSource(file)
+        readable += sum(1 for _ in source.messages())
+        assert source.report.unread_bytes == 0, source.report.describe()
+        assert file.stat().st_size <= 400_000
+    assert readable == written
+
+
+def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
+    """
+    A 1 kHz burst with rejections: every channel's log times are non-decreasing.
+
+    Two publishers of /wrench (DDS may hand their samples over out of receive order);
+    rejections are published from the subscription callback, solves from the solver thread,
+    both to /diagnostics: the log thread must keep each channel in order.
+    """
+    path = tmp_path / 'run.mcap'
+    with Running(tmp_path, ros_env, mcap=path) as run:
+        other = TranslatorClient((DIAGNOSTICS,))   # a second publisher of /wrench
+        try:
+            assert other.wait_for(lambda: run.node.process.poll() is None and
+                                  other.node.count_subscribers('/wrench') > 0, 30.0)
+            started = time.monotonic()
+            for index in range(1500):
+                delay = started + index * 1e-3 - time.monotonic()
+                if delay > 0.0:
+                    time.sleep(delay)
+                force = ((float('nan'), 0.0, 0.0) if index % 7 == 0 else
+                         (0.01 * index, 0.0, 0.0))
+                stamp = (run.client if index % 2 else other).publish(force)
+        finally:
+            other.close()
+        assert run.client.wait_for(lambda: run.client.messages_stamped(DIAGNOSTICS, stamp),
+                                   ANSWER_TIMEOUT_S)
+        assert run.node.stop(signal.SIGINT) == 0
+    last = {}
+    count = 0
+    with open(path, 'rb') as stream:
+        for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            assert message.log_time >= last.get(channel.topic, 0), channel.topic
+            last[channel.topic] = message.log_time
+            count += 1
+    assert count > 200 and {'/wrench', '/diagnostics', '/end_disk_pose'} <= set(last)
+
+
+def test_log_thread_holds_back_an_earlier_log_time(tmp_path):
+    """Records handed over out of time order: written in order, each held-back one counted."""
+    wrench = messages.wrench_message([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], '',
+                                     messages.stamp_from_ns(0))
+    with McapLog(tmp_path / 'scratch.mcap') as scratch:
+        data = scratch._encoder(messages.WRENCH_TYPE)(wrench)
+    log = LogThread(McapLog(tmp_path / 'run.mcap', flush_every_s=0.0))
+    for topic, time_ns in [('/wrench', 5), ('/wrench', 3), ('/other', 1), ('/wrench', 7),
+                           ('/wrench', 6), ('/other', 2)]:
+        log.submit(topic, messages.WRENCH_TYPE, data, time_ns, time_ns)
+    status = log.close()
+    assert (status.written, status.lost, log.reordered) == (6, 0, 2)
+    with open(tmp_path / 'run.mcap', 'rb') as stream:
+        times = [(channel.topic, message.log_time, message.publish_time) for _, channel, message
+                 in make_reader(stream).iter_messages(log_time_order=False)]
+    assert times == [('/wrench', 5, 5), ('/wrench', 5, 3), ('/other', 1, 1), ('/wrench', 7, 7),
+                     ('/wrench', 7, 6), ('/other', 2, 2)]
