@@ -9,15 +9,16 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 """
 
 from dataclasses import dataclass
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import messages
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
-from ..params import TranslatorParams
+from ..params import Accuracy, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, TranslatorSolver
 
@@ -27,7 +28,7 @@ FOLLOWER_TOLERANCE = 1e-12
 FOLLOWER_MAX_SOLVES = 8
 
 
-def check_magnitude(force: Sequence[float], moment: Sequence[float], max_force: float,
+def check_magnitude(force: ArrayLike, moment: ArrayLike, max_force: float,
                     max_moment: float) -> None:
     """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
     for name, vector, limit, unit in (('force', force, max_force, 'N'),
@@ -102,7 +103,9 @@ class WrenchProcessor:
         self.solver = FidelitySolver(params, fidelity=settings.fidelity,
                                      max_position_error=settings.max_position_error,
                                      max_angle_error_deg=settings.max_angle_error,
-                                     time_limit_s=settings.solve_time_limit_s)
+                                     time_limit_s=settings.solve_time_limit_s,
+                                     accuracy=Accuracy(settings.accuracy_position_m,
+                                                       settings.accuracy_angle_deg))
         self.compliance = compliance
         self.backbones = backbones
         self.rotation = np.eye(3)
