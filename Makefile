@@ -5,10 +5,14 @@ PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
+# numba kernels compiled into numba's cache (cdr_translator/**/__pycache__/*.nbi|*.nbc)
+KERNELS := $(VENV)/.kernels-stamp
+KERNEL_SOURCES := cdr_translator/_jit.py cdr_translator/rod.py cdr_translator/model.py \
+	$(wildcard cdr_translator/fidelity/*.py)
 
-.PHONY: setup test demo clean bags hard-cases bench atlas-scale
+.PHONY: setup test demo clean clean-kernels bags hard-cases bench atlas-scale
 
-setup: $(STAMP)
+setup: $(STAMP) $(KERNELS)
 
 # Re-runs only when the pins or the packaging metadata change; otherwise a no-op.
 $(STAMP): requirements.txt setup.py setup.cfg
@@ -21,6 +25,12 @@ $(STAMP): requirements.txt setup.py setup.cfg
 	$(VPY) -m pip install --quiet $$(grep -E '^(pip|setuptools)==' requirements.txt)
 	$(VPY) -m pip install --quiet -r requirements.txt
 	$(VPY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	@touch $@
+
+# Last step of setup: compile the kernels once (about a minute; a few seconds when numba's
+# cache already has them), so that the first translator_node / cdr_node start loads them.
+$(KERNELS): $(STAMP) $(KERNEL_SOURCES)
+	$(VPY) -m cdr_translator compile
 	@touch $@
 
 test: setup
@@ -59,6 +69,15 @@ bags: setup
 	  --force 20 0 0 --moment 0 0 0.1 --seed 1
 	$(VPY) -m msg_tools synth bags/hard_cases.mcap --profile hard
 
+# Keeps numba's compiled kernels (*.nbi, *.nbc in __pycache__): they are checked against
+# the source's content hash, so they can never be stale, and recompiling costs a minute.
+# To drop them too: make clean-kernels.
 clean:
 	rm -rf $(VENV) build install log *.egg-info .pytest_cache .hypothesis
-	find . -name __pycache__ -type d -not -path './.git/*' -prune -exec rm -rf {} +
+	find . -name '*.py[co]' -not -path './.git/*' -delete
+	find . -name __pycache__ -type d -empty -not -path './.git/*' -delete
+
+clean-kernels:
+	find . -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -not -path './.git/*' \
+	  -delete
+	rm -f $(KERNELS)

@@ -20,7 +20,8 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         (os.path.join('share', package_name), ['package.xml']),
         (os.path.join('share', package_name, 'config'), sorted(glob('config/*.yaml'))),
-        (os.path.join('share', package_name, 'launch'), sorted(glob('launch/*.launch.py'))),
+        # the *.launch.py files and launch_common.py, which they load by path
+        (os.path.join('share', package_name, 'launch'), sorted(glob('launch/*.py'))),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml', 'threadpoolctl'],
     zip_safe=True,

@@ -1,8 +1,9 @@
 """
 Latency and throughput of translator_node over DDS (localhost, its own domain).
 
-Usage: python -m bench.node_latency [--rates 50 200 1000] [--seconds 3] [--no-log]
-                                     [--compliance]
+Usage: python -m bench.node_latency [--rates 100 200 500 1000 2000] [--seconds 3] [--no-log]
+                                     [--compliance] [--node-python PY] [--label TEXT]
+                                     [--markdown FILE]
 
 Starts the node, streams a smooth wrench sequence (a 0.5 Hz sweep of 0-12 N lateral force,
 the kind a force sensor sends) at each rate, and reports per rate: wrenches sent, received
@@ -11,19 +12,29 @@ header stamp to the pose's arrival at the client (same clock): median, 95th and 
 percentile and maximum. "No backlog" means every received wrench was answered (none
 skipped) and the latency did not grow. ``--no-log`` runs without the MCAP log, to see
 what logging costs; ``--compliance`` subscribes to the compliance eigenvalues too.
+``--node-python`` runs the node with another checkout's interpreter (``-m
+cdr_translator.node`` of that venv, without this checkout on PYTHONPATH), so an old and a
+new node can be measured with the same client in the same minutes; ``--markdown`` appends
+the table to a file (bench/results/node_rate.md).
+
+The publisher sleeps between wrenches (no busy spin). The client process (publisher and
+recorder) shares the machine with the node: on a loaded machine both lose time, so
+compare rows measured in the same run only.
 """
 
 import argparse
+import datetime
 import math
 import os
 from pathlib import Path
 import signal
 import tempfile
 import time
+from typing import List
 
 from cdr_translator.interface import messages
-from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
-from cdr_translator.ros.client import TranslatorClient
+from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, MODULE_COMMAND
+from cdr_translator.ros.client import NodeProcess, TranslatorClient
 import numpy as np
 
 
@@ -41,60 +52,104 @@ def stream(client: TranslatorClient, rate_hz: float, seconds: float) -> list:
     return stamps
 
 
-def measure(client: TranslatorClient, rate_hz: float, seconds: float) -> dict:
-    """Stream at one rate and return the counts and latency percentiles (ms)."""
+def cpu_seconds(pid: int) -> float:
+    """Return the CPU time (user + system, s) process ``pid`` has used so far (Linux)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) -> dict:
+    """Stream at one rate and return the counts, latencies (ms) and the node's CPU time (s)."""
     before = len(client.received[messages.END_DISK_POSE_TOPIC])
+    cpu_before = cpu_seconds(pid)
     stamps = stream(client, rate_hz, seconds)
     last = stamps[-1]
     answered = client.wait_for(
         lambda: client.messages_stamped(messages.DIAGNOSTICS_TOPIC, last), 30.0)
     time.sleep(0.2)
+    cpu = cpu_seconds(pid) - cpu_before
     poses = client.received[messages.END_DISK_POSE_TOPIC][before:]
     latencies = np.array([received - messages.stamp_to_ns(pose.header.stamp)
                           for pose, received in poses]) * 1e-6
     values = diagnostic_values(client.received[messages.DIAGNOSTICS_TOPIC][-1][0])
     return {'rate': rate_hz, 'sent': len(stamps), 'answered_last': answered,
             'received': int(values['received']), 'poses': len(poses),
-            'skipped': int(values['skipped']), 'latencies_ms': latencies}
+            'skipped': int(values['skipped']), 'latencies_ms': latencies, 'cpu_s': cpu}
 
 
 def main() -> None:
-    """Print one line per rate."""
+    """Print one line per rate (and append them to --markdown)."""
     parser = argparse.ArgumentParser(description='translator_node latency and throughput.')
     parser.add_argument('--rates', type=float, nargs='+',
-                        default=[50.0, 200.0, 500.0, 1000.0, 2000.0])
+                        default=[100.0, 200.0, 500.0, 1000.0, 2000.0])
     parser.add_argument('--seconds', type=float, default=3.0)
     parser.add_argument('--no-log', action='store_true', help='run without the MCAP log')
     parser.add_argument('--compliance', action='store_true',
                         help='also subscribe to the compliance eigenvalues')
+    parser.add_argument('--node-python', default=None,
+                        help='interpreter of the checkout whose node to run (default: this one)')
+    parser.add_argument('--label', default='this checkout', help='name of the node measured')
+    parser.add_argument('--markdown', type=Path, default=None,
+                        help='append the table to this markdown file')
     args = parser.parse_args()
     env = isolated_ros_env()
     os.environ.update(env)
+    node_env, command = dict(env), MODULE_COMMAND
+    if args.node_python:
+        node_env.pop('PYTHONPATH', None)
+        command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout
     with tempfile.TemporaryDirectory() as folder:
         ros_args = ['-p', 'log_to_mcap:=false'] if args.no_log else [
             '-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
         topics = [messages.END_DISK_POSE_TOPIC, messages.DIAGNOSTICS_TOPIC]
         if args.compliance:
             topics.append(messages.COMPLIANCE_EIGENVALUES_TOPIC)
-        with NodeProcess(ros_args, env, Path(folder) / 'node.log') as node:
+        with NodeProcess(ros_args, node_env, Path(folder) / 'node.log', command) as node:
             client = TranslatorClient(topics, depth=10000)
             try:
                 if not client.handshake(120.0):
                     raise SystemExit(f'node did not answer:\n{node.text()}')
                 print(f"{'rate Hz':>8} {'sent':>6} {'recv':>6} {'poses':>6} {'skipped':>8} "
-                      f"{'p50 ms':>7} {'p95 ms':>7} {'p99 ms':>7} {'max ms':>7}")
+                      f"{'p50 ms':>7} {'p95 ms':>7} {'p99 ms':>7} {'max ms':>7} "
+                      f"{'cpu ms/recv':>11}")
+                table: List[str] = []
                 received = skipped = 0
                 for rate in args.rates:
-                    row = measure(client, rate, args.seconds)
+                    row = measure(client, rate, args.seconds, node.process.pid)
                     p50, p95, p99 = np.percentile(row['latencies_ms'], [50, 95, 99])
-                    print(f"{rate:8.0f} {row['sent']:6d} {row['received'] - received:6d} "
+                    count = row['received'] - received
+                    # counts come from the diagnostic of the last wrench; '*': it never came
+                    # (lost on the way), so they are those of an earlier one
+                    mark = '' if row['answered_last'] else '*'
+                    cpu_ms = 1e3 * row['cpu_s'] / max(count, 1)
+                    print(f"{rate:8.0f} {row['sent']:6d} {count:6d}{mark} "
                           f"{row['poses']:6d} {row['skipped'] - skipped:8d} {p50:7.2f} "
-                          f"{p95:7.2f} {p99:7.2f} {row['latencies_ms'].max():7.2f}")
+                          f"{p95:7.2f} {p99:7.2f} {row['latencies_ms'].max():7.2f} "
+                          f'{cpu_ms:11.2f}')
+                    table.append(f"| {rate:.0f} | {row['sent']} | {count}{mark} | "
+                                 f"{row['poses']} | {row['skipped'] - skipped} | {p50:.2f} | "
+                                 f"{p99:.2f} | {row['latencies_ms'].max():.2f} | {cpu_ms:.2f} |")
                     received, skipped = row['received'], row['skipped']
                 node.stop(signal.SIGINT)
                 print(node.text().strip().splitlines()[-1])
             finally:
                 client.close()
+    if args.markdown is not None:
+        _append_markdown(args.markdown, args, table)
+
+
+def _append_markdown(path: Path, args: argparse.Namespace, table: List[str]) -> None:
+    """Append one run's table, with what was measured and the machine's load, to ``path``."""
+    load = ', '.join(f'{value:.1f}' for value in os.getloadavg())
+    when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    setup = ('no MCAP log' if args.no_log else 'MCAP log on') + (
+        ', compliance subscribed' if args.compliance else '')
+    with open(path, 'a') as stream:
+        stream.write(f'\n### {args.label} ({when}, {setup}, {args.seconds:g} s per rate, '
+                     f'load average {load})\n\n'
+                     '| rate Hz | sent | received | answered | skipped | p50 ms | p99 ms | '
+                     'max ms | node CPU ms per received |\n'
+                     '|---|---|---|---|---|---|---|---|---|\n' + '\n'.join(table) + '\n')
 
 
 if __name__ == '__main__':

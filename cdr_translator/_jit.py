@@ -1,15 +1,26 @@
 """
-Compilation switch for the numerical kernels (rod.py, model.py).
+Compilation switch for the numerical kernels (rod.py, model.py, fidelity/).
 
 The kernels are written once. Normally they are compiled with numba; the paper's
 baseline method runs the very same source interpreted (``interpreted_kernels``), so
 the baseline differs from the fast path in implementation speed only, never in model.
+
+Compiled kernels are cached on disk by numba (``cache=True``): compiling them all takes
+about a minute, loading them from the cache well under a second. The cache goes where
+numba puts it (``__pycache__`` beside the sources) while that is writable; an installed,
+read-only package uses a per-user folder instead, ``$XDG_CACHE_HOME/cdr_translator/numba``
+(``~/.cache/...``). ``NUMBA_CACHE_DIR`` set by the user always wins. ``make setup`` fills
+the cache (``python -m cdr_translator compile``), so the first node start does not compile.
 """
 
 import importlib
+import os
+from pathlib import Path
 import sys
+import tempfile
+import time
 from types import ModuleType
-from typing import Callable, Dict
+from typing import Any, Callable, Dict, List, NamedTuple
 
 import numba
 
@@ -17,12 +28,117 @@ _interpreting = False
 _KERNEL_MODULES = ('cdr_translator.rod', 'cdr_translator.model')
 _interpreted_cache: Dict[str, ModuleType] = {}
 
+#: numba's run-time configuration (CACHE_DIR is read when a cached kernel is defined).
+_NUMBA_CONFIG: Any = numba.config
+
+#: Every compiled kernel (numba dispatcher) created by ``jit``, in definition order.
+KERNELS: List[Any] = []
+
+#: What compiling every kernel the nodes use costs on an idle 2-core machine (s); a busy
+#: one takes up to twice as long. Said in the log when a node has to compile.
+COMPILE_ESTIMATE_S = 45.0
+
+
+def user_cache_dir() -> Path:
+    """Return the per-user kernel cache folder: $XDG_CACHE_HOME (~/.cache)/cdr_translator/numba."""
+    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
+    return Path(base) / 'cdr_translator' / 'numba'
+
+
+def _writable(folder: Path) -> bool:
+    """Say whether files can be created in ``folder`` (or in its parent, if it is missing)."""
+    try:  # as numba's own locators check: root may write where the mode bits say no
+        tempfile.TemporaryFile(dir=folder if folder.is_dir() else folder.parent).close()
+    except OSError:
+        return False
+    return True
+
+
+def configure_cache(package_dir: Path = Path(__file__).resolve().parent) -> str:
+    """
+    Point numba's cache at a writable place before any kernel is defined; return where.
+
+    ``NUMBA_CACHE_DIR`` (numba.config.CACHE_DIR) set: kept. Else the package's own
+    ``__pycache__`` folders when they are writable (numba's default), else the per-user
+    folder of ``user_cache_dir`` (numba.config.CACHE_DIR is set to it for this process).
+    """
+    if _NUMBA_CONFIG.CACHE_DIR:
+        return str(_NUMBA_CONFIG.CACHE_DIR)
+    folders = [package_dir] + [path.parent for path in package_dir.glob('*/__init__.py')]
+    if all(_writable(folder / '__pycache__') for folder in folders):
+        return str(package_dir / '__pycache__')
+    _NUMBA_CONFIG.CACHE_DIR = str(user_cache_dir())
+    return str(_NUMBA_CONFIG.CACHE_DIR)
+
+
+#: Where the compiled kernels are cached (see configure_cache).
+CACHE_LOCATION = configure_cache()
+
 
 def jit(func: Callable) -> Callable:
     """Compile ``func`` with numba (cached on disk), or leave it as Python while copying."""
     if _interpreting:
         return func
-    return numba.njit(cache=True, error_model='numpy')(func)
+    kernel = numba.njit(cache=True, error_model='numpy')(func)
+    KERNELS.append(kernel)
+    return kernel
+
+
+def _index_files(kernel: Any) -> List[Path]:
+    """Return the cache index files numba keeps for ``kernel`` (empty: never cached)."""
+    func = kernel.py_func
+    stem = Path(func.__code__.co_filename).stem
+    pattern = f'{stem}.{func.__qualname__}-{func.__code__.co_firstlineno}.py*.nbi'
+    return sorted(Path(kernel.stats.cache_path).glob(pattern))
+
+
+def uncached_kernels() -> List[str]:
+    """
+    Name the defined kernels that have no entry in numba's cache (so would compile).
+
+    A kernel with an entry can still compile, when its source changed since; what really
+    happened is in ``kernel_counts``.
+    """
+    return [f'{kernel.py_func.__module__}.{kernel.py_func.__qualname__}'
+            for kernel in KERNELS if not _index_files(kernel)]
+
+
+class KernelCounts(NamedTuple):
+    """Signatures compiled and signatures loaded from the cache, over all kernels."""
+
+    compiled: int
+    loaded: int
+
+
+def kernel_counts() -> KernelCounts:
+    """Count the kernel signatures this process compiled and loaded from the cache so far."""
+    compiled = sum(sum(kernel.stats.cache_misses.values()) for kernel in KERNELS)
+    loaded = sum(sum(kernel.stats.cache_hits.values()) for kernel in KERNELS)
+    return KernelCounts(compiled, loaded)
+
+
+def timed_warm_up(warm_up: Callable[[], object], say: Callable[[str], object]) -> float:
+    """
+    Run ``warm_up`` (which calls the kernels), telling ``say`` when it compiles; return s.
+
+    Before: whether the kernels are in the cache, and if not, that compiling takes about
+    COMPILE_ESTIMATE_S. After: how long it took and how many signatures were compiled.
+    """
+    missing = uncached_kernels()
+    if missing:
+        say(f'compiling {len(missing)} of {len(KERNELS)} numba kernels (not in the cache at '
+            f'{CACHE_LOCATION}): about {COMPILE_ESTIMATE_S:.0f} s on an idle 2-core machine, '
+            f'once; `make setup` or `python -m cdr_translator compile` does it ahead')
+    before = kernel_counts()
+    started = time.perf_counter()
+    warm_up()
+    elapsed = time.perf_counter() - started
+    after = kernel_counts()
+    compiled, loaded = after.compiled - before.compiled, after.loaded - before.loaded
+    if compiled or missing:
+        say(f'kernels ready in {elapsed:.1f} s: {compiled} signatures compiled, {loaded} '
+            f'loaded from the cache at {CACHE_LOCATION}')
+    return elapsed
 
 
 def interpreted_kernels() -> Dict[str, ModuleType]:

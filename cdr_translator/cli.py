@@ -11,6 +11,7 @@ Command line: argument parsing and printing only; the physics lives in the solve
     python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
                                    --out PATH.zarr [--workers K] [--scheduler ADDRESS]
                                    [--chunk-size M] [--plot]
+    python -m cdr_translator compile [--params FILE]
 
 Exit codes: 0 converged (and, for ``solve``, stable), 3 not converged (the result is still
 printed), 2 bad input, 4 ``solve`` converged to an unstable equilibrium (``stable: false``
@@ -25,8 +26,9 @@ import math
 import sys
 from typing import Any, Callable, List, Optional, Tuple, Union
 
+from . import _jit
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
-from .fidelity import FidelitySolver
+from .fidelity import FIDELITIES, FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .result import SolveResult
@@ -113,7 +115,10 @@ def _parser() -> argparse.ArgumentParser:
     atlas.add_argument('--plot', action='store_true',
                        help='draw the workspace and stiffness maps (PNG beside the store)')
     atlas.add_argument('--no-progress', action='store_true', help='no progress bar')
-    for command in (solve, paper, delta, inverse):
+    compile_ = commands.add_parser(
+        'compile', help="compile the numba kernels into numba's cache (make setup's last "
+                        'step), so that no node or solve compiles them later')
+    for command in (solve, paper, delta, inverse, compile_):
         command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
                              help='ROS 2 params YAML (default: %(default)s)')
     return parser
@@ -270,6 +275,23 @@ def _paper_comparison(params: TranslatorParams) -> str:
     return '\n'.join(lines)
 
 
+def _compile_kernels(params: TranslatorParams) -> int:
+    """Solve once at every fidelity level (all kernels run), say what it compiled and where."""
+    def warm_up() -> None:
+        for fidelity in FIDELITIES:
+            FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
+
+    elapsed = _jit.timed_warm_up(warm_up, print)
+    missing = _jit.uncached_kernels()
+    if missing:
+        print(f'error: not cached: {", ".join(missing)}', file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    counts = _jit.kernel_counts()
+    print(f'all {len(_jit.KERNELS)} numba kernels are in the cache at {_jit.CACHE_LOCATION} '
+          f'({counts.compiled} signatures compiled, {counts.loaded} loaded, {elapsed:.1f} s)')
+    return EXIT_CONVERGED
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; return the exit code."""
     args = _parser().parse_args(argv)
@@ -284,6 +306,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         if args.command == 'paper':
             print(_paper_comparison(params))
             return EXIT_CONVERGED
+        if args.command == 'compile':
+            return _compile_kernels(params)
         if args.command in ('delta', 'delta-ik'):
             robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
             if args.command == 'delta':

@@ -4,7 +4,6 @@ import math
 from typing import Tuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 #: Below this tilt (rad) the bending direction is undefined and reported as 0.
 _STRAIGHT_TILT = 1e-12
@@ -38,8 +37,32 @@ def relative_rotation(frame_a: np.ndarray, frame_b: np.ndarray) -> np.ndarray:
 
 
 def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
-    """Return the unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
-    quaternion = Rotation.from_matrix(rotation).as_quat()
+    """
+    Return the unit quaternion (x, y, z, w) of a rotation matrix, w >= 0.
+
+    scipy's Rotation.from_matrix algorithm, written out for one orthonormal matrix (about
+    5 us instead of 1 ms: the node converts one per wrench); a matrix that is not orthonormal
+    within 1e-12 (or is improper) goes to scipy itself, which projects (or refuses) it.
+    """
+    m = np.asarray(rotation, dtype=float)
+    if m.shape != (3, 3) or not np.all(np.abs(m @ m.T - np.eye(3)) <= 1e-12 + 1e-5 * np.eye(3)) \
+            or np.linalg.det(m) <= 0.0:
+        from scipy.spatial.transform import Rotation  # rare; importing it takes ~1 s
+        quaternion = Rotation.from_matrix(m).as_quat()
+    else:
+        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m.tolist()
+        trace = m00 + m11 + m22
+        decision = (m00, m11, m22, trace)
+        choice = decision.index(max(decision))
+        if choice == 0:
+            values = (1 - trace + 2 * m00, m10 + m01, m20 + m02, m21 - m12)
+        elif choice == 1:
+            values = (m10 + m01, 1 - trace + 2 * m11, m21 + m12, m02 - m20)
+        elif choice == 2:
+            values = (m20 + m02, m21 + m12, 1 - trace + 2 * m22, m10 - m01)
+        else:
+            values = (m21 - m12, m02 - m20, m10 - m01, 1 + trace)
+        quaternion = np.array(values) / math.sqrt(sum(value * value for value in values))
     return -quaternion if quaternion[3] < 0.0 else quaternion
 
 

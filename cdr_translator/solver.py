@@ -14,12 +14,11 @@ from dataclasses import dataclass
 import functools
 import math
 import time
-from typing import Callable, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
-from threadpoolctl import ThreadpoolController
 
 from . import stability
 from ._jit import interpreted_kernels
@@ -86,8 +85,23 @@ def check_wrench(force: Sequence[float], moment: Sequence[float]) -> np.ndarray:
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 
 
-#: The BLAS libraries loaded in this process (numpy's and scipy's OpenBLAS)
-_BLAS = ThreadpoolController()
+def _blas_controller() -> Optional[Any]:
+    """
+    Return a threadpoolctl controller of the loaded BLAS libraries; None without threadpoolctl.
+
+    threadpoolctl is optional: rosdep has no key for it (so package.xml cannot declare it),
+    pip installs get it (setup.py). Without it BLAS keeps its own thread count, which
+    ``OPENBLAS_NUM_THREADS=1`` in the environment sets to one.
+    """
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
+
+
+#: The BLAS libraries loaded in this process (numpy's and scipy's OpenBLAS), or None
+_BLAS = _blas_controller()
 
 
 def one_blas_thread(method: Callable) -> Callable:
@@ -96,7 +110,11 @@ def one_blas_thread(method: Callable) -> Callable:
 
     The factorizations here are 90x90: extra BLAS threads cannot speed them up, and on a busy
     machine their spin-waiting made a compliance computation 10x slower (1.8 -> 10 ms median).
+    Without threadpoolctl ``method`` is returned unchanged.
     """
+    if _BLAS is None:
+        return method
+
     @functools.wraps(method)
     def wrapper(*args, **kwargs):
         with _BLAS.limit(limits=1, user_api='blas'):

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Dict, Iterable, List, Optional, Tuple, Union
 
 import numpy as np
-from scipy.stats import qmc
 import yaml
 
 from .. import geometry
@@ -89,6 +88,12 @@ def box_scale(wrench: np.ndarray) -> float:
     return float(np.max(np.abs(wrench) / box_half_widths()))
 
 
+def _halton(seed: int, count: int) -> np.ndarray:
+    """Return ``count`` points of the 6-D scrambled Halton sequence in [0, 1)^6."""
+    from scipy.stats import qmc  # here, not at the top: importing scipy.stats takes ~1 s
+    return qmc.Halton(d=6, seed=seed).random(count)
+
+
 def box_samples(scale: float, seed: int) -> np.ndarray:
     """
     Wrenches (n, 6) inside the box of ``scale``: axis extremes, corners, Halton points.
@@ -103,7 +108,7 @@ def box_samples(scale: float, seed: int) -> np.ndarray:
         gray = index ^ (index >> 1)
         signs = np.array([1.0 if gray >> bit & 1 else -1.0 for bit in range(6)])
         corners.append(signs * half)
-    interior = (2.0 * qmc.Halton(d=6, seed=seed).random(INTERIOR_SAMPLES) - 1.0) * half
+    interior = (2.0 * _halton(seed, INTERIOR_SAMPLES) - 1.0) * half
     return np.vstack([axes, corners, interior])
 
 

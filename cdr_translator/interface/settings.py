@@ -88,6 +88,9 @@ _NODE = (
                   read_only=True, bounds=(1, 1_000_000)),
     ParameterSpec('mcap_flush_s', 's, finish an MCAP chunk at least this often',
                   read_only=True, bounds=(0.01, 3600.0)),
+    ParameterSpec('wrench_queue_depth', 'wrenches the subscription holds while the node is '
+                  'busy (best effort, keep last); 100 absorbs a 0.1 s stall at 1 kHz',
+                  read_only=True, bounds=(1, 100_000)),
 )
 
 _FIDELITY = (
@@ -199,6 +202,7 @@ class TranslatorSettings:
     log_dir: str
     mcap_flush_messages: int
     mcap_flush_s: float
+    wrench_queue_depth: int
     fidelity: str
     max_position_error: float
     max_angle_error: float

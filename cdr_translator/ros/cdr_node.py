@@ -34,6 +34,7 @@ from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
 from .runtime import SHUTDOWN_JOIN_S, type_name
+from .._jit import timed_warm_up
 from ..interface import cdr_messages, messages
 from ..interface.processing import check_magnitude
 from ..interface.settings import CDR_SPECS, CdrSettings
@@ -91,9 +92,7 @@ class CdrNode(Node):
                                                                   reliable)
                                      for topic, message_class in CDR_OUTPUTS.items()}
         self._mailbox = LatestMailbox()
-        # loads the compiled kernels, the compliance's too (inverse statics use it)
-        self.robot.solve(self._sliders, (0.0, 0.0, -1.0), compliance=True)
-        self.robot.reset()
+        timed_warm_up(self._warm_up, self.get_logger().info)
         inputs = {cdr_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
                   cdr_messages.SLIDERS_TOPIC: JointState,
                   cdr_messages.TARGET_TOPIC: PointStamped}
@@ -136,17 +135,22 @@ class CdrNode(Node):
                                  self._counts()))
 
     # input -----------------------------------------------------------------------------------
-    def _log_input(self, index: int, data: bytes, info: dict) -> None:
+    def _warm_up(self) -> None:
+        """Solve once at home (loads the kernels, the compliance's too), then forget it."""
+        self.robot.solve(self._sliders, (0.0, 0.0, -1.0), compliance=True)  # inverse uses it
+        self.robot.reset()
+
+    def _log_input(self, index: int, data: bytes) -> None:
+        """Count and log an input as received (the EventsExecutor gives no message info)."""
         self.received += 1
         if self._log is not None:
             subscription = self._subscriptions[index]
             self._log.submit(subscription.topic_name, type_name(subscription.msg_type), data,
-                             info.get('received_timestamp') or time.time_ns(),
-                             info.get('source_timestamp'))
+                             time.time_ns())
 
-    def _on_wrench(self, data: bytes, info: dict) -> None:
+    def _on_wrench(self, data: bytes) -> None:
         """Log the payload as received; reject it with a diagnostic or solve with it."""
-        self._log_input(0, data, info)
+        self._log_input(0, data)
         force, moment, frame_id, stamp = messages.wrench_from_message(
             deserialize_message(data, WrenchStamped))
         settings = self._settings
@@ -163,9 +167,9 @@ class CdrNode(Node):
             self._payload = (force, moment)
             self._mailbox.put((FORWARD, stamp, self._sliders, force, moment))
 
-    def _on_sliders(self, data: bytes, info: dict) -> None:
+    def _on_sliders(self, data: bytes) -> None:
         """Log the slider positions as received; reject them with a diagnostic or solve."""
-        self._log_input(1, data, info)
+        self._log_input(1, data)
         message = deserialize_message(data, JointState)
         stamp = {'sec': message.header.stamp.sec, 'nanosec': message.header.stamp.nanosec}
         try:
@@ -179,9 +183,9 @@ class CdrNode(Node):
             self._sliders = sliders
             self._mailbox.put((FORWARD, stamp, sliders, *self._payload))
 
-    def _on_target(self, data: bytes, info: dict) -> None:
+    def _on_target(self, data: bytes) -> None:
         """Log the target as received; reject it with a diagnostic or solve the inverse."""
-        self._log_input(2, data, info)
+        self._log_input(2, data)
         target, frame_id, stamp = cdr_messages.target_from_point(
             deserialize_message(data, PointStamped))
         world = self._settings.world_frame

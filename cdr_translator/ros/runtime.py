@@ -25,7 +25,7 @@ from msg_tools.mcap_log import LogStatus, McapLog
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
@@ -373,7 +373,7 @@ def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] =
         print(f'{name}: {error}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = SingleThreadedExecutor()
+    executor = EventsExecutor()
     executor.add_node(node)
     try:
         while not stop.is_set() and rclpy.ok():

@@ -4,12 +4,16 @@ translator_node: wrenches in, the translator's loaded shape out, every run logge
 Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
 ``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
-defines their content). Wrenches are checked in the subscription callback
-(cdr_translator.interface.processing: the same checks, frames and follower-load solve as the
-offline replay) and handed to a solver thread through a one-slot mailbox: when they arrive
-faster than the solver, the newest wins and the others are counted as skipped. Every
-received wrench and every published message goes to an MCAP file through a log thread.
-Only cdr_translator.ros imports rclpy or ROS message classes.
+defines their content). The subscription callback only counts and logs a wrench and hands
+its bytes to a solver thread through a one-slot mailbox: when they arrive faster than the
+solver, the newest wins and the others are counted as skipped. The solver thread decodes
+and checks the wrench it takes (cdr_translator.interface.processing: the same checks,
+frames and follower-load solve as the offline replay). The subscription's queue is
+``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
+it. Outputs are built only for topics someone subscribes to (all of them while logging),
+serialized once, and the same bytes published and logged: every received wrench and every
+published message goes to an MCAP file through a log thread. Only cdr_translator.ros
+imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
@@ -24,12 +28,13 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
 from .runtime import SHUTDOWN_JOIN_S, type_name
+from .._jit import timed_warm_up
 from ..fidelity import FidelitySolver
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
@@ -73,16 +78,19 @@ class TranslatorNode(Node):
                                                                   reliable)
                                      for topic, message_class in OUTPUTS.items()}
         self._mailbox = LatestMailbox()
-        self._warm_up()
+        timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._log_watch = LogWatch(self._log) if self._log is not None else None
         self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
                            if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
+        sensor = QoSProfile(depth=self._settings.wrench_queue_depth,
+                            reliability=qos_profile_sensor_data.reliability,
+                            durability=qos_profile_sensor_data.durability,
+                            history=qos_profile_sensor_data.history)
         self._subscription = self.create_subscription(
-            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, qos_profile_sensor_data,
-            raw=True)
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, sensor, raw=True)
         self.get_logger().info(
             f'ready: {self._subscription.topic_name} -> '
             f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
@@ -103,7 +111,10 @@ class TranslatorNode(Node):
     def _warm_up(self) -> None:
         """Solve once (compiles or loads the kernels) and build every output, then forget."""
         result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
-        self._output_messages(result, {'sec': 0, 'nanosec': 0}, True, True, self._counts())
+        for _, message in _filled(messages.output_messages(
+                result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
+                backbones_params=self.solver.params, extra_values=self._counts())):
+            serialize_message(message)
         self.solver.reset()
 
     def _open_log(self) -> Tuple[Optional[LogThread], str]:
@@ -120,42 +131,56 @@ class TranslatorNode(Node):
                                              self._counts())))
 
     # input -----------------------------------------------------------------------------------
-    def _on_wrench(self, data: bytes, info: dict) -> None:
-        """Log the wrench as received; reject it with a diagnostic or hand it to the solver."""
-        received_ns = info.get('received_timestamp') or time.time_ns()
+    def _on_wrench(self, data: bytes) -> None:
+        """
+        Count and log the wrench as received, and leave its bytes for the solver thread.
+
+        Nothing more happens here: decoding and checking wait until the solver takes the
+        wrench, so one that a newer wrench replaces first (latest wins) costs no more. The
+        EventsExecutor passes no message info: the log time is taken here, and the MCAP
+        publish time equals it (it was the DDS source timestamp before).
+        """
+        received_ns = time.time_ns()
         self.received += 1
         if self._log is not None:
             self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
-                             received_ns, info.get('source_timestamp'))
-        force, moment, frame_id, stamp = messages.wrench_from_message(
-            deserialize_message(data, WrenchStamped))
+                             received_ns)
+        self._mailbox.put(data)
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: check the newest wrench, then solve it, publish and log the outputs."""
+        while True:
+            data = self._mailbox.take()
+            if data is None:
+                return
+            stamp = {'sec': 0, 'nanosec': 0}
+            try:
+                force, moment, frame_id, stamp = messages.wrench_from_message(
+                    deserialize_message(data, WrenchStamped))
+                end_disk = self._checked(force, moment, frame_id, stamp)
+                if end_disk is not None:
+                    self._process(stamp, force, moment, end_disk)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish_all(self._filled(messages.rejection_messages(
+                    stamp, f'internal error: {error!r}', self._counts())))
+
+    def _checked(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
+                 stamp: dict) -> Optional[bool]:
+        """Return whether the wrench is in the end-disk frame; None (and a diagnostic) if bad."""
         settings = self._settings
         try:
             check_wrench(force, moment)
             check_magnitude(force, moment, settings.max_force, settings.max_moment)
-            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+            return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
         except ValueError as error:
             self.rejected += 1
             self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
-            self._publish_all(_filled(messages.rejection_messages(
+            self._publish_all(self._filled(messages.rejection_messages(
                 stamp, f'rejected: {error}', self._counts())))
-            return
-        self._mailbox.put((stamp, force, moment, end_disk))
-
-    # solving ---------------------------------------------------------------------------------
-    def _work(self) -> None:
-        """Solver thread: solve the newest wrench, publish and log what it gives."""
-        while True:
-            item = self._mailbox.take()
-            if item is None:
-                return
-            try:
-                self._process(*item)
-            except Exception as error:  # noqa: B902 - a bug must not silence the node
-                self.failed += 1
-                self.get_logger().error(f'solver thread: {error!r}')
-                self._publish_all(_filled(messages.rejection_messages(
-                    item[0], f'internal error: {error!r}', self._counts())))
+            return None
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
                  end_disk: bool) -> None:
@@ -190,18 +215,29 @@ class TranslatorNode(Node):
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
         """Fill the messages of one solve (interface.messages defines their content)."""
-        return _filled(messages.output_messages(
+        return self._filled(messages.output_messages(
             result, stamp, self._settings.base_frame, compliance=want_compliance,
             backbones_params=self.solver.params if want_backbones else None,
             extra_values=extra))
 
+    def _wanted(self, topic: str) -> bool:
+        """Say whether an output is needed: logged, or someone subscribes to it."""
+        return self._log is not None or (
+            self._publishers_by_topic[topic].get_subscription_count() > 0)
+
+    def _filled(self, built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
+        """Fill the rclpy messages of the wanted outputs among (topic, type, dict) triples."""
+        return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built
+                if self._wanted(topic)]
+
     def _publish_all(self, topic_messages: List[Tuple[str, Any]]) -> None:
-        """Publish output messages and queue them for the MCAP log."""
+        """Serialize each output once; publish those bytes and queue them for the MCAP log."""
         for topic, message in topic_messages:
             publisher = self._publishers_by_topic[topic]
-            publisher.publish(message)
+            data = serialize_message(message)
+            publisher.publish(data)
             if self._log is not None:
-                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), message,
+                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), data,
                                  time.time_ns())
 
     # shutdown --------------------------------------------------------------------------------

@@ -6,17 +6,16 @@ Finite-difference checks of what the solver computes analytically: the paper's w
 and the two agree to about 1e-8 relative (tests/core/test_compliance.py).
 """
 
-from typing import Sequence
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..compliance import frame_twist
 from ..params import Accuracy, TranslatorParams
 from ..solver import TranslatorSolver
 
 
-def finite_difference_compliance(params: TranslatorParams, force: Sequence[float],
-                                 moment: Sequence[float] = (0.0, 0.0, 0.0),
+def finite_difference_compliance(params: TranslatorParams, force: ArrayLike,
+                                 moment: ArrayLike = (0.0, 0.0, 0.0),
                                  force_step: float = 1e-3, moment_step: float = 1e-4,
                                  tolerance: float = 1e-12) -> np.ndarray:
     """

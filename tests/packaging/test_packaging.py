@@ -24,6 +24,8 @@ def test_colcon_build_installs_package_and_params(tmp_path):
     share = tmp_path / 'install' / 'cdr_translator' / 'share'
     assert (share / 'cdr_translator' / 'config' / 'translator.yaml').is_file()
     assert (share / 'cdr_translator' / 'package.xml').is_file()
+    for name in ('translator.launch.py', 'cdr.launch.py', 'launch_common.py'):
+        assert (share / 'cdr_translator' / 'launch' / name).is_file(), name
     assert (share / 'ament_index' / 'resource_index' / 'packages' / 'cdr_translator').is_file()
     installed = list((tmp_path / 'install').glob('**/site-packages/cdr_translator/solver.py'))
     assert installed, 'the library was not installed'

@@ -1,0 +1,116 @@
+"""
+Where the compiled kernels are cached, in subprocesses on copies of the package.
+
+A read-only package (as colcon installs it into a root-owned prefix) must cache into the
+per-user folder; a writable one into its own ``__pycache__``; ``NUMBA_CACHE_DIR`` always
+wins. Read-only means the mode bits for an ordinary user and, for root (who writes whatever
+the mode bits say), a read-only bind mount in a private mount namespace (``unshare -m``).
+"""
+
+import json
+import os
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+import tempfile
+from typing import Dict, Iterator, List, Optional
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Calls the smallest kernel, then reports the cache location and what happened.
+PROBE = """
+import json
+import numpy as np
+from cdr_translator import _jit, rod
+p, rot = np.zeros(3), np.eye(3)
+rod.rk4_stage_pose(p, rot, np.ones(3), np.zeros((3, 3)), 0.5, np.empty(3), np.empty((3, 3)))
+counts = _jit.kernel_counts()
+print(json.dumps({'location': _jit.CACHE_LOCATION, 'compiled': counts.compiled,
+                  'loaded': counts.loaded,
+                  'uncached': 'cdr_translator.rod.rk4_stage_pose' in _jit.uncached_kernels()}))
+"""
+
+
+@pytest.fixture
+def copy() -> Iterator[Path]:
+    """Yield a world-readable folder with a copy of the package sources (no caches)."""
+    folder = Path(tempfile.mkdtemp(prefix='cdr_kernel_cache_'))
+    try:
+        for package in ('cdr_translator', 'msg_tools', 'config'):
+            shutil.copytree(ROOT / package, folder / 'src' / package,
+                            ignore=shutil.ignore_patterns('__pycache__'))
+        (folder / 'cache').mkdir()
+        for path in [folder, *folder.rglob('*')]:
+            path.chmod(0o777 if path.is_dir() else 0o644)
+        yield folder
+    finally:
+        for path in [folder, *folder.rglob('*')]:
+            if path.is_dir():
+                path.chmod(0o777)
+        shutil.rmtree(folder)
+
+
+def _read_only_command(source: Path, command: List[str]) -> List[str]:
+    """Make ``source`` read-only for ``command`` (mode bits, or a ro bind mount for root)."""
+    for path in [source, *source.rglob('*')]:
+        if path.is_dir():
+            path.chmod(0o555)
+    if os.geteuid() != 0:
+        return command
+    unshare = shutil.which('unshare')
+    if unshare is None:
+        pytest.fail('running as root without unshare(1): cannot make a read-only folder')
+    return [unshare, '-m', 'sh', '-c', 'mount --bind -o ro "$0" "$0" && exec "$@"',
+            str(source), *command]
+
+
+def _probe(source: Path, cache_home: Path, numba_cache_dir: Optional[Path] = None,
+           read_only: bool = False) -> Dict:
+    """Run PROBE with ``source`` first on the path; return its report."""
+    env = {key: value for key, value in os.environ.items()
+           if key not in ('NUMBA_CACHE_DIR', 'PYTHONPATH')}
+    env.update(PYTHONPATH=str(source), XDG_CACHE_HOME=str(cache_home), HOME=str(cache_home))
+    if numba_cache_dir is not None:
+        env['NUMBA_CACHE_DIR'] = str(numba_cache_dir)
+    command = [sys.executable, '-c', PROBE]
+    if read_only:
+        command = _read_only_command(source, command)
+    process = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300,
+                             cwd=str(cache_home))
+    assert process.returncode == 0, process.stderr
+    return json.loads(process.stdout.strip().splitlines()[-1])
+
+
+def test_read_only_package_caches_per_user(copy):
+    """Read-only sources: the kernels go to $XDG_CACHE_HOME/cdr_translator/numba, twice."""
+    source, cache_home = copy / 'src', copy / 'cache'
+    first = _probe(source, cache_home, read_only=True)
+    expected = cache_home / 'cdr_translator' / 'numba'
+    assert first['location'] == str(expected)
+    assert first['compiled'] >= 1
+    assert list(expected.rglob('rod.rk4_stage_pose-*.nbi')), 'nothing cached'
+    assert not list(source.rglob('__pycache__')), 'wrote into the read-only package'
+    second = _probe(source, cache_home, read_only=True)
+    assert (second['compiled'], second['uncached']) == (0, False), second
+    assert second['loaded'] >= 1
+
+
+def test_writable_package_caches_in_tree(copy):
+    """Writable sources: numba's default, the package's own __pycache__."""
+    source, cache_home = copy / 'src', copy / 'cache'
+    report = _probe(source, cache_home)
+    assert report['location'] == str(source / 'cdr_translator' / '__pycache__')
+    assert list((source / 'cdr_translator' / '__pycache__').glob('rod.rk4_stage_pose-*.nbi'))
+    assert not (cache_home / 'cdr_translator').exists()
+
+
+def test_numba_cache_dir_wins(copy):
+    """NUMBA_CACHE_DIR set by the user is where the kernels go."""
+    source, cache_home = copy / 'src', copy / 'cache'
+    chosen = copy / 'chosen'
+    report = _probe(source, cache_home, numba_cache_dir=chosen)
+    assert report['location'] == str(chosen)
+    assert list(chosen.rglob('rod.rk4_stage_pose-*.nbi'))

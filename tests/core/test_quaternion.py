@@ -1,0 +1,36 @@
+"""geometry.quaternion_xyzw against scipy's Rotation, which it replaces on the node's path."""
+
+from cdr_translator.geometry import quaternion_xyzw
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+
+def _scipy(matrix: np.ndarray) -> np.ndarray:
+    """Return scipy's quaternion with w >= 0 (the old implementation)."""
+    quaternion = Rotation.from_matrix(matrix).as_quat()
+    return -quaternion if quaternion[3] < 0.0 else quaternion
+
+
+def test_matches_scipy_on_random_and_special_rotations():
+    """Equal to 1e-15 on random rotations, half turns about each axis and the identity."""
+    matrices = list(Rotation.random(2000, random_state=3).as_matrix())
+    matrices += [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]),
+                 np.diag([-1.0, -1.0, 1.0]),
+                 Rotation.from_rotvec([0.0, 0.0, np.pi - 1e-9]).as_matrix()]
+    for matrix in matrices:
+        ours = quaternion_xyzw(matrix)
+        np.testing.assert_allclose(ours, _scipy(matrix), rtol=0.0, atol=1e-15)
+        assert ours[3] >= 0.0
+
+
+def test_non_orthonormal_matrix_is_projected_like_scipy():
+    """A matrix off by 1e-6 takes scipy's own path (nearest rotation)."""
+    matrix = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix() + 1e-6
+    np.testing.assert_allclose(quaternion_xyzw(matrix), _scipy(matrix), atol=1e-15)
+
+
+def test_improper_matrix_is_refused():
+    """A reflection is not a rotation: scipy's ValueError."""
+    with pytest.raises(ValueError):
+        quaternion_xyzw(np.diag([1.0, 1.0, -1.0]))
