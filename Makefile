@@ -41,9 +41,11 @@ hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
 # Speed against error of every fidelity level, the paper baseline and the node's rate (about
-# 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml.
+# 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml;
+# then issue 13's targets, exact vs forward-difference Jacobian: bench/results/targets.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
+	$(VPY) -m bench.targets --spacers-slope
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):

@@ -13,7 +13,9 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--chunk-size M] [--plot]
     python -m cdr_translator compile [--params FILE]
 
-Exit codes: 0 converged, 3 not converged (the result is still printed), 2 bad input.
+Exit codes: 0 converged (and, for ``solve``, stable), 3 not converged (the result is still
+printed), 2 bad input, 4 ``solve`` converged to an unstable equilibrium (``stable: false``
+in the output: past a bifurcation no stable branch was found; docs/stability.md).
 delta-ik: 0 only when the target is reached; an unreachable target prints the nearest
 reachable point and exits 3. atlas: 0 when every sample converged, 3 otherwise.
 """
@@ -37,6 +39,7 @@ from .solver import METHODS, TranslatorSolver
 EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2
 EXIT_NOT_CONVERGED = 3
+EXIT_UNSTABLE = 4
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -156,6 +159,10 @@ def _table(result: SolveResult) -> str:
         ('solve time', f"{1e3 * data['solve_time_s']:.2f} ms"),
         ('fidelity', data['fidelity']),
     ]
+    if 'stability_margin' in data:
+        margin = data['stability_margin']
+        rows.append(('stable / margin', f"{data['stable']} / "
+                                        + ('n/a' if margin is None else f'{margin:.4g}')))
     analysis = result.compliance
     if analysis is not None:
         rows.append(('compliance C (SI)', ''))
@@ -164,7 +171,6 @@ def _table(result: SolveResult) -> str:
             f'{label}: {value:.4e}' for label, value in zip(analysis.labels,
                                                             analysis.eigenvalues))))
         rows.append(('primary mobility', ', '.join(analysis.primary_mobility)))
-        rows.append(('stable', str(analysis.stable)))
         rows.append(('compliance time', f'{1e3 * analysis.time_s:.2f} ms'))
     if result.verification is not None:
         rows.append(('verified', f'{result.verification.passed} '
@@ -333,5 +339,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
     print(json.dumps(result.to_dict()) if args.json else table(result))
-    done = result.converged and getattr(result, 'reachable', True)
-    return EXIT_CONVERGED if done else EXIT_NOT_CONVERGED
+    if not (result.converged and getattr(result, 'reachable', True)):
+        return EXIT_NOT_CONVERGED
+    if getattr(result, 'stable', None) is False and args.command == 'solve':
+        return EXIT_UNSTABLE
+    return EXIT_CONVERGED

@@ -11,9 +11,8 @@ Two computations that agree to about 1e-8 relative (tests/core/test_compliance.p
 * ``implicit_compliance`` (the default): implicit differentiation of the shooting problem
   at the converged solution (Rucker & Webster, ICRA 2011). r(x, w) = 0 gives
   dx/dw = -J^-1 dr/dw; the twist is the derivative of the end-disk pose along each column.
-  No extra solves: the solver's stored LU factorization preconditions an iterative
-  refinement whose products J v are central differences of the residual, and the same shots
-  give the twist.
+  The exact Jacobian and the end-disk pose derivative come from one tangent-linear shot;
+  C is then one 6-column solve with that factorization (no refinement sweeps).
 * ``cdr_translator.studies.finite_difference.finite_difference_compliance``: central
   differences of loaded solves, the paper's way (its ref. [15]); the check.
 """
@@ -22,10 +21,12 @@ from dataclasses import dataclass
 import math
 import time
 from typing import Optional, Tuple
+import warnings
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, lu_factor
 
+from . import stability
 from .problem import Problem
 
 #: Human-readable names of the six twist/wrench axes, in the order of C's rows.
@@ -38,18 +39,9 @@ SPARSITY_THRESHOLD = 0.2
 #: Default ratio to the most compliant direction above which an eigen-twist is a mobility.
 MOBILITY_RATIO = 0.2
 
-#: Largest perturbation of the nondimensional unknowns in a directional difference.
+#: Largest perturbation of the nondimensional unknowns in a directional difference
+#: (fidelity/linear.py: the tube frames' and points' sensitivities).
 DIRECTIONAL_STEP = 1e-5
-
-#: The refinement stops when a sweep changes C by less than this, relative to max |C|;
-#: the sweeps converge linearly, so the C returned is far closer than that (about 1e-9).
-REFINEMENT_TOLERANCE = 1e-6
-
-#: Refinement sweeps on one factorization; a stored one that needs more is replaced.
-MAX_SWEEPS = 5
-
-#: Largest estimated relative error of a C that is still returned (see implicit_compliance).
-ACCEPTED_ERROR = 1e-4
 
 
 @dataclass(frozen=True)
@@ -63,8 +55,8 @@ class ComplianceAnalysis:
     twist) or 'constraint' (it spans the constraint-wrench space); ``primary_mobility``
     lists the labels of the mobilities. ``stable`` says whether the symmetric part of the
     stiffness C^-1 is positive definite. ``time_s`` is the cost of computing C and
-    ``estimated_error`` its last refinement change relative to max |C| (an upper estimate of
-    its error; below 1e-6 except near singular or strongly twisted equilibria).
+    ``estimated_error`` machine epsilon times a condition estimate of J (C is exact to
+    rounding: no differencing is involved).
     """
 
     matrix: np.ndarray
@@ -102,94 +94,40 @@ class ComplianceAnalysis:
 
 # implicit differentiation -------------------------------------------------------------------
 def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
-                        lu: Optional[tuple] = None) -> Tuple[np.ndarray, tuple, float]:
+                        factorization: Optional[Tuple[tuple, np.ndarray]] = None
+                        ) -> Tuple[np.ndarray, tuple, float]:
     """
     Return (C, lu, estimated relative error of C) at the converged unknowns ``xs``.
 
-    ``lu`` is any LU factorization of an approximate Jacobian (the solver keeps one); it
-    preconditions the refinement of dx/dw = -J^-1 dr/dw. When the refinement does not settle
-    within MAX_SWEEPS sweeps, a fresh forward-difference Jacobian at ``xs`` replaces ``lu``,
-    and after that a central-difference one (180 shots; it settles ill-conditioned cases such
-    as 2000 N of tension or many spacer disks). The factorization used last is returned so
-    that the caller can keep it. If no stage reaches REFINEMENT_TOLERANCE, the best C is
-    returned when its last change is within ACCEPTED_ERROR (torsion near 20 N m settles at
-    the differencing noise, about 1e-5), otherwise ArithmeticError is raised.
-    (The dx/dw of a nearby solution is no better a start: dx/dw varies far faster with the
-    load than C does.)
+    Implicit differentiation with the exact Jacobian: r(x, w) = 0 gives dx/dw = -J^-1 dr/dw
+    and C = dT/dx dx/dw, T the end-disk twist (Rucker & Webster, ICRA 2011). J and dT/dx
+    come from one tangent-linear shot (problem.exact_jacobian) unless ``factorization``
+    = (lu, pose Jacobian) already holds them at ``xs``; then C is one 6-column LU solve.
+    No refinement sweeps: C is exact to rounding, so the error estimate is cond(J) times
+    the machine epsilon, bounded by the 1-norm condition estimate of the factorization.
+    ArithmeticError if J is singular or not finite at ``xs``.
     """
-    stages = ([] if lu is None else [lambda: lu]) + [
-        lambda: _factorization(problem.jacobian(xs, wrench, problem.residual(xs, wrench))),
-        lambda: _factorization(_central_jacobian(problem, xs, wrench))]
-    best = (math.inf, None, None)
-    for stage in stages:
-        lu = stage()
-        compliance, change = _refine(problem, xs, wrench, lu)
-        if change <= REFINEMENT_TOLERANCE:
-            return compliance, lu, change
-        if change < best[0]:
-            best = (change, compliance, lu)
-    change, compliance, lu = best
-    if change <= ACCEPTED_ERROR:
-        return compliance, lu, change
-    raise ArithmeticError(f'the compliance refinement did not settle (last change {change:.1e} '
-                          'of max |C|): the equilibrium is (nearly) singular')
-
-
-def _refine(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
-            lu: tuple) -> Tuple[np.ndarray, float]:
-    """Refine dx/dw on ``lu``; return C and its last change relative to max |C|."""
-    sensitivity = problem.wrench_sensitivity
-    dxdw = -lu_solve(lu, sensitivity, check_finite=False)
-    previous, change = None, math.inf
-    for _ in range(MAX_SWEEPS):
-        defect, compliance = _directional_derivatives(problem, xs, wrench, dxdw)
-        # dx/dw itself stalls at the differencing noise in directions C is blind to,
-        # so the sweeps stop when C stops changing
-        if previous is not None:
-            change = np.abs(compliance - previous).max() / np.abs(compliance).max()
-            if change <= REFINEMENT_TOLERANCE:
-                break
-        previous = compliance
-        dxdw -= lu_solve(lu, defect + sensitivity, check_finite=False)
-    return compliance, change
+    if factorization is None:
+        _, jacobian, pose = problem.exact_jacobian(xs, wrench)
+        lu = _factorization(jacobian)
+    else:
+        lu, pose = factorization
+    rotation = problem.residual_and_end_frame(xs, wrench)[1][:3, :3]
+    compliance = stability.compliance_from_factorization(lu, pose, rotation,
+                                                         problem.wrench_sensitivity)
+    if not np.all(np.isfinite(compliance)):
+        raise ArithmeticError('the Jacobian at the solution is singular')
+    diagonal = np.abs(np.diag(lu[0]))
+    error = float(np.finfo(float).eps * diagonal.max() / diagonal.min())
+    return compliance, lu, error
 
 
 def _factorization(jacobian: np.ndarray) -> tuple:
     if not np.all(np.isfinite(jacobian)):
         raise ArithmeticError('the Jacobian at the solution is not finite')
-    return lu_factor(jacobian, check_finite=False)
-
-
-def _central_jacobian(problem: Problem, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
-    """Central-difference Jacobian, columns stepped by DIRECTIONAL_STEP (nondimensional)."""
-    jacobian = np.empty((problem.size, problem.size))
-    probe = xs.copy()
-    for column in range(problem.size):
-        probe[column] = xs[column] + DIRECTIONAL_STEP
-        plus = problem.residual(probe, wrench)
-        probe[column] = xs[column] - DIRECTIONAL_STEP
-        jacobian[:, column] = (plus - problem.residual(probe, wrench)) / (2 * DIRECTIONAL_STEP)
-        probe[column] = xs[column]
-    return jacobian
-
-
-def _directional_derivatives(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
-                             directions: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """
-    Central differences along each column d of ``directions``: (J d, end-disk twist of d).
-
-    Both come from the same two shots per column, so C costs 12 shots per sweep.
-    """
-    products = np.empty_like(directions)
-    twists = np.empty((6, directions.shape[1]))
-    for column in range(directions.shape[1]):
-        direction = directions[:, column]
-        step = DIRECTIONAL_STEP / max(np.abs(direction).max(), 1e-300)
-        plus_r, plus_frame = problem.residual_and_end_frame(xs + step * direction, wrench)
-        minus_r, minus_frame = problem.residual_and_end_frame(xs - step * direction, wrench)
-        products[:, column] = (plus_r - minus_r) / (2.0 * step)
-        twists[:, column] = frame_twist(minus_frame, plus_frame) / (2.0 * step)
-    return products, twists
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', LinAlgWarning)
+        return lu_factor(jacobian, check_finite=False)
 
 
 def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -268,11 +206,21 @@ def _smallest_stiffness_eigenvalue(compliance: np.ndarray) -> float:
 
 
 def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
-                        lu: Optional[tuple], **options: float) -> Tuple[ComplianceAnalysis, tuple]:
-    """Implicit C at a converged solution and its analysis, plus the LU factorization used."""
+                        factorization: Optional[Tuple[tuple, np.ndarray]] = None,
+                        **options: float) -> Tuple[ComplianceAnalysis, tuple, np.ndarray]:
+    """
+    Implicit C at a converged solution and its analysis, plus the factorization used.
+
+    Returns (analysis, lu, pose Jacobian) so that the caller can keep the exact
+    factorization at the solution; ``factorization`` = (lu, pose Jacobian) at ``xs``
+    skips the tangent shot.
+    """
     started = time.perf_counter()
-    compliance, lu, error = implicit_compliance(problem, xs, wrench, lu)
+    if factorization is None:
+        _, jacobian, pose = problem.exact_jacobian(xs, wrench)
+        factorization = (_factorization(jacobian), pose.copy())
+    compliance, lu, error = implicit_compliance(problem, xs, wrench, factorization)
     elapsed = time.perf_counter() - started
     analysis = analyse(compliance, problem.params.stack_height, time_s=elapsed,
                        estimated_error=error, **options)
-    return analysis, lu
+    return analysis, lu, factorization[1]

@@ -37,7 +37,8 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .rod import integrate_segment
+from .rod import (integrate_segment, integrate_segment_tangent, LOCAL_DIRECTIONS, LOCAL_LENGTH,
+                  LOCAL_M, LOCAL_N, LOCAL_ROT)
 
 N_RODS = 5
 N_BASE_UNKNOWNS = 6 * N_RODS
@@ -209,15 +210,22 @@ def _store_frame(rot, p, frame):
 
 
 @jit
-def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
-                        inv_kse, inv_kbt, out, points, frames):
+def _gather_station(x, t, nst):
     """
-    Shoot once through the translator and write the residual vector into ``out``.
+    Return station t's unknowns contiguously, secondary by secondary.
 
-    ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
-    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    In ``x`` they are laid out with stride STATION_WIDTH * nst (see the module docstring).
     """
-    nst = 2 * spacers + 1
+    col = np.empty(4 * STATION_WIDTH)
+    for i in range(4):
+        for c in range(STATION_WIDTH):
+            col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t) + c]
+    return col
+
+
+@jit
+def _base_state(x, pitch_radius):
+    """Return hole positions and the rods' state (p, R, n, m) at the base disk."""
     hole = np.zeros((4, 3))
     for i in range(4):
         angle = 0.5 * math.pi * i
@@ -234,6 +242,20 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             m[k, c] = x[6 * k + 3 + c]
         if k > 0:
             p[k, :] = hole[k - 1]
+    return hole, p, rot, n, m
+
+
+@jit
+def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, out, points, frames):
+    """
+    Shoot once through the translator and write the residual vector into ``out``.
+
+    ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
+    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    """
+    nst = 2 * spacers + 1
+    hole, p, rot, n, m = _base_state(x, pitch_radius)
     _store_frame(rot[0], p[0], frames[0])
     secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
     used = np.zeros(4)
@@ -259,14 +281,8 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
                 _store_frame(rot[0], p[0], frames[3])
                 _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
                 continue
-            # the station's unknowns and residuals are laid out secondary by secondary
-            # with stride STATION_WIDTH * nst; gather them contiguously for the helpers
-            col = np.empty(4 * STATION_WIDTH)
+            col = _gather_station(x, t, nst)
             res = np.empty(4 * STATION_WIDTH)
-            for i in range(4):
-                for c in range(STATION_WIDTH):
-                    col[STATION_WIDTH * i + c] = x[N_BASE_UNKNOWNS
-                                                   + STATION_WIDTH * (i * nst + t) + c]
             if joint == 0 and station == spacers:
                 _store_frame(rot[0], p[0], frames[1])
                 _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
@@ -281,17 +297,25 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
 
 @jit
 def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, spacers, steps,
-                      inv_kse, inv_kbt, base, jac):
+                      inv_kse, inv_kbt, base, jac, pose_jac):
     """
     Forward-difference Jacobian d(residual)/dx into ``jac``; ``base`` = residual at x.
 
-    ``step`` holds the perturbation of every unknown.
+    ``step`` holds the perturbation of every unknown. ``pose_jac`` (12, size) receives the
+    same differences of the end-disk frame {de} (centre, rotation matrix row-major).
     """
     size = x.shape[0]
     column = np.empty(size)
     probe = x.copy()
     points = np.empty((N_RODS, 0, 3))
     frames = np.empty((4, 4, 4))
+    translator_residual(probe, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, column, points, frames)
+    end = np.empty(12)
+    for c in range(3):
+        end[c] = frames[3, c, 3]
+        for b in range(3):
+            end[3 + 3 * c + b] = frames[3, c, b]
     for j in range(size):
         probe[j] = x[j] + step[j]
         translator_residual(probe, wrench, pitch_radius, spacing, tube_length, spacers, steps,
@@ -299,3 +323,368 @@ def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, space
         probe[j] = x[j]
         for r in range(size):
             jac[r, j] = (column[r] - base[r]) / step[j]
+        for c in range(3):
+            pose_jac[c, j] = (frames[3, c, 3] - end[c]) / step[j]
+            for b in range(3):
+                pose_jac[3 + 3 * c + b, j] = (frames[3, c, b] - end[3 + 3 * c + b]) / step[j]
+
+
+# exact Jacobian: the tangent-linear (forward-mode) form of translator_residual ---------------
+#
+# Every state quantity q of the shot carries its tangent dq/dx, one column per unknown:
+# tangent arrays have a trailing axis of length size. The rod segments contribute their
+# exact local derivative (rod.integrate_segment_tangent, 16 local directions), chained into
+# the global tangents here; the disks' algebraic conditions and wrench transfers are
+# differentiated by hand, line by line against the primal helpers above, which still do the
+# primal update. The result is the derivative of the discrete residual itself (to rounding),
+# which central differences confirm (tests/core/test_jacobian.py).
+
+@jit
+def _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, columns):
+    """
+    Gather rod k's input tangents into ``stack`` (LOCAL_DIRECTIONS, size); return counts.
+
+    ``active[j]`` says whether local direction j has any nonzero tangent (only those are
+    integrated), ``columns[:count]`` lists the unknowns whose tangent columns are nonzero
+    (only those are chained): near the base most are zero. Returns the column count.
+    """
+    nd = tp.shape[2]
+    for a in range(3):
+        for b in range(3):
+            for d in range(nd):
+                stack[LOCAL_ROT + 3 * a + b, d] = trot[k, a, b, d]
+        for d in range(nd):
+            stack[LOCAL_N + a, d] = tn[k, a, d]
+            stack[LOCAL_M + a, d] = tm[k, a, d]
+    for d in range(nd):
+        stack[LOCAL_LENGTH, d] = tl[d]
+    count = 0
+    for j in range(LOCAL_DIRECTIONS):
+        active[j] = False
+    for d in range(nd):
+        used = False
+        for j in range(LOCAL_DIRECTIONS):
+            if stack[j, d] != 0.0:
+                active[j] = True
+                used = True
+        if used:
+            columns[count] = d
+            count += 1
+    return count
+
+
+@jit
+def _chain_segment(k, lp, lrot, lm, tp, trot, tm, stack, active, columns, count):
+    """Chain rod k's local segment derivative into its global tangents (nonzero columns)."""
+    for a in range(3):
+        for index in range(count):
+            d = columns[index]
+            acc_p = tp[k, a, d]
+            acc_m = 0.0
+            for j in range(LOCAL_DIRECTIONS):
+                if active[j]:
+                    s = stack[j, d]
+                    acc_p += lp[a, j] * s
+                    acc_m += lm[a, j] * s
+            tp[k, a, d] = acc_p
+            tm[k, a, d] = acc_m
+        for b in range(3):
+            for index in range(count):
+                d = columns[index]
+                acc = 0.0
+                for j in range(LOCAL_DIRECTIONS):
+                    if active[j]:
+                        acc += lrot[a, b, j] * stack[j, d]
+                trot[k, a, b, d] = acc
+
+
+@jit
+def _station_tangent(p, rot, tp, trot, i, jac, row):
+    """Tangents of the 5 conditions of secondary i at a disk (see _station_residuals)."""
+    nd = tp.shape[2]
+    for c in range(3):
+        for d in range(nd):
+            acc = 0.0
+            for a in range(3):
+                acc += (trot[0, a, c, d] * (p[i + 1, a] - p[0, a])
+                        + rot[0, a, c] * (tp[i + 1, a, d] - tp[0, a, d]))
+            jac[row + c, d] = acc
+    for c in range(2):
+        for d in range(nd):
+            acc = 0.0
+            for a in range(3):
+                acc += trot[0, a, c, d] * rot[i + 1, a, 2] + rot[0, a, c] * trot[i + 1, a, 2, d]
+            jac[row + 3 + c, d] = acc
+
+
+@jit
+def _in_plane_tangent(rot, trot, a, b, col_a, out):
+    """Tangent of a * (disk x axis) + b * (disk y axis); a, b the unknowns col_a, col_a + 1."""
+    nd = trot.shape[2]
+    for c in range(3):
+        for d in range(nd):
+            out[c, d] = a * trot[c, 0, d] + b * trot[c, 1, d]
+        out[c, col_a] += rot[c, 0]
+        out[c, col_a + 1] += rot[c, 1]
+
+
+@jit
+def _cross_tangent_sub(a, ta, b, tb, out):
+    """Subtract the tangent of a x b, (ta x b + a x tb), from out (3, nd)."""
+    for d in range(out.shape[1]):
+        out[0, d] -= ta[1, d] * b[2] - ta[2, d] * b[1] + a[1] * tb[2, d] - a[2] * tb[1, d]
+        out[1, d] -= ta[2, d] * b[0] - ta[0, d] * b[2] + a[2] * tb[0, d] - a[0] * tb[2, d]
+        out[2, d] -= ta[0, d] * b[1] - ta[1, d] * b[0] + a[0] * tb[1, d] - a[1] * tb[0, d]
+
+
+@jit
+def _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac):
+    """Tangents of ``_spacer_disk`` at station t; call it before the primal helper."""
+    nd = tp.shape[2]
+    force = np.empty(3)
+    arm = np.empty(3)
+    tforce = np.empty((3, nd))
+    tmoment = np.empty((3, nd))
+    tarm = np.empty((3, nd))
+    for i in range(4):
+        u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
+        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t))
+        _in_plane(rot[0], x[u + 1], x[u + 2], force)
+        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], u + 1, tforce)
+        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], u + 3, tmoment)
+        for c in range(3):
+            arm[c] = p[i + 1, c] - p[0, c]
+            for d in range(nd):
+                tarm[c, d] = tp[i + 1, c, d] - tp[0, c, d]
+                tn[i + 1, c, d] += tforce[c, d]
+                tm[i + 1, c, d] += tmoment[c, d]
+                tn[0, c, d] -= tforce[c, d]
+                tm[0, c, d] -= tmoment[c, d]
+        _cross_tangent_sub(arm, tarm, force, tforce, tm[0])
+
+
+@jit
+def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, trot, tn, tm,
+                  tused, jac):
+    """Tangents of ``_tube`` at station t; call it before the primal helper."""
+    nd = tp.shape[2]
+    axis = rot[0, :, 2].copy()
+    taxis = trot[0, :, 2, :].copy()
+    proximal = p[0].copy()
+    tproximal = tp[0].copy()
+    tchange_force = np.zeros((3, nd))
+    tchange_moment = np.zeros((3, nd))
+    change_force = np.zeros(3)
+    change_moment = np.zeros(3)
+    arm = np.empty(3)
+    tarm = np.empty((3, nd))
+    nk = np.empty(3)
+    mk = np.empty(3)
+    tlat = np.empty((3, nd))
+    tlat2 = np.empty((3, nd))
+    lat = np.empty(3)
+    lat2 = np.empty(3)
+    for i in range(4):
+        k = i + 1
+        u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
+        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t))
+        for c in range(3):
+            arm[c] = p[k, c] - proximal[c]
+            change_force[c] -= n[k, c]
+            change_moment[c] -= m[k, c]
+            for d in range(nd):
+                tarm[c, d] = tp[k, c, d] - tproximal[c, d]
+                tchange_force[c, d] -= tn[k, c, d]
+                tchange_moment[c, d] -= tm[k, c, d]
+        _cross_sub(arm, n[k], change_moment)
+        _cross_tangent_sub(arm, tarm, n[k], tn[k], tchange_moment)
+        axial_force = axis[0] * n[k, 0] + axis[1] * n[k, 1] + axis[2] * n[k, 2]
+        torsion = rot[k, 0, 2] * m[k, 0] + rot[k, 1, 2] * m[k, 1] + rot[k, 2, 2] * m[k, 2]
+        denominator = 1.0 + inv_kse[2] * axial_force
+        inside = tube_length / denominator
+        twist = inv_kbt[2] * torsion * inside
+        cos_t = math.cos(twist)
+        sin_t = math.sin(twist)
+        _in_plane(rot[0], x[u + 1], x[u + 2], lat)
+        _in_plane(rot[0], x[u + 3], x[u + 4], lat2)
+        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], u + 1, tlat)
+        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], u + 3, tlat2)
+        for d in range(nd):
+            t_axial = 0.0
+            t_torsion = 0.0
+            for c in range(3):
+                t_axial += taxis[c, d] * n[k, c] + axis[c] * tn[k, c, d]
+                t_torsion += trot[k, c, 2, d] * m[k, c] + rot[k, c, 2] * tm[k, c, d]
+            t_inside = -tube_length * inv_kse[2] * t_axial / denominator ** 2
+            tused[i, d] += t_inside
+            t_twist = inv_kbt[2] * (t_torsion * inside + torsion * t_inside)
+            t_cos = -sin_t * t_twist
+            t_sin = cos_t * t_twist
+            for c in range(3):  # R <- R Rz(twist)
+                r0 = rot[k, c, 0]
+                r1 = rot[k, c, 1]
+                s0 = trot[k, c, 0, d]
+                s1 = trot[k, c, 1, d]
+                trot[k, c, 0, d] = t_cos * r0 + cos_t * s0 + t_sin * r1 + sin_t * s1
+                trot[k, c, 1, d] = -t_sin * r0 - sin_t * s0 + t_cos * r1 + cos_t * s1
+                tp[k, c, d] += tube_length * taxis[c, d]
+                tn[k, c, d] = t_axial * axis[c] + axial_force * taxis[c, d] + tlat[c, d]
+                tm[k, c, d] = t_torsion * axis[c] + torsion * taxis[c, d] + tlat2[c, d]
+                tarm[c, d] = tp[k, c, d] - tproximal[c, d]
+                tchange_force[c, d] += tn[k, c, d]
+                tchange_moment[c, d] += tm[k, c, d]
+        for c in range(3):
+            nk[c] = axial_force * axis[c] + lat[c]
+            mk[c] = torsion * axis[c] + lat2[c]
+            arm[c] = p[k, c] + tube_length * axis[c] - proximal[c]
+            change_force[c] += nk[c]
+            change_moment[c] += mk[c]
+        # change_moment += arm x n_k and its tangent
+        for c in range(3):
+            lat[c] = -arm[c]
+        _cross_sub(lat, nk, change_moment)
+        for c in range(3):
+            for d in range(nd):
+                tlat[c, d] = -tarm[c, d]
+        _cross_tangent_sub(lat, tlat, nk, tn[k], tchange_moment)
+    for c in range(3):
+        nk[c] = n[0, c] - change_force[c]
+        arm[c] = tube_length * axis[c]
+        for d in range(nd):
+            tn[0, c, d] -= tchange_force[c, d]
+            tm[0, c, d] -= tchange_moment[c, d]
+            tarm[c, d] = tube_length * taxis[c, d]
+            tp[0, c, d] = tproximal[c, d] + tarm[c, d]
+    _cross_tangent_sub(arm, tarm, nk, tn[0], tm[0])
+
+
+@jit
+def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row):
+    """Tangents of ``_end_disk`` (the wrench enters linearly and has no x-tangent)."""
+    nd = tp.shape[2]
+    arm = np.empty(3)
+    tarm = np.empty((3, nd))
+    tmoment = np.zeros((3, nd))
+    tq = np.empty((3, 3))
+    for c in range(3):
+        for d in range(nd):
+            jac[row + 24 + c, d] = 0.0
+    for k in range(N_RODS):
+        for c in range(3):
+            arm[c] = p[k, c] - p[0, c]
+            for d in range(nd):
+                tarm[c, d] = tp[k, c, d] - tp[0, c, d]
+                jac[row + 24 + c, d] -= tn[k, c, d]
+                tmoment[c, d] -= tm[k, c, d]
+        _cross_tangent_sub(arm, tarm, n[k], tn[k], tmoment)
+        if k == 0:
+            continue
+        r = row + 6 * (k - 1)
+        for c in range(3):
+            for d in range(nd):
+                acc = 0.0
+                for a in range(3):
+                    acc += trot[0, a, c, d] * arm[a] + rot[0, a, c] * tarm[a, d]
+                jac[r + c, d] = acc
+        for d in range(nd):
+            for a in range(3):
+                for b in range(3):
+                    acc = 0.0
+                    for c in range(3):
+                        acc += trot[0, c, a, d] * rot[k, c, b] + rot[0, c, a] * trot[k, c, b, d]
+                    tq[a, b] = acc
+            jac[r + 3, d] = 0.5 * (tq[2, 1] - tq[1, 2])
+            jac[r + 4, d] = 0.5 * (tq[0, 2] - tq[2, 0])
+            jac[r + 5, d] = 0.5 * (tq[1, 0] - tq[0, 1])
+    for c in range(3):
+        for d in range(nd):
+            jac[row + 27 + c, d] = tmoment[c, d]
+
+
+@jit
+def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, steps,
+                        inv_kse, inv_kbt, out, jac, pose_jac, frames):
+    """
+    Residual into ``out`` and its exact Jacobian d(out)/dx into ``jac`` from one shot.
+
+    ``pose_jac`` (12, size) receives the derivative of the end-disk frame {de}: rows 0-2 its
+    centre, rows 3-11 its rotation matrix (row-major); ``frames`` as in translator_residual.
+    """
+    size = x.shape[0]
+    nst = 2 * spacers + 1
+    hole, p, rot, n, m = _base_state(x, pitch_radius)
+    tp = np.zeros((N_RODS, 3, size))
+    trot = np.zeros((N_RODS, 3, 3, size))
+    tn = np.zeros((N_RODS, 3, size))
+    tm = np.zeros((N_RODS, 3, size))
+    tused = np.zeros((4, size))
+    tl = np.zeros(size)
+    stack = np.empty((LOCAL_DIRECTIONS, size))
+    active = np.zeros(LOCAL_DIRECTIONS, dtype=np.bool_)
+    columns = np.empty(size, dtype=np.int64)
+    lp = np.empty((3, LOCAL_DIRECTIONS))
+    lrot = np.empty((3, 3, LOCAL_DIRECTIONS))
+    lm = np.empty((3, LOCAL_DIRECTIONS))
+    for k in range(N_RODS):
+        for c in range(3):
+            tn[k, c, 6 * k + c] = 1.0
+            tm[k, c, 6 * k + 3 + c] = 1.0
+    _store_frame(rot[0], p[0], frames[0])
+    secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
+    used = np.zeros(4)
+    for r in range(jac.shape[0]):
+        for d in range(size):
+            jac[r, d] = 0.0
+    for joint in range(2):
+        for station in range(spacers + 1):
+            t = joint * (spacers + 1) + station
+            tl[:] = 0.0
+            count = _segment_inputs(0, tl, tp, trot, tn, tm, stack, active, columns)
+            integrate_segment_tangent(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse,
+                                      inv_kbt, lp, lrot, lm, active)
+            _chain_segment(0, lp, lrot, lm, tp, trot, tm, stack, active, columns, count)
+            is_end = joint == 1 and station == spacers
+            for i in range(4):
+                tl[:] = 0.0
+                if is_end:
+                    length = secondary_length - used[i]
+                    for d in range(size):
+                        tl[d] = -tused[i, d]
+                else:
+                    u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
+                    length = x[u]
+                    tl[u] = 1.0
+                used[i] += length
+                for d in range(size):
+                    tused[i, d] += tl[d]
+                count = _segment_inputs(i + 1, tl, tp, trot, tn, tm, stack, active, columns)
+                integrate_segment_tangent(p[i + 1], rot[i + 1], n[i + 1], m[i + 1], length,
+                                          steps, inv_kse, inv_kbt, lp, lrot, lm, active)
+                _chain_segment(i + 1, lp, lrot, lm, tp, trot, tm, stack, active, columns,
+                               count)
+            if is_end:
+                _store_frame(rot[0], p[0], frames[3])
+                for c in range(3):
+                    for d in range(size):
+                        pose_jac[c, d] = tp[0, c, d]
+                    for b in range(3):
+                        for d in range(size):
+                            pose_jac[3 + 3 * c + b, d] = trot[0, c, b, d]
+                _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, 4 * STATION_WIDTH * nst)
+                _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
+                continue
+            col = _gather_station(x, t, nst)
+            res = np.empty(4 * STATION_WIDTH)
+            if joint == 0 and station == spacers:
+                _store_frame(rot[0], p[0], frames[1])
+                _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp,
+                              trot, tn, tm, tused, jac)
+                _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
+                      used)
+                _store_frame(rot[0], p[0], frames[2])
+            else:
+                _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac)
+                _spacer_disk(p, rot, n, m, col, 0, res, 0, hole)
+            for i in range(4):
+                for c in range(STATION_WIDTH):
+                    out[STATION_WIDTH * (i * nst + t) + c] = res[STATION_WIDTH * i + c]

@@ -36,9 +36,16 @@ DEFAULT_PARAMS_PATH = _shipped_params_path()
 SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 
 #: Upper bounds of the discretization, enforced by the library and both nodes alike: past
-#: them a solve cannot meet any time limit (cost and memory grow with both).
-MAX_SPACERS_PER_JOINT = 64
+#: them a solve cannot meet any time limit (cost and memory grow with both). The exact
+#: Jacobian costs ~ (unknowns)^2 x (disk intervals) and its factorization (unknowns)^3;
+#: at 16 spacer disks per joint (690 unknowns) one Newton iteration stays well inside a
+#: second, so ``time_limit_s`` (checked between iterations) holds; at 64 (2610 unknowns)
+#: one iteration alone took longer.
+MAX_SPACERS_PER_JOINT = 16
 MAX_STEPS_PER_SEGMENT = 1024
+
+#: Most RK4 steps per disk interval the automatic refinement may use.
+MAX_REFINED_STEPS = 256
 
 #: Keys of the same params file that belong to the ROS node, not to the model.
 NODE_ONLY_KEYS: frozenset = frozenset((
@@ -49,6 +56,10 @@ NODE_ONLY_KEYS: frozenset = frozenset((
 #: Keys of the same params file that choose the fidelity level and its error budget
 #: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).
 FIDELITY_KEYS: frozenset = frozenset(('fidelity', 'max_position_error', 'max_angle_error'))
+
+#: Keys of the same params file that set the accuracy target of every solve (read by
+#: ``Accuracy.from_yaml`` and TranslatorSolver, not by TranslatorParams).
+ACCURACY_KEYS: frozenset = frozenset(('accuracy_position_m', 'accuracy_angle_deg'))
 
 
 def read_params_file(path: Union[str, Path] = DEFAULT_PARAMS_PATH,
@@ -155,7 +166,7 @@ class TranslatorParams:
     def from_mapping(cls, values: Mapping[str, Any]) -> 'TranslatorParams':
         """Build from a flat mapping; unknown or missing keys raise ParameterError naming them."""
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known - NODE_ONLY_KEYS - FIDELITY_KEYS)
+        unknown = sorted(set(values) - known - NODE_ONLY_KEYS - FIDELITY_KEYS - ACCURACY_KEYS)
         if unknown:
             raise ParameterError(
                 f'unknown parameter(s) {", ".join(unknown)}; known: {", ".join(sorted(known))}')
@@ -186,3 +197,40 @@ class TranslatorParams:
     def to_dict(self) -> dict:
         """Plain dict of the fields, as written in the YAML file."""
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """
+    Accuracy target of every solve: the estimated discretization error may not exceed it.
+
+    ``position_m`` bounds the end-disk (and tube-face) position error, ``angle_deg`` their
+    orientation error and the defects of the secondaries' angle conditions; a solve whose
+    estimate exceeds either is refined (more steps per segment) up to MAX_REFINED_STEPS.
+    Zero disables the refinement of that kind (the estimate is still reported).
+    The shipped defaults are ten times inside the paper's tolerances that
+    ``cdr_translator.verify`` checks (2e-4 m, 1e-4 rad). docs/accuracy.md.
+    """
+
+    position_m: float = 2e-5
+    angle_deg: float = 5e-4
+
+    def __post_init__(self) -> None:
+        """Validate; ParameterError names the offending key and value."""
+        check_number('accuracy_position_m', self.position_m, low=0.0, error=ParameterError)
+        check_number('accuracy_angle_deg', self.angle_deg, low=0.0, error=ParameterError)
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> 'Accuracy':
+        """Pick the accuracy keys out of a flat mapping (missing ones take the defaults)."""
+        picked = {}
+        if 'accuracy_position_m' in values:
+            picked['position_m'] = values['accuracy_position_m']
+        if 'accuracy_angle_deg' in values:
+            picked['angle_deg'] = values['accuracy_angle_deg']
+        return cls(**picked)
+
+    @classmethod
+    def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> 'Accuracy':
+        """Read the accuracy keys of a params file over the shipped one (``translator_values``)."""
+        return cls.from_mapping(translator_values(path))

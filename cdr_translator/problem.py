@@ -7,7 +7,7 @@ tolerance and one finite-difference step suit every component.
 """
 
 from types import ModuleType
-from typing import Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -25,12 +25,24 @@ RESIDUAL_KINDS = ('position_m', 'orientation_rad', 'force_n', 'moment_nm')
 #: 1e-9 keeps Newton quadratic there and costs ~1e-6 relative rounding at small loads.
 FD_STEP = 1e-9
 
+#: Ways to compute the Jacobian: 'exact' (tangent-linear shot, model.translator_jacobian)
+#: or 'fd' (forward differences, one shot per unknown: the paper's way and the check).
+JACOBIANS = ('exact', 'fd')
+
 
 class Problem:
     """Residual, Jacobian and shape of the translator for fixed parameters."""
 
-    def __init__(self, params: TranslatorParams, kernel: ModuleType = model) -> None:
-        """Bind ``kernel`` (the compiled model module, or an interpreted copy) to params."""
+    def __init__(self, params: TranslatorParams, kernel: ModuleType = model,
+                 jacobian: str = 'exact') -> None:
+        """
+        Bind ``kernel`` (the compiled model module, or an interpreted copy) to params.
+
+        ``jacobian`` is one of JACOBIANS: how ``jacobian()`` differentiates the residual.
+        """
+        if jacobian not in JACOBIANS:
+            raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
+        self.jacobian_method = jacobian
         self.params = params
         self.kernel = kernel
         spacers = params.spacers_per_joint
@@ -71,6 +83,10 @@ class Problem:
         self._frames = np.empty((4, 4, 4))
         self._jacobian = np.empty((self.size, self.size))
         self._step = FD_STEP * x_scale
+        self._pose_jacobian = np.empty((12, self.size))
+        #: derivative of the end-disk frame {de} (centre, then rotation matrix row-major;
+        #: SI per nondimensional unknown) at the last Jacobian, or None
+        self.pose_jacobian: Optional[np.ndarray] = None
 
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at nondimensional unknowns ``xs``."""
@@ -89,10 +105,46 @@ class Problem:
         return out / self.residual_scale, frames[3]
 
     def jacobian(self, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarray) -> np.ndarray:
-        """Nondimensional forward-difference Jacobian at ``xs`` (``rs`` = residual there)."""
+        """
+        Nondimensional Jacobian at ``xs`` (``rs`` = residual there), by ``jacobian_method``.
+
+        Both also set ``pose_jacobian`` (the end-disk frame's derivative, the same way).
+        """
+        if self.jacobian_method == 'exact':
+            return self.exact_jacobian(xs, wrench)[1]
         self.kernel.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,
-                                      rs * self.residual_scale, self._jacobian)
+                                      rs * self.residual_scale, self._jacobian,
+                                      self._pose_jacobian)
+        self.pose_jacobian = self._pose_jacobian * self.x_scale
         return self._jacobian * (self.x_scale / self.residual_scale[:, None])
+
+    def exact_jacobian(self, xs: np.ndarray,
+                       wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Residual, exact Jacobian and end-disk pose Jacobian from one tangent-linear shot.
+
+        All nondimensional in the unknowns; the residual and Jacobian rows nondimensional too,
+        the pose Jacobian's rows SI (m, and rotation-matrix entries). The Jacobian is the
+        derivative of the discretized residual (model.translator_jacobian), so Newton is
+        quadratic up to rounding however curved the residual is.
+        """
+        out = np.empty(self.size)
+        self.kernel.translator_jacobian(xs * self.x_scale, wrench, *self._args, out,
+                                        self._jacobian, self._pose_jacobian, self._frames)
+        self.pose_jacobian = self._pose_jacobian * self.x_scale
+        return (out / self.residual_scale,
+                self._jacobian * (self.x_scale / self.residual_scale[:, None]),
+                self.pose_jacobian)
+
+    def shot_with_steps(self, xs: np.ndarray, wrench: np.ndarray,
+                        steps: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Nondimensional residual and frames (4, 4, 4) at ``steps`` RK4 steps per interval."""
+        out = np.empty(self.size)
+        frames = np.empty((4, 4, 4))
+        args = self._args[:4] + (steps,) + self._args[5:]
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *args, out,
+                                        self._no_points, frames)
+        return out / self.residual_scale, frames
 
     def shape(self, xs: np.ndarray, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Centre-line points (5, rows, 3) and frames (4, 4, 4) at ``xs``."""

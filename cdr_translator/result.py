@@ -77,6 +77,21 @@ class SolveResult:
     #: the model that produced the result: 'full', or a reduced level of
     #: cdr_translator.fidelity ('cc', 'rod', 'linear')
     fidelity: str = 'full'
+    #: stability verdict of the equilibrium (cdr_translator.stability; docs/stability.md):
+    #: None when not assessed (not converged, or the paper's method)
+    stable: Optional[bool] = None
+    #: smallest generalized eigenvalue of the end-disk stiffness against the unloaded one:
+    #: 1 unloaded, 0 at a bifurcation, negative past it (NaN when not assessed)
+    stability_margin: float = math.nan
+    #: estimated discretization error of the end-disk pose (and of what ``verify`` checks),
+    #: m and deg (cdr_translator.accuracy; NaN when not estimated)
+    error_estimate_m: float = math.nan
+    error_estimate_deg: float = math.nan
+    #: whether the estimate is within the solver's accuracy target
+    accuracy_met: bool = True
+    #: RK4 steps per disk interval of this result (more than the parameters' after an
+    #: automatic refinement; 0 when not recorded)
+    steps_per_segment: int = 0
 
     @property
     def verified(self) -> Optional[bool]:
@@ -148,4 +163,17 @@ class SolveResult:
             'fidelity': self.fidelity,
             **(self.compliance.to_dict() if self.compliance is not None else {}),
             **(self.verification.to_dict() if self.verification is not None else {}),
+            'error_estimate_m': _finite_or_none(self.error_estimate_m),
+            'error_estimate_deg': _finite_or_none(self.error_estimate_deg),
+            'accuracy_met': bool(self.accuracy_met),
+            'steps_per_segment': int(self.steps_per_segment),
+            **({} if self.stable is None else {
+                'stable': bool(self.stable),
+                'stability_margin': (float(self.stability_margin)
+                                     if math.isfinite(self.stability_margin) else None)}),
         }
+
+
+def _finite_or_none(value: float) -> Optional[float]:
+    """JSON has no NaN or infinity: those become null."""
+    return float(value) if math.isfinite(value) else None

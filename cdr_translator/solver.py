@@ -14,19 +14,22 @@ from dataclasses import dataclass
 import functools
 import math
 import time
-from typing import Any, Callable, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Optional, Tuple
 import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, lu_factor
 
+from . import stability
 from ._jit import interpreted_kernels
+from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
 from .compliance import compliance_analysis
-from .params import TranslatorParams
-from .problem import Problem, RESIDUAL_KINDS
+from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
+from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
+from .stability import solve_lu
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
@@ -39,6 +42,24 @@ PREDICTOR_REACH = 0.3
 
 #: Smallest fraction of the remaining wrench change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
+
+#: A stability margin below this is recomputed on an exact Jacobian at the solution.
+RECHECK_MARGIN = 0.05
+
+#: A factorization made at a wrench further than this (relative to |w|, SI components)
+#: from the solved one is not trusted for the stability verdict.
+STALE_WRENCH = 0.2
+
+#: Refined re-solves at most (each aims at the target from the error's N^-4 law).
+MAX_REFINEMENTS = 5
+
+#: Perturb-and-reconverge attempts past a bifurcation (a symmetric structure may first
+#: land on a saddle branch, e.g. buckled along x when the stable one is diagonal).
+BRANCH_ATTEMPTS = 3
+
+#: Size of the critical-mode imperfection that steers past a bifurcation, relative to the
+#: wrench (stability margin < 0): large enough to leave the unstable branch's basin.
+IMPERFECTION = 0.02
 
 #: Largest nondimensional residual at which a corrector out of iterations gets another
 #: round on the same step instead of a halved step (it is converging, only slowly).
@@ -55,6 +76,9 @@ class _Outcome:
     converged: bool
     message: str
     lu: Optional[tuple] = None
+    #: (derivative of the end-disk frame, or None with jacobian='fd'; wrench) at the point
+    #: ``lu`` factorizes
+    pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
 
 
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
@@ -109,7 +133,9 @@ class TranslatorSolver:
 
     def __init__(self, params: Optional[TranslatorParams] = None, method: str = 'fast',
                  tolerance: float = 1e-10, max_iterations: Optional[int] = None,
-                 time_limit_s: float = 10.0) -> None:
+                 time_limit_s: float = 10.0, jacobian: str = 'exact',
+                 accuracy: Optional[Accuracy] = None,
+                 follow_stable_branch: bool = True) -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -117,8 +143,21 @@ class TranslatorSolver:
         disk spacing, forces in EI/D^2, moments in EI/D). ``max_iterations`` caps the
         Newton iterations of one continuation step (default 12: a step that needs more is
         halved instead) or, for ``method='paper'``, the Levenberg-Marquardt iterations
-        (default 30); ``time_limit_s`` caps a whole solve.
+        (default 30); ``time_limit_s`` caps a whole solve. ``jacobian`` is 'exact' (the
+        tangent-linear shot of model.translator_jacobian, default) or 'fd' (forward
+        differences, one shot per unknown: the former default, kept for tests and the
+        benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
+        ``accuracy`` is the discretization-error target of every solve (default: the
+        accuracy keys of config/translator.yaml): a converged solve whose estimate
+        (accuracy.py) exceeds it is re-solved with more steps per segment. Every converged
+        solve is judged stable or not (stability.py); an unstable one is, with
+        ``follow_stable_branch``, perturbed along its critical mode and re-converged on the
+        stable branch when one is found (without it, or if none is found, it is returned
+        with ``stable`` False and a message saying so; studies of unstable equilibria such
+        as studies/hard_cases.py switch it off).
         """
+        if jacobian not in JACOBIANS:
+            raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
         if method not in METHODS:
             raise ValueError(f'method must be one of {METHODS}, got {method!r}')
         self.params = params if params is not None else TranslatorParams.from_yaml()
@@ -134,11 +173,25 @@ class TranslatorSolver:
         if not (math.isfinite(tolerance) and tolerance > 0.0):
             raise ValueError(f'tolerance must be positive and finite, got {tolerance}')
         self.time_limit_s = time_limit_s
+        if method == 'paper':
+            jacobian = 'fd'
+        self.jacobian = jacobian
         kernel = interpreted_kernels()['model'] if method == 'paper' else None
-        self.problem = Problem(self.params) if kernel is None else Problem(self.params, kernel)
+        self.problem = (Problem(self.params, jacobian=jacobian) if kernel is None
+                        else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
-        self._lu = None
-        self._unloaded_lu = None
+        self._lu: Optional[tuple] = None
+        self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+        self._unloaded_lu: Optional[tuple] = None
+        self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+        self._stability_origin: Optional[stability.Reference] = None
+        self._exact_at: Optional[np.ndarray] = None
+        self._verdict: Optional[stability.Stability] = None
+        self._verdict_lu: Optional[tuple] = None
+        self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
+        self.follow_stable_branch = follow_stable_branch
+        self._refined: Dict[int, 'TranslatorSolver'] = {}
+        self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -146,6 +199,7 @@ class TranslatorSolver:
         """Forget the previous solution: the next solve starts cold."""
         self._previous = None
         self._lu = None
+        self._pose = None
 
     def start_from(self, result: SolveResult) -> None:
         """
@@ -161,9 +215,10 @@ class TranslatorSolver:
         self._previous = (unknowns / self.problem.x_scale,
                           np.concatenate([result.force, result.moment]))
         self._lu = None
+        self._pose = None
 
     @one_blas_thread
-    def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
+    def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
         """
@@ -178,6 +233,7 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
+        self._exact_at = None  # the unknowns self._lu is exact at, once known
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
@@ -192,17 +248,224 @@ class TranslatorSolver:
                     outcome = restart
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
-        elapsed = time.perf_counter() - started
-        result = self._result(outcome, wrench, elapsed)
+        verdict = None
+        result = self._result(outcome, wrench, 0.0)
+        if outcome.converged and self.method == 'fast':
+            verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
+            if (not verdict.stable and self.follow_stable_branch
+                    and time.perf_counter() < deadline):
+                branch, verdict = self._follow_stable_branch(outcome, verdict, wrench, deadline)
+                if branch is not outcome:
+                    outcome, result = branch, self._result(branch, wrench, 0.0)
+        if verdict is not None:
+            result.stable = verdict.stable
+            result.stability_margin = verdict.margin
+            if not verdict.stable:
+                result.message += f'; {verdict.message}'
+        if outcome.converged:
+            self._estimate_error(result, outcome, wrench)
+            if not result.accuracy_met and self.method == 'fast':
+                refined = self._refine(result, wrench, deadline, compliance, verify,
+                                       compliance_options)
+                if refined is not None:
+                    refined.solve_time_s = time.perf_counter() - started
+                    return refined
+            if not result.accuracy_met:
+                result.message += (f'; accuracy target not met: estimated error '
+                                   f'{result.error_estimate_m:.2g} m, '
+                                   f'{result.error_estimate_deg:.2g} deg at '
+                                   f'{result.steps_per_segment} steps per segment')
+        result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
+            stored = self._pose[0] if self._pose is not None else None
+            factorization = ((self._lu, stored) if self._exact_at is outcome.xs
+                             and self._lu is not None and stored is not None else None)
             try:
-                result.compliance, self._lu = compliance_analysis(
-                    self.problem, outcome.xs, wrench, self._lu, **compliance_options)
+                result.compliance, self._lu, pose = compliance_analysis(
+                    self.problem, outcome.xs, wrench, factorization, **compliance_options)
+                self._pose = (pose, wrench.copy())
+                self._exact_at = outcome.xs
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
         if verify:
             result.verification = verify_result(result, self.params)
         return result
+
+    # accuracy --------------------------------------------------------------------------------
+    def _estimate_error(self, result: SolveResult, outcome: _Outcome,
+                        wrench: np.ndarray) -> None:
+        """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
+        pose = outcome.pose[0] if outcome.pose is not None else None
+        frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+        estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
+                                  outcome.lu, pose)
+        result.error_estimate_m = estimate.position_m
+        result.error_estimate_deg = estimate.angle_deg
+        target = self.accuracy
+        result.accuracy_met = bool(
+            (target.position_m <= 0.0 or estimate.position_m <= target.position_m)
+            and (target.angle_deg <= 0.0 or estimate.angle_deg <= target.angle_deg))
+        self._last_estimate = estimate
+
+    def _refine(self, result: SolveResult, wrench: np.ndarray, deadline: float,
+                compliance: bool, verify: bool,
+                compliance_options: dict) -> Optional[SolveResult]:
+        """
+        Re-solve with more steps per segment until the accuracy target is met.
+
+        Each refined solve starts from the previous result (the unknowns mean the same at
+        any discretization). Returns the last converged refined result (its message says
+        whether the target was met), or None when no refinement converged.
+        """
+        estimate, current, refined = self._last_estimate, result, None
+        assert estimate is not None  # _estimate_error ran first
+        for _ in range(MAX_REFINEMENTS):
+            steps = refined_steps(estimate, self.accuracy.position_m, self.accuracy.angle_deg,
+                                  MAX_REFINED_STEPS)
+            remaining = deadline - time.perf_counter()
+            if steps <= estimate.steps or remaining <= 0.0:
+                break
+            solver = self._refined.get(steps)
+            if solver is None:
+                solver = TranslatorSolver(self.params.with_changes(steps_per_segment=steps),
+                                          tolerance=self.tolerance,
+                                          max_iterations=self.max_iterations,
+                                          jacobian=self.jacobian,
+                                          accuracy=Accuracy(0.0, 0.0),
+                                          follow_stable_branch=self.follow_stable_branch)
+                self._refined[steps] = solver
+            solver.time_limit_s = remaining
+            solver.start_from(current)
+            attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance,
+                                   verify=verify, **compliance_options)
+            if not attempt.converged:
+                break
+            current = refined = attempt
+            estimate = solver._last_estimate
+            assert estimate is not None
+            met = ((self.accuracy.position_m <= 0.0
+                    or estimate.position_m <= self.accuracy.position_m)
+                   and (self.accuracy.angle_deg <= 0.0
+                        or estimate.angle_deg <= self.accuracy.angle_deg))
+            refined.accuracy_met = met
+            if met:
+                break
+        if refined is None:
+            return None
+        refined.iterations += result.iterations
+        extra = '' if refined.message == 'converged' else f' ({refined.message})'
+        refined.message = result.message + extra
+        refined.message += (f'; refined to {refined.steps_per_segment} steps per segment '
+                            f'(estimated error at {result.steps_per_segment}: '
+                            f'{result.error_estimate_m:.2g} m, '
+                            f'{result.error_estimate_deg:.2g} deg)')
+        if not refined.accuracy_met:
+            refined.message += (f'; accuracy target not met: estimated error '
+                                f'{refined.error_estimate_m:.2g} m, '
+                                f'{refined.error_estimate_deg:.2g} deg')
+        return refined
+
+    # stability -------------------------------------------------------------------------------
+    def _origin(self) -> stability.Reference:
+        """Return the unloaded state's stiffness and det J sign (stability.py), made once."""
+        if self._stability_origin is None:
+            (xs, zero), lu = self._unloaded()
+            pose = self._unloaded_pose[0] if self._unloaded_pose is not None else None
+            if pose is None:  # jacobian='fd': the tangent shot gives the pose derivative
+                pose = self.problem.exact_jacobian(xs, zero)[2]
+            _, frames = self.problem.shape(xs, zero)
+            self._stability_origin = stability.reference(
+                lu, pose, frames[3][:3, :3], self.problem.wrench_sensitivity,
+                self.params.stack_height)
+        return self._stability_origin
+
+    def _stability(self, outcome: _Outcome, wrench: np.ndarray,
+                   rotation: Optional[np.ndarray] = None) -> stability.Stability:
+        """
+        Verdict at a converged outcome from the factorization its iteration ended with.
+
+        That factorization may be from an earlier iterate or solve (chord steps); when it was
+        made at a wrench further (relative to |w|) than STALE_WRENCH or half the margin it
+        gives, or the verdict is unstable or its margin below RECHECK_MARGIN, the verdict is
+        redone on an exact Jacobian at the solution itself, which then also becomes the
+        stored factorization.
+        """
+        problem = self.problem
+        lu = outcome.lu
+        pose, lu_wrench = outcome.pose if outcome.pose is not None else (None, None)
+        if rotation is None:
+            rotation = problem.residual_and_end_frame(outcome.xs, wrench)[1][:3, :3]
+        if lu is not None and pose is not None and lu_wrench is not None:
+            if self._verdict_lu is lu and self._verdict is not None:
+                verdict = self._verdict  # chord steps keep a factorization over many solves
+            else:
+                verdict = stability.assess(lu, pose, rotation, problem.wrench_sensitivity,
+                                           self._origin())
+                self._verdict_lu, self._verdict = lu, verdict
+            # the margin moves about as fast as the load, relative to the load: a verdict
+            # from a factorization made at a wrench more than half the margin away (or
+            # STALE_WRENCH) could already be on the other side of zero
+            drift = float(np.linalg.norm(wrench - lu_wrench)) / max(
+                float(np.linalg.norm(wrench)), 1e-300)
+            if verdict.stable and verdict.margin >= RECHECK_MARGIN and \
+                    drift <= min(STALE_WRENCH, 0.5 * verdict.margin):
+                return verdict
+        _, jac, pose = problem.exact_jacobian(outcome.xs, wrench)
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', LinAlgWarning)
+            lu = lu_factor(jac, check_finite=False)
+        outcome.lu, outcome.pose = lu, (pose.copy(), wrench.copy())
+        self._lu, self._pose = outcome.lu, outcome.pose
+        self._exact_at = outcome.xs
+        return stability.assess(lu, pose, rotation, problem.wrench_sensitivity, self._origin())
+
+    def _follow_stable_branch(self, outcome: _Outcome, verdict: stability.Stability,
+                              wrench: np.ndarray,
+                              deadline: float) -> Tuple[_Outcome, stability.Stability]:
+        """
+        Past a bifurcation: perturb along the critical mode and re-converge (Riks' way).
+
+        The wrench is given an imperfection along the critical mode (IMPERFECTION of the
+        wrench's size, stability.critical_wrench), solved from the unloaded state, which
+        follows the imperfect, stable path; the imperfection is then removed by a warm
+        continuation that stays on the branch it reached. Returns the new outcome when it
+        converged stably, else the original one with its verdict.
+        """
+        saved = (self._previous, self._lu, self._pose)
+        length = self.params.stack_height
+        size = np.linalg.norm(wrench[:3]) + np.linalg.norm(wrench[3:]) / length
+        current_verdict = verdict
+        iterations = outcome.iterations
+        direction = np.zeros(6)
+        for attempt in range(BRANCH_ATTEMPTS):
+            # a later attempt adds the critical mode of the unstable branch it reached to
+            # the earlier imperfection (x-buckled saddle + its y mode: the diagonal)
+            direction = direction + stability.critical_wrench(current_verdict, length)
+            direction /= np.linalg.norm(direction[:3]) + np.linalg.norm(direction[3:]) / length
+            perturbed = wrench + IMPERFECTION * size * direction
+            first = self._continuation(perturbed, False, deadline, self._newton)
+            iterations += first.iterations
+            if not first.converged:
+                break
+            self._stability(first, perturbed)  # the exact factorization there: a stale
+            # one's predictor led the way back to the unstable branch
+            self._previous = (first.xs, perturbed)
+            second = self._continuation(wrench, True, deadline, self._newton)
+            iterations += second.iterations
+            if not second.converged:
+                break
+            new_verdict = self._stability(second, wrench)
+            if new_verdict.stable:
+                self._previous = (second.xs, wrench)
+                second.iterations = iterations
+                second.message = ('converged on the stable branch: the first solution was '
+                                  f'unstable (margin {verdict.margin:.3g}); perturbed along '
+                                  f'the critical mode and re-converged ({attempt + 1} '
+                                  'perturbation(s))')
+                return second, new_verdict
+            current_verdict = new_verdict
+        self._previous, self._lu, self._pose = saved
+        return outcome, verdict
 
     # continuation ----------------------------------------------------------------------------
     def _continuation(self, wrench: np.ndarray, warm_start: bool, deadline: float,
@@ -222,8 +485,9 @@ class TranslatorSolver:
         """
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
+            self._pose = self._unloaded_pose
         xs, start = self._previous
-        lu = self._lu
+        lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
         done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
         current = start
@@ -232,17 +496,17 @@ class TranslatorSolver:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            guess = xs if lu is None else xs - lu_solve(lu, sensitivity @ (goal - current),
-                                                        check_finite=False)
-            outcome = corrector(guess, goal, deadline, lu, self.max_iterations)
+            guess = xs if lu is None else xs - solve_lu(lu, sensitivity @ (goal - current))
+            outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
                     and time.perf_counter() < deadline):
                 # out of iterations but inside the basin: keep correcting, don't halve
-                outcome = corrector(outcome.xs, goal, deadline, outcome.lu, self.max_iterations)
+                outcome = corrector(outcome.xs, goal, deadline, outcome.lu, self.max_iterations,
+                                    outcome.pose)
                 iterations += outcome.iterations
             if outcome.converged:
-                done, xs, current, lu = target, outcome.xs, goal, outcome.lu
+                done, xs, current, lu, pose = target, outcome.xs, goal, outcome.lu, outcome.pose
                 if outcome.iterations <= self.max_iterations // 2:
                     step *= grow
                 grow = 2.0
@@ -251,7 +515,7 @@ class TranslatorSolver:
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
                 return self._stalled(xs, outcome, wrench, done, iterations, deadline)
-        self._lu = lu
+        self._lu, self._pose = lu, pose
         outcome.iterations = iterations
         return outcome
 
@@ -265,8 +529,7 @@ class TranslatorSolver:
         """
         if lu is None:
             return 1.0
-        predicted = np.abs(lu_solve(lu, self.problem.wrench_sensitivity @ change,
-                                    check_finite=False)).max()
+        predicted = np.abs(solve_lu(lu, self.problem.wrench_sensitivity @ change)).max()
         if predicted <= PREDICTOR_REACH:
             return 1.0
         return max(PREDICTOR_REACH / predicted, MIN_CONTINUATION_STEP)
@@ -292,31 +555,35 @@ class TranslatorSolver:
             xs = self.problem.straight_guess(zero)
             self._unloaded_lu = lu_factor(
                 self.problem.jacobian(xs, zero, self.problem.residual(xs, zero)))
+            self._unloaded_pose = (self.problem.pose_jacobian, zero)
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
     # correctors ------------------------------------------------------------------------------
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                lu: Optional[tuple], max_iterations: int) -> _Outcome:
+                lu: Optional[tuple], max_iterations: int,
+                pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
         """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
         problem = self.problem
         rs = problem.residual(xs, wrench)
         norm = _norm(rs)
         fresh = False
+        pose = pose_in
         for iteration in range(1, max_iterations + 1):
             if not math.isfinite(norm):
                 return _Outcome(xs, rs, iteration - 1, False,
-                                'residual became non-finite during the iteration', lu)
+                                'residual became non-finite during the iteration', lu, pose)
             if np.abs(rs).max() <= self.tolerance:
-                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu)
+                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu, pose)
             if time.perf_counter() > deadline:
                 return _Outcome(xs, rs, iteration - 1, False,
-                                f'time limit of {self.time_limit_s} s reached', lu)
+                                f'time limit of {self.time_limit_s} s reached', lu, pose)
             if lu is None:
                 with warnings.catch_warnings():  # a singular J shows as a non-finite step
                     warnings.simplefilter('ignore', LinAlgWarning)
                     lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
+                pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
-            step = -lu_solve(lu, rs, check_finite=False)
+            step = -solve_lu(lu, rs)
             finite = bool(np.isfinite(step).all())
             trial = _line_search(problem, xs, step, wrench, norm) if finite else None
             if trial is None:
@@ -324,7 +591,7 @@ class TranslatorSolver:
                     return _Outcome(xs, rs, iteration, False,
                                     'line search found no decrease of the residual' if finite
                                     else 'Newton step is not finite (singular or non-finite '
-                                    'Jacobian)', lu)
+                                    'Jacobian)', lu, pose)
                 lu = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             xs, rs, new_norm = trial
@@ -335,14 +602,17 @@ class TranslatorSolver:
         converged = bool(np.abs(rs).max() <= self.tolerance)
         return _Outcome(xs, rs, max_iterations, converged,
                         'converged' if converged
-                        else f'no convergence in {max_iterations} iterations', lu)
+                        else f'no convergence in {max_iterations} iterations', lu, pose)
 
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                             lu: Optional[tuple], max_iterations: int) -> _Outcome:
+                             lu: Optional[tuple], max_iterations: int,
+                             pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+                             ) -> _Outcome:
         """
         Eq. (13) with a one-residual-per-column Jacobian, to the paper's tolerances.
 
-        ``lu`` is ignored: the paper's method keeps no factorization between solves.
+        ``lu`` and ``pose_in`` are ignored: the paper's method keeps no factorization between
+        solves.
         """
         problem = self.problem
         tolerances = np.array([PAPER_TOLERANCES[kind] for kind in RESIDUAL_KINDS])
@@ -383,7 +653,8 @@ class TranslatorSolver:
             force=wrench[:3].copy(), moment=wrench[3:].copy(),
             frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
             backbones=points, solve_time_s=elapsed, method=self.method,
-            unknowns=outcome.xs * problem.x_scale)
+            unknowns=outcome.xs * problem.x_scale,
+            steps_per_segment=self.params.steps_per_segment)
 
 
 def _norm(values: np.ndarray) -> float:

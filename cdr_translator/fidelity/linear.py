@@ -15,12 +15,12 @@ import time
 from typing import Optional, Tuple
 
 import numpy as np
-from scipy.linalg import lu_solve
 
 from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
 from ..compliance import implicit_compliance
 from ..problem import Problem
 from ..solver import one_blas_thread
+from ..stability import solve_lu
 
 
 class TangentModel:
@@ -54,7 +54,7 @@ class TangentModel:
         started = time.perf_counter()
         problem = self.problem
         compliance, lu, _ = implicit_compliance(problem, xs0, wrench0)
-        dxdw = -lu_solve(lu, problem.wrench_sensitivity, check_finite=False)
+        dxdw = -solve_lu(lu, problem.wrench_sensitivity)
         points, frames = problem.shape(xs0, wrench0)
         twists = np.zeros((4, 6, 6))  # d(twist of each frame)/dw; {pe} is fixed
         dpdw = np.empty(points.shape + (6,))

@@ -21,7 +21,7 @@ from .reduced import ReducedModel, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
-from ..params import DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
+from ..params import Accuracy, DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
 from ..problem import RESIDUAL_KINDS
 from ..result import FRAME_NAMES, SolveResult
 from ..solver import check_wrench, TranslatorSolver
@@ -65,13 +65,15 @@ class FidelitySolver:
                  max_position_error: float = 0.0, max_angle_error_deg: float = 0.0,
                  rod_steps: int = ROD_STEPS,
                  validation: Union[Validation, None, object] = _DEFAULT,
-                 tolerance: float = 1e-10, time_limit_s: float = 10.0) -> None:
+                 tolerance: float = 1e-10, time_limit_s: float = 10.0,
+                 accuracy: Optional[Accuracy] = None) -> None:
         """
         Set up every level for ``params`` (default: config/translator.yaml).
 
         A zero budget (the default) lets 'auto' use 'full' only. ``validation`` defaults to
         config/fidelity_validation.yaml; data for other parameters count as none.
-        ``tolerance`` and ``time_limit_s`` go to the full model's TranslatorSolver.
+        ``tolerance``, ``time_limit_s`` and ``accuracy`` (its error target, default the
+        shipped YAML's) go to the full model's TranslatorSolver.
         """
         if fidelity not in FIDELITIES:
             raise ValueError(f'fidelity must be one of {FIDELITIES}, got {fidelity!r}')
@@ -80,7 +82,8 @@ class FidelitySolver:
             check_number(name, value, low=0.0)
         if fidelity != 'auto' and (max_position_error > 0.0 or max_angle_error_deg > 0.0):
             raise ValueError(f"an error budget needs fidelity 'auto', got {fidelity!r}")
-        self.full = TranslatorSolver(params, tolerance=tolerance, time_limit_s=time_limit_s)
+        self.full = TranslatorSolver(params, tolerance=tolerance, time_limit_s=time_limit_s,
+                                     accuracy=accuracy)
         self.params = self.full.params
         self.fidelity = fidelity
         self.max_position_error = float(max_position_error)
@@ -116,13 +119,15 @@ class FidelitySolver:
         """
         Build from a params file: the model, ``fidelity`` and the budget.
 
-        The budget keys are ``max_position_error`` (m) and ``max_angle_error`` (deg); the
-        file overrides the shipped config/translator.yaml key by key (``translator_values``).
+        The budget keys are ``max_position_error`` (m) and ``max_angle_error`` (deg), the
+        accuracy target ``accuracy_position_m`` and ``accuracy_angle_deg``; the file
+        overrides the shipped config/translator.yaml key by key (``translator_values``).
         """
         values = translator_values(path)
         settings = {'fidelity': values['fidelity'],
                     'max_position_error': values['max_position_error'],
-                    'max_angle_error_deg': values['max_angle_error']}
+                    'max_angle_error_deg': values['max_angle_error'],
+                    'accuracy': Accuracy.from_mapping(values)}
         settings.update(options)
         return cls(TranslatorParams.from_yaml(path), **settings)
 

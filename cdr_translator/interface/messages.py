@@ -7,6 +7,7 @@ messages. Stamps are ``{'sec': int, 'nanosec': int}``; SI units and radians thro
 DiagnosticStatus ``level`` is an int here (rclpy wants it as one byte: ``bytes([level])``).
 """
 
+import math
 from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
@@ -276,15 +277,33 @@ def solve_diagnostic_values(result: SolveResult) -> dict:
     compliance = getattr(result, 'compliance', None)
     if compliance is not None:
         values['stable'] = bool(compliance.stable)
+    stable = getattr(result, 'stable', None)
+    if stable is not None:  # the solve's own verdict (docs/stability.md) wins
+        values['stable'] = bool(stable)
+        values['stability_margin'] = float(result.stability_margin)
+    if math.isfinite(getattr(result, 'error_estimate_m', math.nan)):
+        values['error_estimate_m'] = float(result.error_estimate_m)
+        values['error_estimate_deg'] = float(result.error_estimate_deg)
+        values['accuracy_met'] = bool(result.accuracy_met)
+        values['steps_per_segment'] = int(result.steps_per_segment)
     return values
 
 
 def solve_level(result: SolveResult) -> int:
-    """Return ERROR if the solve failed, WARN if converged but not stable, else OK."""
+    """
+    Return ERROR if the solve failed, WARN if it converged to an answer not to act on, else OK.
+
+    Not to act on: an unstable equilibrium (the solve's verdict, or the compliance's when
+    only that was computed), or one whose estimated discretization error misses the
+    accuracy target (docs/stability.md, docs/accuracy.md).
+    """
     if not result.converged:
         return ERROR
-    compliance = getattr(result, 'compliance', None)
-    return WARN if compliance is not None and not compliance.stable else OK
+    stable = getattr(result, 'stable', None)
+    if stable is None:
+        compliance = getattr(result, 'compliance', None)
+        stable = compliance.stable if compliance is not None else True
+    return OK if stable and getattr(result, 'accuracy_met', True) else WARN
 
 
 def output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: str, *,

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike
 from . import messages
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
-from ..params import TranslatorParams
+from ..params import Accuracy, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, TranslatorSolver
 
@@ -103,7 +103,9 @@ class WrenchProcessor:
         self.solver = FidelitySolver(params, fidelity=settings.fidelity,
                                      max_position_error=settings.max_position_error,
                                      max_angle_error_deg=settings.max_angle_error,
-                                     time_limit_s=settings.solve_time_limit_s)
+                                     time_limit_s=settings.solve_time_limit_s,
+                                     accuracy=Accuracy(settings.accuracy_position_m,
+                                                       settings.accuracy_angle_deg))
         self.compliance = compliance
         self.backbones = backbones
         self.rotation = np.eye(3)

@@ -17,7 +17,8 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
 
 from ..checks import check_integer, check_number
 from ..errors import ParameterError
-from ..params import DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME, NODE_ONLY_KEYS
+from ..params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
+from ..params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
 from ..params import TranslatorParams
 from ..params_file import layered_values
 from ..robot.params import CDR_NODE_NAME, CDR_NODE_ONLY_KEYS, cdr_values, DeltaParams
@@ -58,9 +59,9 @@ _MODEL = (
     ParameterSpec('youngs_modulus', 'Pa, Young modulus E of the backbones', read_only=True),
     ParameterSpec('poisson_ratio', 'Poisson ratio; G = E / (2 (1 + nu))', read_only=True),
     ParameterSpec('spacers_per_joint', 'spacer disks per continuum joint', read_only=True,
-                  bounds=(0, 64)),
+                  bounds=(0, MAX_SPACERS_PER_JOINT)),
     ParameterSpec('steps_per_segment', 'RK4 steps per disk interval', read_only=True,
-                  bounds=(1, 1024)),
+                  bounds=(1, MAX_STEPS_PER_SEGMENT)),
 )
 
 _NODE = (
@@ -101,8 +102,18 @@ _FIDELITY = (
                   read_only=True, bounds=(0.0, 90.0)),
 )
 
+_ACCURACY = (
+    ParameterSpec('accuracy_position_m', 'm, largest estimated discretization error of the '
+                  'end-disk position before a solve is refined (0: never refine)',
+                  read_only=True, bounds=(0.0, 1.0)),
+    ParameterSpec('accuracy_angle_deg', 'deg, largest estimated discretization error of the '
+                  'end-disk orientation before a solve is refined (0: never refine)',
+                  read_only=True, bounds=(0.0, 90.0)),
+)
+
 #: Every parameter translator_node declares, by name.
-SPECS: Mapping[str, ParameterSpec] = {spec.name: spec for spec in _MODEL + _NODE + _FIDELITY}
+SPECS: Mapping[str, ParameterSpec] = {spec.name: spec
+                                      for spec in _MODEL + _NODE + _FIDELITY + _ACCURACY}
 
 #: The model's keys (TranslatorParams fields), as opposed to the node-only ones.
 MODEL_KEYS = frozenset(spec.name for spec in _MODEL)
@@ -195,6 +206,8 @@ class TranslatorSettings:
     fidelity: str
     max_position_error: float
     max_angle_error: float
+    accuracy_position_m: float
+    accuracy_angle_deg: float
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> 'TranslatorSettings':
@@ -206,7 +219,7 @@ class TranslatorSettings:
         _checked(values, SPECS)
         params = TranslatorParams.from_mapping({key: values[key] for key in MODEL_KEYS})
         return cls(params=params, **{key: values[key]
-                                     for key in NODE_ONLY_KEYS | FIDELITY_KEYS})
+                                     for key in NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS})
 
     @classmethod
     def from_params_files(cls, paths: Iterable[Optional[PathLike]] = (),

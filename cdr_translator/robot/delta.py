@@ -39,7 +39,7 @@ from scipy.spatial.transform import Rotation
 from .inverse import InverseResult, InverseSolver
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .. import geometry
-from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
+from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, TranslatorSolver
 
@@ -311,7 +311,12 @@ class DeltaRobot:
         self.rotation_tolerance = rotation_tolerance
         self.max_iterations = max_iterations
         self.time_limit_s = time_limit_s
-        self.leg_solvers = tuple(TranslatorSolver(self.params, time_limit_s=time_limit_s)
+        # a leg is one link of the closed chain: its discretization stays fixed across the
+        # robot's Newton iterations (no automatic refinement) and its equilibrium is not
+        # judged alone (a leg's stability under a dead tip load is not the chain's)
+        self.leg_solvers = tuple(TranslatorSolver(self.params, time_limit_s=time_limit_s,
+                                                  accuracy=Accuracy(0.0, 0.0),
+                                                  follow_stable_branch=False)
                                  for _ in range(3))
         # scales for a balanced Newton system: the stack height, and the force that bends
         # the five backbones of a leg noticeably over it

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..compliance import frame_twist
-from ..params import TranslatorParams
+from ..params import Accuracy, TranslatorParams
 from ..solver import TranslatorSolver
 
 
@@ -25,7 +25,9 @@ def finite_difference_compliance(params: TranslatorParams, force: ArrayLike,
     The default steps keep the truncation error (step^2) and the solve tolerance's share
     (tolerance / step) both near 1e-8 of C.
     """
-    solver = TranslatorSolver(params, tolerance=tolerance)
+    # one fixed discretization and branch for all 12 solves
+    solver = TranslatorSolver(params, tolerance=tolerance, accuracy=Accuracy(0.0, 0.0),
+                              follow_stable_branch=False)
     base = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
 
     def end_frame(wrench: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from .finite_difference import finite_difference_compliance
 from ..compliance import analyse
-from ..params import TranslatorParams
+from ..params import Accuracy, TranslatorParams
 from ..result import SolveResult
 from ..solver import TranslatorSolver
 from ..verify import Verification, verify
@@ -235,6 +235,18 @@ class CaseReport:
         return 'verified'
 
 
+def _study_solver(params: TranslatorParams) -> TranslatorSolver:
+    """
+    Return a solver reporting what it converged to at the case's own discretization.
+
+    No automatic refinement (the suite refines and verifies itself, see ``_refine``) and no
+    stable-branch following: the suite studies unstable equilibria too (their ``stable``
+    is False in the result and judged here).
+    """
+    return TranslatorSolver(params, time_limit_s=CASE_TIME_LIMIT_S,
+                            accuracy=Accuracy(0.0, 0.0), follow_stable_branch=False)
+
+
 def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[bool], str]:
     """
     Judge whether a converged equilibrium is stable; return (stable or None, reason).
@@ -297,7 +309,7 @@ def _refine(params: TranslatorParams, result: SolveResult,
             return None, (f'{_short(verification)} at {params.steps_per_segment} steps per '
                           f'interval (discretization error)')
         params = params.with_changes(steps_per_segment=steps)
-        solver = TranslatorSolver(params, time_limit_s=CASE_TIME_LIMIT_S)
+        solver = _study_solver(params)
         solver.start_from(result)
         result = solver.solve(result.force, result.moment)
         if not result.converged:
@@ -315,7 +327,7 @@ def run_case(case: HardCase, params: TranslatorParams, refine: bool = False) -> 
     that fails only through discretization error is re-solved on finer grids.
     """
     params = params.with_changes(**dict(case.params))
-    solver = TranslatorSolver(params, time_limit_s=CASE_TIME_LIMIT_S)
+    solver = _study_solver(params)
     outcomes = []
     for index, (force, moment) in enumerate(case.loads):
         last = index == len(case.loads) - 1
@@ -391,7 +403,7 @@ class Buckling:
 def critical_compression(params: TranslatorParams) -> Buckling:
     """Find the axial buckling load (see :class:`Buckling`), bracketed by the Euler one."""
     started = time.perf_counter()
-    solver = TranslatorSolver(params, time_limit_s=CASE_TIME_LIMIT_S)
+    solver = _study_solver(params)
     problem = solver.problem
 
     def smallest_singular_value(compression: float) -> float:

@@ -4,7 +4,8 @@ from cdr_translator import TranslatorParams
 from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.interface.settings import CDR_SPECS, CdrSettings, check_value, MODEL_KEYS
 from cdr_translator.interface.settings import SPECS, TranslatorSettings
-from cdr_translator.params import DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_ONLY_KEYS
+from cdr_translator.params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS
+from cdr_translator.params import NODE_ONLY_KEYS
 from cdr_translator.params import ParameterError, read_params_file
 from cdr_translator.params_file import section_applies
 from cdr_translator.robot import DeltaParams, DeltaRobot
@@ -23,10 +24,10 @@ def write(tmp_path, document, name='params.yaml'):
 def test_specs_name_every_key_of_the_shipped_file():
     """The one YAML, the specs and the settings types name the same parameters."""
     assert set(read_params_file()) == set(SPECS)
-    assert set(SPECS) - MODEL_KEYS == NODE_ONLY_KEYS | FIDELITY_KEYS
+    assert set(SPECS) - MODEL_KEYS == NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
     assert MODEL_KEYS == set(TranslatorParams.__dataclass_fields__)
     assert set(TranslatorSettings.__dataclass_fields__) - {'params'} == \
-        NODE_ONLY_KEYS | FIDELITY_KEYS
+        NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS
     assert set(read_params_file(section='cdr_node')) | MODEL_KEYS == set(CDR_SPECS)
     assert set(CdrSettings.__dataclass_fields__) - {'params', 'geometry'} == CDR_NODE_ONLY_KEYS
     assert all(SPECS[key].read_only for key in MODEL_KEYS)

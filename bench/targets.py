@@ -1,0 +1,269 @@
+"""
+Issue 13's targets: exact against forward-difference Jacobian, measured in one run.
+
+Usage: python -m bench.targets [--skip-paper] [--spacers-slope]
+
+Prints, and writes to bench/results/targets.md:
+
+* one Jacobian, exact (tangent-linear shot) and forward differences, 1 and 3 spacer disks;
+* warm solves along the 1000-sample sequence of bench.speed_vs_error (median);
+* cold solves of the paper's Table II cases (median of 5 each);
+* compliance on top of a solve (its own time, median along 200 warm samples);
+* 3 spacer disks per joint: cold (20 N) and warm (sequence, first 200 samples);
+* the stability verdict and error estimate together, as a fraction of the warm solve;
+* optionally (--spacers-slope) cold 2 N solves for 1..9 spacer disks per joint;
+* the paper baseline (method='paper', cold 12 N) for the ratio, unless --skip-paper.
+
+Every solve here is a whole solve: stability verdict and error estimate included. The
+exact and forward-difference solvers take turns sample by sample, so both see the same
+load: the machine is shared (2 cores, several agents at once) and its absolute figures
+carry that noise; the ratios much less.
+"""
+
+import argparse
+from pathlib import Path
+import platform
+import statistics
+import time
+from typing import Callable, Dict, List
+
+from bench.speed_vs_error import wrench_sequence
+from cdr_translator import TranslatorParams, TranslatorSolver
+from cdr_translator.paper import TABLE_II
+import numpy as np
+
+RESULT = Path(__file__).resolve().parent / 'results' / 'targets.md'
+
+#: Issue 13's targets (seconds).
+TARGETS = {'warm': 0.1e-3, 'cold': 3e-3, 'compliance': 0.03e-3, 'spacers3_cold': 10e-3,
+           'spacers3_warm': 0.4e-3, 'overhead': 0.10}
+
+
+def _median(samples: List[float]) -> float:
+    return statistics.median(samples)
+
+
+def _time(call: Callable[[], object], repeats: int) -> float:
+    samples = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        call()
+        samples.append(time.perf_counter() - started)
+    return _median(samples)
+
+
+def jacobian_times(params: TranslatorParams) -> Dict[str, float]:
+    """Median time of one Jacobian at a 12 N state, both ways."""
+    times = {}
+    for jacobian in ('exact', 'fd'):
+        solver = TranslatorSolver(params, jacobian=jacobian)
+        result = solver.solve((12.0, 0.0, 0.0))
+        problem = solver.problem
+        xs = result.unknowns / problem.x_scale
+        wrench = np.array([12.0, 0, 0, 0, 0, 0])
+        rs = problem.residual(xs, wrench)
+        times[jacobian] = _time(lambda: problem.jacobian(xs, wrench, rs), 30)
+    return times
+
+
+def _instrument(solver: TranslatorSolver, spent: List[float]) -> None:
+    """Time the two per-solve extras (stability verdict, error estimate) into ``spent``."""
+    for name in ('_stability', '_estimate_error'):
+        original = getattr(solver, name)
+
+        def timed(*args, _original=original, **kwargs):
+            started = time.perf_counter()
+            value = _original(*args, **kwargs)
+            spent.append(time.perf_counter() - started)
+            return value
+        setattr(solver, name, timed)
+
+
+def warm_sequences(solvers: Dict[str, TranslatorSolver],
+                   sequence: np.ndarray) -> Dict[str, Dict[str, float]]:
+    """
+    Median warm solve along ``sequence`` per solver, and its stability+estimate share.
+
+    The solvers take turns sample by sample, so that they see the same machine load.
+    """
+    spent: Dict[str, List[float]] = {name: [] for name in solvers}
+    times: Dict[str, List[float]] = {name: [] for name in solvers}
+    extras: Dict[str, List[float]] = {name: [] for name in solvers}
+    for name, solver in solvers.items():
+        solver.reset()
+        solver.solve(sequence[0][:3], sequence[0][3:])
+        _instrument(solver, spent[name])
+    for wrench in sequence:
+        for name, solver in solvers.items():
+            spent[name].clear()
+            started = time.perf_counter()
+            result = solver.solve(wrench[:3], wrench[3:])
+            times[name].append(time.perf_counter() - started)
+            extras[name].append(sum(spent[name]))
+            assert result.converged, result.message
+    out = {}
+    for name, solver in solvers.items():
+        for method in ('_stability', '_estimate_error'):
+            solver.__dict__.pop(method, None)
+        out[name] = {'median_s': _median(times[name]),
+                     'overhead_median_s': _median(extras[name]),
+                     'overhead_fraction': _median(extras[name]) / _median(times[name])}
+    return out
+
+
+def cold_cases(solvers: Dict[str, TranslatorSolver]) -> Dict[str, Dict[float, float]]:
+    """Median of 5 cold solves per Table II case, per solver (taking turns)."""
+    out: Dict[str, Dict[float, float]] = {name: {} for name in solvers}
+    for case in TABLE_II:
+        samples: Dict[str, List[float]] = {name: [] for name in solvers}
+        for _ in range(5):
+            for name, solver in solvers.items():
+                solver.reset()
+                started = time.perf_counter()
+                assert solver.solve(case.force).converged
+                samples[name].append(time.perf_counter() - started)
+        for name in solvers:
+            out[name][case.force[0]] = _median(samples[name])
+    return out
+
+
+def compliance_time(solver: TranslatorSolver, sequence: np.ndarray) -> float:
+    """Median compliance time on top of warm solves (its own time_s)."""
+    solver.reset()
+    samples = []
+    for wrench in sequence[:200]:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+        samples.append(result.compliance.time_s)
+    return _median(samples)
+
+
+def spacers(params: TranslatorParams, count: int, sequence: np.ndarray) -> Dict[str, dict]:
+    """Cold 20 N and warm (first 200 sequence samples) with ``count`` spacer disks."""
+    changed = params.with_changes(spacers_per_joint=count, tube_length=0.1383 - 0.02 * (count - 1))
+    solvers = {jacobian: TranslatorSolver(changed, jacobian=jacobian)
+               for jacobian in ('exact', 'fd')}
+    cold: Dict[str, List[float]] = {name: [] for name in solvers}
+    for _ in range(3):
+        for name, solver in solvers.items():
+            solver.reset()
+            started = time.perf_counter()
+            assert solver.solve((20.0, 0.0, 0.0)).converged
+            cold[name].append(time.perf_counter() - started)
+    warm = warm_sequences(solvers, sequence[:200])
+    return {name: {'cold_s': _median(cold[name]), 'warm_s': warm[name]['median_s']}
+            for name in solvers}
+
+
+def spacer_slope(params: TranslatorParams) -> Dict[int, float]:
+    """Cold 2 N solve time against spacer disks per joint."""
+    out = {}
+    for count in range(1, 10):
+        changed = params.with_changes(spacers_per_joint=count)
+        solver = TranslatorSolver(changed, time_limit_s=60.0)
+
+        def cold():
+            solver.reset()
+            assert solver.solve((2.0, 0.0, 0.0)).converged
+        out[count] = _time(cold, 2)
+    return out
+
+
+def paper_baseline(params: TranslatorParams) -> float:
+    """One cold 12 N solve with the paper's numerics (interpreted kernel, LM, FD)."""
+    solver = TranslatorSolver(params, method='paper', time_limit_s=900.0)
+    started = time.perf_counter()
+    solver.solve((12.0, 0.0, 0.0))
+    return time.perf_counter() - started
+
+
+def _ms(seconds: float) -> str:
+    return f'{1e3 * seconds:.3f}'
+
+
+def main() -> None:
+    """Measure, print and write bench/results/targets.md."""
+    parser = argparse.ArgumentParser(description="Issue 13's targets, exact vs FD.")
+    parser.add_argument('--skip-paper', action='store_true', help='omit the slow baseline')
+    parser.add_argument('--spacers-slope', action='store_true',
+                        help='also time 1..9 spacer disks per joint (slow)')
+    args = parser.parse_args()
+    params = TranslatorParams.from_yaml()
+    sequence = wrench_sequence()
+    started = time.perf_counter()
+    jac = jacobian_times(params)
+    jac3 = jacobian_times(params.with_changes(spacers_per_joint=3, tube_length=0.0983))
+    solvers = {jacobian: TranslatorSolver(params, jacobian=jacobian)
+               for jacobian in ('exact', 'fd')}
+    warm = warm_sequences(solvers, sequence)
+    cold = cold_cases(solvers)
+    three = spacers(params, 3, sequence)
+    rows = {name: {'warm': warm[name], 'cold': cold[name],
+                   'compliance': compliance_time(solver, sequence),
+                   'spacers3': three[name]} for name, solver in solvers.items()}
+    paper = None if args.skip_paper else paper_baseline(params)
+    slope = spacer_slope(params) if args.spacers_slope else None
+    exact, fd = rows['exact'], rows['fd']
+    cold_exact = max(exact['cold'].values())
+    cold_fd = max(fd['cold'].values())
+
+    def line(name, target, measured, reference, met=None):
+        met = measured <= target if met is None else met
+        ratio_fd = reference / measured
+        ratio_paper = f'{paper / measured:.0f}' if paper else '-'
+        return (f'| {name} | {_ms(target)} | {_ms(measured)} | {"yes" if met else "no"} | '
+                f'{_ms(reference)} | {ratio_fd:.1f} | {ratio_paper} |')
+
+    lines = [
+        '# Issue 13 targets: exact Jacobian, stability and error estimate on every solve',
+        '',
+        f'Generated by `python -m bench.targets` ({platform.python_implementation()} '
+        f'{platform.python_version()}, {platform.machine()}). **The machine was shared by '
+        'several agents while this ran (2 cores, 5 sessions): absolute times are inflated '
+        'and noisy; the ratios, measured in the same run, are the robust figures.** Every '
+        'solve includes its stability verdict and error estimate.',
+        '',
+        '| quantity | target (ms) | measured, exact (ms) | met | forward differences (ms) '
+        '| fd / exact | paper / exact |',
+        '|---|---|---|---|---|---|---|',
+        *(f'| one Jacobian ({label}) | - | {_ms(times["exact"])} | - | {_ms(times["fd"])} | '
+          f'{times["fd"] / times["exact"]:.1f} | - |'
+          for label, times in (('1 spacer disk per joint', jac),
+                               ('3 spacer disks per joint', jac3))),
+        line('full model, warm, 1000-sample sequence (median)', TARGETS['warm'],
+             exact['warm']['median_s'], fd['warm']['median_s']),
+        line('full model, cold, paper cases (worst median)', TARGETS['cold'], cold_exact,
+             cold_fd),
+        line('compliance on top of a solve (median)', TARGETS['compliance'],
+             exact['compliance'], fd['compliance']),
+        line('3 spacer disks per joint, cold 20 N', TARGETS['spacers3_cold'],
+             exact['spacers3']['cold_s'], fd['spacers3']['cold_s']),
+        line('3 spacer disks per joint, warm (median)', TARGETS['spacers3_warm'],
+             exact['spacers3']['warm_s'], fd['spacers3']['warm_s']),
+        '',
+        'Stability verdict + error estimate inside a warm solve: median '
+        f"{_ms(exact['warm']['overhead_median_s'])} ms = "
+        f"{100 * exact['warm']['overhead_fraction']:.0f} % of the warm solve (target "
+        f"{100 * TARGETS['overhead']:.0f} %: "
+        f"{'met' if exact['warm']['overhead_fraction'] <= TARGETS['overhead'] else 'missed'}).",
+        '',
+        'Cold Table II cases (median of 5, ms): ' + ', '.join(
+            f'{force:g} N: exact {_ms(exact["cold"][force])}, fd {_ms(fd["cold"][force])}'
+            for force in exact['cold']) + '.',
+    ]
+    if paper:
+        lines += ['', f'Paper baseline (method=paper, cold 12 N): {paper:.2f} s.']
+    if slope:
+        counts = np.array(list(slope))
+        values = np.array([slope[c] for c in counts])
+        fit = np.polyfit(counts, values, 1)
+        lines += ['', 'Cold 2 N solve against spacer disks per joint (ms): ' + ', '.join(
+            f'{c}: {_ms(slope[c])}' for c in slope)
+            + f'. Linear fit slope {_ms(fit[0])} ms per spacer disk.']
+    lines += ['', f'Run time {time.perf_counter() - started:.0f} s.', '']
+    text = '\n'.join(lines)
+    print(text)
+    RESULT.write_text(text)
+
+
+if __name__ == '__main__':
+    main()
