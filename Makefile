@@ -33,7 +33,9 @@ $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 	$(VPY) -m cdr_translator compile
 	@touch $@
 
+# mypy (mypy.ini) first: a type error fails the run before the slower tests do.
 test: setup
+	$(VPY) -m mypy
 	$(VPY) -m pytest tests
 
 # The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.

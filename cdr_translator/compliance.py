@@ -20,7 +20,7 @@ Two computations that agree to about 1e-8 relative (tests/core/test_compliance.p
 from dataclasses import dataclass
 import math
 import time
-from typing import Optional, Tuple
+from typing import Any, Optional, Tuple
 import warnings
 
 import numpy as np
@@ -207,7 +207,7 @@ def _smallest_stiffness_eigenvalue(compliance: np.ndarray) -> float:
 
 def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
                         factorization: Optional[Tuple[tuple, np.ndarray]] = None,
-                        **options: float) -> Tuple[ComplianceAnalysis, tuple, np.ndarray]:
+                        **options: Any) -> Tuple[ComplianceAnalysis, tuple, np.ndarray]:
     """
     Implicit C at a converged solution and its analysis, plus the factorization used.
 

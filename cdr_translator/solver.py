@@ -491,7 +491,7 @@ class TranslatorSolver:
         sensitivity = self.problem.wrench_sensitivity
         done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
         current = start
-        outcome = None
+        outcome: Optional[_Outcome] = None
         grow = 2.0
         while done < 1.0:
             target = min(1.0, done + step)
@@ -516,6 +516,8 @@ class TranslatorSolver:
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
                 return self._stalled(xs, outcome, wrench, done, iterations, deadline)
         self._lu, self._pose = lu, pose
+        if outcome is None:  # cannot happen: the loop runs at least once
+            raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
         return outcome
 

@@ -31,8 +31,11 @@ class TangentModel:
         self.problem = problem
         self.origin: Optional[np.ndarray] = None  # the cached wrench w0
         self.build_time_s = 0.0
-        self._unknowns = self._dxdw = self._compliance = None
-        self._frames = self._twists = self._points = self._dpdw = None
+        # the expansion, set by build(): unknowns, their derivative, C, frames, their twists
+        # (derivatives), backbone points and theirs; all empty until then
+        empty: np.ndarray = np.empty(0)
+        self._unknowns = self._dxdw = self._compliance = empty
+        self._frames = self._twists = self._points = self._dpdw = empty
 
     @property
     def ready(self) -> bool:

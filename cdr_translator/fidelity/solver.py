@@ -12,9 +12,10 @@ produced it (``result.fidelity``) and why (``result.message``).
 
 from pathlib import Path
 import time
-from typing import Optional, Sequence, Tuple, Union
+from typing import Any, Optional, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .linear import TangentModel
 from .reduced import ReducedModel, ROD_STEPS
@@ -64,7 +65,7 @@ class FidelitySolver:
     def __init__(self, params: Optional[TranslatorParams] = None, fidelity: str = 'auto',
                  max_position_error: float = 0.0, max_angle_error_deg: float = 0.0,
                  rod_steps: int = ROD_STEPS,
-                 validation: Union[Validation, None, object] = _DEFAULT,
+                 validation: Any = _DEFAULT,
                  tolerance: float = 1e-10, time_limit_s: float = 10.0,
                  accuracy: Optional[Accuracy] = None) -> None:
         """
@@ -159,7 +160,7 @@ class FidelitySolver:
         return 'full', 'no reduced level meets the budget here'
 
     # solving --------------------------------------------------------------------------------
-    def solve(self, force: Sequence[float], moment: Sequence[float] = (0.0, 0.0, 0.0),
+    def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False,
               **compliance_options: float) -> SolveResult:
         """
@@ -245,10 +246,12 @@ class FidelitySolver:
         started = time.perf_counter()
         unknowns, points, frames = self.tangent.predict(wrench)
         elapsed = time.perf_counter() - started
-        offset = np.abs(wrench - self.tangent.origin).max()
+        origin = self.tangent.origin
+        assert origin is not None  # predict() has raised otherwise
+        offset = np.abs(wrench - origin).max()
         # the level solves no equations: its residual is zero by construction
         result = _result(True, f'first-order expansion about the full solution at '
-                         f'{np.round(self.tangent.origin, 6).tolist()} (largest offset '
+                         f'{np.round(origin, 6).tolist()} (largest offset '
                          f'{offset:.3g})', 0, np.zeros(1), dict.fromkeys(RESIDUAL_KINDS, 0.0),
                          wrench, frames, points, elapsed, unknowns, 'linear')
         if compliance:

@@ -28,6 +28,20 @@ FOLLOWER_TOLERANCE = 1e-12
 FOLLOWER_MAX_SOLVES = 8
 
 
+def node_solver(params: TranslatorParams, settings: TranslatorSettings) -> FidelitySolver:
+    """
+    Build the solver translator_node uses: fidelity, error budget, time limit and accuracy.
+
+    The node and replay both build theirs here, so that they solve alike.
+    """
+    return FidelitySolver(params, fidelity=settings.fidelity,
+                          max_position_error=settings.max_position_error,
+                          max_angle_error_deg=settings.max_angle_error,
+                          time_limit_s=settings.solve_time_limit_s,
+                          accuracy=Accuracy(settings.accuracy_position_m,
+                                            settings.accuracy_angle_deg))
+
+
 def check_magnitude(force: ArrayLike, moment: ArrayLike, max_force: float,
                     max_moment: float) -> None:
     """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
@@ -100,12 +114,7 @@ class WrenchProcessor:
                  compliance: bool = True, backbones: bool = False) -> None:
         """Build the solver (the node's time limit) for ``params``."""
         self.settings = settings
-        self.solver = FidelitySolver(params, fidelity=settings.fidelity,
-                                     max_position_error=settings.max_position_error,
-                                     max_angle_error_deg=settings.max_angle_error,
-                                     time_limit_s=settings.solve_time_limit_s,
-                                     accuracy=Accuracy(settings.accuracy_position_m,
-                                                       settings.accuracy_angle_deg))
+        self.solver = node_solver(params, settings)
         self.compliance = compliance
         self.backbones = backbones
         self.rotation = np.eye(3)

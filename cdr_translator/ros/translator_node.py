@@ -35,9 +35,9 @@ from .runtime import check_parameters, fill_message, LatestMailbox, log_health, 
 from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
 from .runtime import SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
-from ..fidelity import FidelitySolver
 from ..interface import messages
-from ..interface.processing import check_magnitude, in_end_disk_frame, solve_wrench
+from ..interface.processing import check_magnitude, in_end_disk_frame, node_solver
+from ..interface.processing import solve_wrench
 from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
@@ -66,10 +66,7 @@ class TranslatorNode(Node):
                                                descriptor(SPECS[name], value)).value
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)
-        self.solver = FidelitySolver(self._settings.params, fidelity=self._settings.fidelity,
-                                     max_position_error=self._settings.max_position_error,
-                                     max_angle_error_deg=self._settings.max_angle_error,
-                                     time_limit_s=self._settings.solve_time_limit_s)
+        self.solver = node_solver(self._settings.params, self._settings)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
         self.received = self.rejected = self.solved = self.failed = 0

@@ -199,7 +199,8 @@ class CaseReport:
     def verified_steps(self) -> Optional[int]:
         """Finest discretization any solve needed to verify; None if one did not."""
         steps = [outcome.verified_steps for outcome in self.loads]
-        return None if None in steps else max(steps)
+        known = [step for step in steps if step is not None]
+        return max(known) if known and len(known) == len(steps) else None
 
     @property
     def verified(self) -> bool:
