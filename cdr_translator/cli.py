@@ -31,6 +31,7 @@ from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .fidelity import FIDELITIES, FidelitySolver
 from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
+from .problem import JACOBIANS
 from .result import SolveResult
 from .robot.delta import DeltaResult, DeltaRobot
 from .robot.inverse import InverseResult
@@ -276,10 +277,16 @@ def _paper_comparison(params: TranslatorParams) -> str:
 
 
 def _compile_kernels(params: TranslatorParams) -> int:
-    """Solve once at every fidelity level (all kernels run), say what it compiled and where."""
+    """
+    Solve once at every fidelity level and with each Jacobian (all kernels run).
+
+    Then say what it compiled and where; a kernel that did not run is named as not cached.
+    """
     def warm_up() -> None:
         for fidelity in FIDELITIES:
             FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
+        for jacobian in JACOBIANS:
+            TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
 
     elapsed = _jit.timed_warm_up(warm_up, print)
     missing = _jit.uncached_kernels()
