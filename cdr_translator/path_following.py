@@ -35,7 +35,7 @@ from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from .problem import Problem
 
 #: Converged points the Hermite predictor interpolates (value and tangent at each).
-HISTORY = 2
+HISTORY = 3
 
 #: First step, as a fraction of the remaining wrench change.
 FIRST_STEP = 1e-2
