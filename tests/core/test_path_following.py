@@ -14,7 +14,7 @@ import pytest
 
 
 def _solver(params, **options):
-    """A solver as the hard-case suite builds it (no refinement, no branch following)."""
+    """Build a solver as the hard-case suite does (no refinement, no branch following)."""
     return TranslatorSolver(params, time_limit_s=20.0, accuracy=Accuracy(0.0, 0.0),
                             follow_stable_branch=False, **options)
 

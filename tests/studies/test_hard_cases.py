@@ -239,10 +239,10 @@ def test_report_lists_rates_and_buckling(reports, buckling):
 @pytest.mark.parametrize('name', ['torsion 40 N m', 'PJ past 100 deg: 200 N out, 400 N down'])
 def test_former_stalls_converge_verify_and_are_judged(params, name):
     """
-    Two of the three former stalls: the fallback continuation converges them, refinement
-    (re-solved by tracking) verifies them, and their stability is judged (stable).
+    Two of the three former stalls converge, verify and are judged stable.
 
-    About 10 s each, most of it the fine grids (400-550 steps per interval) they need.
+    The fallback continuation converges them, refinement (re-solved by tracking) verifies
+    them. About 10 s each, most of it the fine grids (400-550 steps per interval) they need.
     """
     case = next(case for case in hard_cases.cases() if case.name == name)
     report = hard_cases.run_case(case, params, refine=True)
