@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor
 
-from . import stability
+from . import path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
@@ -33,6 +33,10 @@ from .stability import solve_lu
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
+
+#: How a solve follows the load path: the chord/Newton continuation ('default', with the
+#: tracking one as its fallback) or path_following.track alone ('tracking').
+PATHS = ('default', 'tracking')
 
 #: A chord step that shrinks the residual by less than this rebuilds the Jacobian.
 CHORD_RATE = 0.25
@@ -79,6 +83,8 @@ class _Outcome:
     #: (derivative of the end-disk frame, or None with jacobian='fd'; wrench) at the point
     #: ``lu`` factorizes
     pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+    #: (unknowns, wrench) of the last converged state of a stalled continuation
+    reached: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
 
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
@@ -135,7 +141,8 @@ class TranslatorSolver:
                  tolerance: float = 1e-10, max_iterations: Optional[int] = None,
                  time_limit_s: float = 10.0, jacobian: str = 'exact',
                  accuracy: Optional[Accuracy] = None,
-                 follow_stable_branch: bool = True) -> None:
+                 follow_stable_branch: bool = True, fallback: bool = True,
+                 path: str = 'default') -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -154,8 +161,18 @@ class TranslatorSolver:
         ``follow_stable_branch``, perturbed along its critical mode and re-converged on the
         stable branch when one is found (without it, or if none is found, it is returned
         with ``stable`` False and a message saying so; studies of unstable equilibria such
-        as studies/hard_cases.py switch it off).
+        as studies/hard_cases.py switch it off). With ``fallback`` (default) a solve whose
+        continuation stalled (also after a restart from the unloaded state) is continued
+        from the last state it reached by path_following.track: a Hermite predictor on
+        exact tangents and an exact-Newton corrector that accepts a residual at the
+        shot's rounding floor (said in the message); solves that converge without it are
+        unchanged. ``method='paper'`` has no fallback.
+        ``path='tracking'`` skips the default continuation and follows the load path with
+        the fallback's alone (from the previous solution, else from the unloaded state):
+        fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
         """
+        if path not in PATHS:
+            raise ValueError(f'path must be one of {PATHS}, got {path!r}')
         if jacobian not in JACOBIANS:
             raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
         if method not in METHODS:
@@ -190,6 +207,8 @@ class TranslatorSolver:
         self._verdict_lu: Optional[tuple] = None
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
         self.follow_stable_branch = follow_stable_branch
+        self.fallback = fallback
+        self.path = path
         self._refined: Dict[int, 'TranslatorSolver'] = {}
         self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
@@ -238,7 +257,10 @@ class TranslatorSolver:
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
         with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
-            outcome = self._continuation(wrench, warm_start, deadline, corrector)
+            if self.path == 'tracking' and self.method == 'fast':
+                outcome = self._track_only(wrench, warm, deadline)
+            else:
+                outcome = self._continuation(wrench, warm_start, deadline, corrector)
             if warm and not outcome.converged and time.perf_counter() < deadline:
                 # the warm start may sit on another branch or too far away: restart cold
                 restart = self._continuation(wrench, False, deadline, corrector)
@@ -246,6 +268,9 @@ class TranslatorSolver:
                 restart.message += ' (after a restart from the unloaded state)'
                 if restart.converged or _norm(restart.rs) < _norm(outcome.rs):
                     outcome = restart
+            if (not outcome.converged and self.fallback and self.method == 'fast'
+                    and outcome.reached is not None and time.perf_counter() < deadline):
+                outcome = self._track(outcome, wrench, deadline)
         if outcome.converged:
             self._previous = (outcome.xs, wrench)
         verdict = None
@@ -514,11 +539,64 @@ class TranslatorSolver:
             grow = 1.0
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
-                return self._stalled(xs, outcome, wrench, done, iterations, deadline)
+                stalled = self._stalled(xs, outcome, wrench, done, iterations, deadline)
+                stalled.reached = (xs, current)
+                return stalled
         self._lu, self._pose = lu, pose
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
+        return outcome
+
+    def _track(self, stalled: _Outcome, wrench: np.ndarray, deadline: float) -> _Outcome:
+        """
+        Continue a stalled continuation by path_following.track from where it stopped.
+
+        Returns the tracked outcome, converged with an exact factorization (also stored for
+        the next solve), or the stalled one with the fallback's failure added to its message.
+        """
+        assert stalled.reached is not None
+        xs, start = stalled.reached
+        tracked = path_following.track(self.problem, xs, start, wrench, self.tolerance,
+                                       deadline)
+        iterations = stalled.iterations + tracked.iterations
+        if not tracked.converged:
+            stalled.iterations = iterations
+            stalled.message += (f'; the fallback continuation failed: {tracked.message}'
+                                if stalled.message else
+                                f'the tracking continuation failed: {tracked.message}')
+            if _norm(tracked.rs) < _norm(stalled.rs):
+                stalled.xs, stalled.rs = tracked.xs, tracked.rs
+            return stalled
+        message = (f'converged by the fallback continuation ({tracked.steps} steps with a '
+                   'Hermite predictor on exact tangents)')
+        if stalled.message:
+            message += f' after: {stalled.message}'
+        elif tracked.floor <= 0.0:
+            message = 'converged'  # path='tracking' at the tolerance
+        if tracked.floor > 0.0:
+            message += (f'; residual {np.abs(tracked.rs).max():.2g} at the rounding floor '
+                        f'{tracked.floor:.2g} of the shot, above the tolerance '
+                        f'{self.tolerance:.2g}')
+        pose = (tracked.pose, wrench.copy())
+        self._lu, self._pose = tracked.lu, pose
+        self._exact_at = tracked.xs
+        return _Outcome(tracked.xs, tracked.rs, iterations, True, message, tracked.lu, pose)
+
+    def _track_only(self, wrench: np.ndarray, warm: bool, deadline: float) -> _Outcome:
+        """Solve by path_following.track alone: from the previous solution, else unloaded."""
+        starts = [self._previous] if warm and self._previous is not None else []
+        starts.append(self._unloaded()[0])
+        outcome: Optional[_Outcome] = None
+        iterations = 0
+        for xs, start in starts:
+            begin = _Outcome(xs, self.problem.residual(xs, wrench), iterations, False, '',
+                             reached=(xs, start))
+            outcome = self._track(begin, wrench, deadline)
+            iterations = outcome.iterations
+            if outcome.converged or time.perf_counter() > deadline:
+                break
+        assert outcome is not None
         return outcome
 
     def _first_step(self, lu: Optional[tuple], change: np.ndarray) -> float:

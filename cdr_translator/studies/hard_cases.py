@@ -35,7 +35,10 @@ from ..verify import Verification, verify
 CASE_TIME_LIMIT_S = 20.0
 
 #: The finest discretization (RK4 steps per disk interval) a re-solve may use.
-MAX_STEPS_PER_SEGMENT = 256
+MAX_STEPS_PER_SEGMENT = 1024
+
+#: What a solve's message says when the solver's fallback continuation found it.
+TRACKED = 'fallback continuation'
 
 #: Checks whose failure no refinement of the discretization can cure.
 DISCRETIZATION_FREE_CHECKS = ('global_force_n', 'global_moment_nm')
@@ -236,16 +239,18 @@ class CaseReport:
         return 'verified'
 
 
-def _study_solver(params: TranslatorParams) -> TranslatorSolver:
+def _study_solver(params: TranslatorParams, path: str = 'default') -> TranslatorSolver:
     """
     Return a solver reporting what it converged to at the case's own discretization.
 
     No automatic refinement (the suite refines and verifies itself, see ``_refine``) and no
     stable-branch following: the suite studies unstable equilibria too (their ``stable``
-    is False in the result and judged here).
+    is False in the result and judged here). ``path`` is the solver's (see
+    TranslatorSolver).
     """
     return TranslatorSolver(params, time_limit_s=CASE_TIME_LIMIT_S,
-                            accuracy=Accuracy(0.0, 0.0), follow_stable_branch=False)
+                            accuracy=Accuracy(0.0, 0.0), follow_stable_branch=False,
+                            path=path)
 
 
 def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[bool], str]:
@@ -296,12 +301,15 @@ def _refine(params: TranslatorParams, result: SolveResult,
     Re-solve a converged state on finer grids until it verifies; return (steps, message).
 
     RK4's error falls as steps^-4, so the next grid is predicted from how far the worst
-    check is beyond its limit (with a 1.5 margin), warm-started from the last solution.
+    check is beyond its limit (with a 1.5 margin), warm-started from the last solution;
+    a state the solver's fallback continuation found (its message says so) is re-solved
+    by that continuation alone (``path='tracking'``), the first time cold.
     """
     if any(verification.checks[name] > verification.limits[name]
            for name in DISCRETIZATION_FREE_CHECKS):
         return None, _short(verification)
     steps = params.steps_per_segment
+    tracked, refined = TRACKED in result.message, False
     while True:
         worst = verification.worst()
         ratio = verification.checks[worst] / verification.limits[worst]
@@ -310,11 +318,20 @@ def _refine(params: TranslatorParams, result: SolveResult,
             return None, (f'{_short(verification)} at {params.steps_per_segment} steps per '
                           f'interval (discretization error)')
         params = params.with_changes(steps_per_segment=steps)
-        solver = _study_solver(params)
-        solver.start_from(result)
-        result = solver.solve(result.force, result.moment)
+        if tracked:
+            # the case's coarse solution is too far from a fine grid's for the shot's
+            # sensitivity: the first re-solve follows the load path from the unloaded
+            # state, later ones the Newton homotopy from the last fine solution
+            solver = _study_solver(params, 'tracking')
+            solver.start_from(result)
+            result = solver.solve(result.force, result.moment, warm_start=refined)
+        else:
+            solver = _study_solver(params)
+            solver.start_from(result)
+            result = solver.solve(result.force, result.moment)
         if not result.converged:
             return None, f'the re-solve at {steps} steps failed: {result.message}'
+        refined = True
         verification = verify(result, params)
         if verification.passed:
             return steps, 'verified'
