@@ -305,13 +305,21 @@ def test_ctrl_c_finalizes_the_output(tmp_path, monkeypatch):
     assert len(list(csv.DictReader(open(tmp_path / 'o.csv')))) == 5
 
 
+def _default_sigint() -> None:
+    """Give the child process the default SIGINT disposition (run before its exec)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_sigint_during_replay(tmp_path):
     """A real SIGINT to the CLI: exit 130, a complete output MCAP, the summary printed."""
     bag = tmp_path / 'walk.mcap'
     synth.write_wrenches(bag, synth.generate('random-walk', count=3000))
+    # a shell's background job ignores SIGINT and children inherit that; restore the default
+    # so that Python installs its KeyboardInterrupt handler, as in an interactive shell
     process = subprocess.Popen([sys.executable, '-m', 'msg_tools', 'replay', str(bag), '--out',
                                 str(tmp_path / 'out.mcap'), '--progress', 'always'],
-                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               preexec_fn=_default_sigint)
     deadline = time.monotonic() + 120
     seen = b''
     while b'msg/s' not in seen and time.monotonic() < deadline and process.poll() is None:
