@@ -33,8 +33,10 @@ from .paper import TABLE_II
 from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .problem import JACOBIANS
 from .result import SolveResult
-from .robot.delta import DeltaResult, DeltaRobot
+from .robot.atlas import run_cli as run_atlas
+from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
+from .robot.result import DeltaResult
 from .solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
@@ -306,8 +308,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     table: Callable[[Any], str]
     solver: Union[TranslatorSolver, FidelitySolver]
     if args.command == 'atlas':
-        from .robot.atlas import run_cli  # Dask, xarray and zarr only for this command
-        return run_cli(args)
+        return run_atlas(args)
     try:
         params = TranslatorParams.from_yaml(args.params)
         if args.command == 'paper':

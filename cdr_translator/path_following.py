@@ -54,9 +54,9 @@ NOISE_FACTOR = 8.0
 
 
 @dataclass
-class Tracked:
+class _Corrected:
     """
-    End of a tracking: nondimensional unknowns and residual, counts, and the reason.
+    End of one corrector: nondimensional unknowns and residual, iterations and the reason.
 
     ``lu`` and ``pose`` (end-disk pose Jacobian, SI rows) are exact at ``xs`` when it
     converged; ``floor`` is the rounding floor of the residual there.
@@ -67,22 +67,16 @@ class Tracked:
     iterations: int
     converged: bool
     message: str
-    steps: int
     floor: float = 0.0
     lu: Optional[tuple] = None
     pose: Optional[np.ndarray] = None
 
 
 @dataclass
-class _Corrected:
-    xs: np.ndarray
-    rs: np.ndarray
-    iterations: int
-    converged: bool
-    message: str
-    floor: float = 0.0
-    lu: Optional[tuple] = None
-    pose: Optional[np.ndarray] = None
+class Tracked(_Corrected):
+    """End of a tracking: the last corrector's outcome, plus the accepted load steps."""
+
+    steps: int = 0
 
 
 def _norm(values: np.ndarray) -> float:
@@ -183,7 +177,7 @@ def track(problem: Problem, xs: np.ndarray, start: np.ndarray, wrench: np.ndarra
     offset = problem.residual(xs, start)
     if not np.all(np.isfinite(offset)):
         return Tracked(xs, problem.residual(xs, wrench), 0, False,
-                       'the starting state has a non-finite residual', 0)
+                       'the starting state has a non-finite residual')
     if np.abs(offset).max() <= tolerance:
         offset = np.zeros_like(offset)
     # d/dlambda of r(x, start + lambda change) - (1 - lambda) r0
@@ -192,7 +186,7 @@ def track(problem: Problem, xs: np.ndarray, start: np.ndarray, wrench: np.ndarra
     iterations, steps = first.iterations, 0
     if not first.converged or first.lu is None:
         return Tracked(xs, problem.residual(xs, wrench), iterations, False,
-                       f'the starting state did not converge: {first.message}', 0)
+                       f'the starting state did not converge: {first.message}')
     history = [(0.0, first.xs, -lu_solve(first.lu, sensitivity, check_finite=False))]
     done, step = 0.0, FIRST_STEP
     last = first
@@ -218,8 +212,8 @@ def track(problem: Problem, xs: np.ndarray, start: np.ndarray, wrench: np.ndarra
                       else f'step below {MIN_STEP:g}: {outcome.message}')
             rs = problem.residual(last.xs, wrench)
             return Tracked(last.xs, rs, iterations, False,
-                           f'stalled at {done:.1%} of the way ({reason})', steps)
+                           f'stalled at {done:.1%} of the way ({reason})', steps=steps)
     assert last.lu is not None and last.pose is not None
     floor = last.floor if np.abs(last.rs).max() > tolerance else 0.0
-    return Tracked(last.xs, last.rs, iterations, True, 'converged', steps, floor, last.lu,
-                   last.pose)
+    return Tracked(last.xs, last.rs, iterations, True, 'converged', floor, last.lu, last.pose,
+                   steps)

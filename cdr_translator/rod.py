@@ -80,6 +80,22 @@ def rk4_advance_pose(p, rot, k_p, k_rot, h):
 
 
 @jit
+def carry_moment(p, p_start, n, m_start, m):
+    """
+    Set ``m`` to the internal moment at ``p``: m(s) = m(0) - (p(s) - p(0)) x n (load-free).
+
+    Returns the chord p(s) - p(0) as (dx, dy, dz), which the tangent kernel reuses.
+    """
+    dx = p[0] - p_start[0]
+    dy = p[1] - p_start[1]
+    dz = p[2] - p_start[2]
+    m[0] = m_start[0] - (dy * n[2] - dz * n[1])
+    m[1] = m_start[1] - (dz * n[0] - dx * n[2])
+    m[2] = m_start[2] - (dx * n[1] - dy * n[0])
+    return dx, dy, dz
+
+
+@jit
 def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row):
     """
     Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
@@ -108,12 +124,7 @@ def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, fir
         rk4_advance_pose(p, rot, k_p, k_rot, h)
         if record:
             points[first_row + step + 1, :] = p
-    dx = p[0] - p_start[0]
-    dy = p[1] - p_start[1]
-    dz = p[2] - p_start[2]
-    m[0] = m_start[0] - (dy * n[2] - dz * n[1])
-    m[1] = m_start[1] - (dz * n[0] - dx * n[2])
-    m[2] = m_start[2] - (dx * n[1] - dy * n[0])
+    carry_moment(p, p_start, n, m_start, m)
 
 
 #: Local directions of ``integrate_segment_tangent``: R(0) entries (row-major), n, m(0), length.
@@ -266,12 +277,7 @@ def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp,
             tp[i, j] = cp[i, slot]
             for b in range(3):
                 trot[i, b, j] = crot[i, b, slot]
-    dx = p[0] - p_start[0]
-    dy = p[1] - p_start[1]
-    dz = p[2] - p_start[2]
-    m[0] = m_start[0] - (dy * n[2] - dz * n[1])
-    m[1] = m_start[1] - (dz * n[0] - dx * n[2])
-    m[2] = m_start[2] - (dx * n[1] - dy * n[0])
+    dx, dy, dz = carry_moment(p, p_start, n, m_start, m)
     for slot in range(nd):
         d = directions[slot]
         tm[0, d] = (tm_start[0, slot] - (cp[1, slot] * n[2] - cp[2, slot] * n[1])

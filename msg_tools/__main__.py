@@ -18,10 +18,14 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
+from msg_tools import synth
+from msg_tools.info import describe
+from msg_tools.replay import main_replay
+from msg_tools.synth import PROFILES
+
 
 def _parser() -> argparse.ArgumentParser:
     """Build the argument parser."""
-    from msg_tools.synth import PROFILES
     parser = argparse.ArgumentParser(prog='python -m msg_tools', description=__doc__.split(
         '\n\n')[0].strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest='command', required=True)
@@ -69,7 +73,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the command line; return the exit code."""
     args = _parser().parse_args(argv)
     if args.command == 'info':
-        from msg_tools.info import describe
         try:
             print(describe(args.file, verify=not args.no_crc))
         except ValueError as error:
@@ -77,7 +80,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return 2
         return 0
     if args.command == 'synth':
-        from msg_tools import synth
         try:
             samples = synth.generate(args.profile, count=args.count, rate_hz=args.rate,
                                      force=args.force, moment=args.moment,
@@ -92,7 +94,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return 2
         print(f'wrote {count} {args.profile} wrenches on {args.topic} to {args.output}')
         return 0
-    from msg_tools.replay import main_replay
     return main_replay(args)
 
 

@@ -29,6 +29,7 @@ from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
 from msg_tools.mcap_log import LogStatus, McapLog
+from msg_tools.plots import plot_replay
 from msg_tools.reader import Decoders, McapSource, ReadReport
 import numpy as np
 
@@ -491,7 +492,6 @@ def main_replay(args) -> int:
     print(f'wrote {args.out}' + (f', {args.csv}' if args.csv else ''))
     if args.plot:
         if summary.series.time_s:
-            from msg_tools.plots import plot_replay  # matplotlib only when asked for
             samples = plot_replay(summary.series, args.plot, params_path=args.params,
                                   samples=args.plot_samples)
             print(f'wrote {args.plot} (deflected shapes of messages {samples})')

@@ -21,8 +21,8 @@ import numpy as np
 
 from . import messages
 from .. import geometry
-from ..robot.delta import DeltaResult
 from ..robot.inverse import InverseResult
+from ..robot.result import DeltaResult
 
 #: Inputs: the payload on the platform, and the slider positions.
 PLATFORM_WRENCH_TOPIC = 'platform_wrench'

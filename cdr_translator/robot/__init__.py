@@ -1,6 +1,7 @@
 """The Continuum Delta Robot: three translator legs between sliders and a moving platform."""
 
-from .delta import DeltaResult, DeltaRobot
+from .delta import DeltaRobot
 from .params import DeltaParams
+from .result import DeltaResult
 
 __all__ = ['DeltaParams', 'DeltaResult', 'DeltaRobot']

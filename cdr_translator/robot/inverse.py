@@ -23,17 +23,28 @@ prediction (dp/dq)^-1 (target - previous target).
 from dataclasses import dataclass
 import math
 import time
-from typing import Optional, Tuple, TYPE_CHECKING
+from typing import Optional, Protocol, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import lsq_linear
 
+from .params import DeltaParams
+from .result import DeltaResult
 from .. import geometry
 from ..solver import check_wrench
 
-if TYPE_CHECKING:  # pragma: no cover - imports for type hints only (no import cycle)
-    from .delta import DeltaResult, DeltaRobot
+
+class ForwardStatics(Protocol):
+    """What the inverse statics needs of a robot: its geometry and its forward statics."""
+
+    geometry: DeltaParams
+
+    def solve(self, sliders: ArrayLike, payload_force: ArrayLike,
+              payload_moment: ArrayLike = ..., payload_offset: ArrayLike = ...,
+              warm_start: bool = ..., compliance: bool = ...) -> DeltaResult:
+        """Solve the forward statics (``DeltaRobot.solve``)."""
+
 
 #: Default largest distance of the platform origin from the target that counts as reached (m).
 POSITION_TOLERANCE = 1e-9
@@ -74,7 +85,7 @@ class InverseResult:
     forward_solves: int
     solve_time_s: float
     tolerance: float
-    forward: Optional['DeltaResult'] = None
+    forward: Optional[DeltaResult] = None
 
     @property
     def platform_rotation(self) -> np.ndarray:
@@ -152,7 +163,7 @@ class InverseSolver:
     Use through ``DeltaRobot.inverse``, which keeps one per robot.
     """
 
-    def __init__(self, robot: 'DeltaRobot', tolerance: float = POSITION_TOLERANCE,
+    def __init__(self, robot: ForwardStatics, tolerance: float = POSITION_TOLERANCE,
                  max_iterations: int = MAX_ITERATIONS) -> None:
         """Solve on ``robot``; ``tolerance`` (m) is the reached distance, > 0."""
         if not (math.isfinite(tolerance) and tolerance > 0.0):
@@ -196,7 +207,7 @@ class InverseSolver:
 
         last = [np.full(3, np.nan)]  # the sliders of the robot's latest forward solve
 
-        def forward(at: np.ndarray) -> 'DeltaResult':
+        def forward(at: np.ndarray) -> DeltaResult:
             last[0] = at
             return robot.solve(at.tolist(), force, moment, offset.tolist(),
                                warm_start=warm_start or solves > 0, compliance=True)
@@ -272,7 +283,7 @@ class InverseSolver:
             forward_solves=solves, solve_time_s=time.perf_counter() - started,
             tolerance=self.tolerance, forward=result)
 
-    def _failure(self, goal: np.ndarray, sliders: np.ndarray, result: 'DeltaResult',
+    def _failure(self, goal: np.ndarray, sliders: np.ndarray, result: DeltaResult,
                  solves: int, started: float, message: str) -> InverseResult:
         """Return the result for a forward solve that failed before any iteration."""
         self._previous = None

@@ -21,6 +21,7 @@ from typing import Dict, List, Sequence, Tuple
 import numpy as np
 
 from .delta import DeltaRobot
+from .params import DeltaParams
 from ..params import DEFAULT_PARAMS_PATH
 
 #: Characters of a sample's message kept in the atlas.
@@ -75,7 +76,6 @@ class AtlasSpec:
               params_files: Sequence[str] = (str(DEFAULT_PARAMS_PATH),),
               time_limit_s: float = 30.0) -> 'AtlasSpec':
         """Validate the sweep (ValueError naming a bad value) and read each variant's stroke."""
-        from .params import DeltaParams
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
             raise ValueError(f'grid must be an integer of at least 2, got {grid!r}')
         checked: List[Tuple[float, float, float]] = []

@@ -1,0 +1,170 @@
+"""DeltaResult: what one forward-statics solve of the Continuum Delta Robot gives."""
+
+from dataclasses import dataclass
+import math
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .. import geometry
+from ..result import SolveResult
+
+__all__ = ['DeltaResult', 'INPUT_NAMES', 'rotation_vector']
+
+#: Names of the 12 inputs whose sensitivities ``DeltaResult.input_sensitivity`` holds.
+INPUT_NAMES = ('slider 1', 'slider 2', 'slider 3', 'force x', 'force y', 'force z',
+               'moment x', 'moment y', 'moment z', 'offset x', 'offset y', 'offset z')
+
+
+def rotation_vector(rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis times angle, rad) of a rotation matrix."""
+    return Rotation.from_matrix(rotation).as_rotvec()
+
+
+@dataclass
+class DeltaResult:
+    """
+    Outcome of one forward-statics solve (SI, rad; platform pose in the world frame {w}).
+
+    ``leg_tip_wrenches`` (3, 6): the wrench [f; m] the platform applies to each leg's end
+    disk, in that leg's base frame {pe_i}, moment about the end-disk centre.
+    ``equilibrium_residual`` (6,): payload plus leg reactions on the platform, force and
+    moment about the platform origin in {w} (N, N m). ``compatibility_residual`` (3, 6):
+    per leg, the solved end-disk pose minus the platform attachment pose in {pe_i}
+    (position m, rotation vector rad). Failure to converge is a result (``converged``
+    False, ``message`` says why) holding the best iterate found.
+
+    With ``solve(..., compliance=True)`` (a converged solve) the linearization of the
+    assembled closed chain at the solution is added, from a fresh Newton Jacobian J (the
+    legs enter through their 6x6 compliances):
+
+    * ``platform_compliance`` (6, 6): C maps a small extra wrench [f; m] on the platform,
+      force at the platform origin, components in {w}, to the small twist [v; w] of the
+      platform: v the displacement of its origin, w its rotation (R <- exp([w]) R), in {w}.
+      C = -(J^-1)[pose, equilibrium]. SI: C[:3, :3] m/N, C[:3, 3:] m/(N m), C[3:, :3] rad/N,
+      C[3:, 3:] rad/(N m) (the translator's convention, cdr_translator/compliance.py, moved
+      from the end disk in {pe} to the platform in {w}). Dead-load geometric stiffness of
+      the payload and the leg reactions' moment arms are included.
+    * ``input_sensitivity`` (6, 12): d[platform position; rotation] / d[inputs], inputs
+      ``INPUT_NAMES`` (sliders m, force N, moment N m, offset m); the inverse statics
+      Newton uses its slider columns.
+    * ``stable``: the robot's stability verdict: the symmetric part of the platform
+      stiffness K = C^-1, rotations expressed as displacements over the leg stack height H
+      (K_s = S K S, S = diag(1, 1, 1, 1/H, 1/H, 1/H)), is positive definite; its smallest
+      eigenvalue is ``stiffness_margin`` (N/m). A singular J (no compliance) is unstable
+      (``stable`` False, ``message`` says so). None when not computed.
+    """
+
+    converged: bool
+    message: str
+    iterations: int
+    sliders: np.ndarray
+    payload_force: np.ndarray
+    payload_moment: np.ndarray
+    payload_offset: np.ndarray
+    platform_position: np.ndarray
+    platform_rotation: np.ndarray
+    home_position: np.ndarray
+    leg_results: Tuple[SolveResult, ...]
+    leg_tip_wrenches: np.ndarray
+    equilibrium_residual: np.ndarray
+    compatibility_residual: np.ndarray
+    solve_time_s: float
+    leg_solves: int
+    platform_compliance: Optional[np.ndarray] = None
+    input_sensitivity: Optional[np.ndarray] = None
+    stable: Optional[bool] = None
+    stiffness_margin: float = math.nan
+
+    @property
+    def compliance_eigenvalues(self) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Eigenvalues of the symmetric parts of C's translational (m/N) and rotational blocks.
+
+        Ascending; NaN when the compliance was not computed.
+        """
+        if self.platform_compliance is None:
+            return np.full(3, np.nan), np.full(3, np.nan)
+        matrix = self.platform_compliance
+        translation, rotation = matrix[:3, :3], matrix[3:, 3:]
+        return (np.linalg.eigvalsh(0.5 * (translation + translation.T)),
+                np.linalg.eigvalsh(0.5 * (rotation + rotation.T)))
+
+    @property
+    def leg_axial_forces(self) -> np.ndarray:
+        """(3,): tension of each leg at its end disk, the tip force along {pe_i} z (N)."""
+        return self.leg_tip_wrenches[:, 2].copy()
+
+    @property
+    def platform_rotation_angle(self) -> float:
+        """Total rotation angle of the platform from its home orientation (rad)."""
+        return geometry.rotation_angle(self.platform_rotation)
+
+    @property
+    def platform_rotation_vector(self) -> np.ndarray:
+        """Rotation vector of the platform from its home orientation, in {w} (rad)."""
+        return rotation_vector(self.platform_rotation)
+
+    @property
+    def platform_quaternion_xyzw(self) -> np.ndarray:
+        """Platform orientation in {w} as a unit quaternion (x, y, z, w), w >= 0."""
+        return geometry.quaternion_xyzw(self.platform_rotation)
+
+    @property
+    def platform_displacement(self) -> np.ndarray:
+        """Platform position relative to its home position, in {w} (m)."""
+        return self.platform_position - self.home_position
+
+    @property
+    def leg_bending(self) -> np.ndarray:
+        """(3, 2): PJ and DJ bending angle of each leg (rad)."""
+        return np.array([[leg.pj_bending[0], leg.dj_bending[0]] for leg in self.leg_results])
+
+    @property
+    def equilibrium_residual_norm(self) -> float:
+        """Euclidean norm of the equilibrium residual (N and N m mixed, SI)."""
+        return float(np.linalg.norm(self.equilibrium_residual))
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary; degrees only here, at the edge."""
+        return {
+            'converged': bool(self.converged),
+            'message': self.message,
+            'iterations': int(self.iterations),
+            'platform_position_m': self.platform_position.tolist(),
+            'platform_displacement_m': self.platform_displacement.tolist(),
+            'platform_rotation_deg': math.degrees(self.platform_rotation_angle),
+            'platform_rotation_vector_deg': np.degrees(self.platform_rotation_vector).tolist(),
+            'platform_quaternion_xyzw': self.platform_quaternion_xyzw.tolist(),
+            'leg_bending_deg': np.degrees(self.leg_bending).tolist(),
+            'leg_tip_wrench': self.leg_tip_wrenches.tolist(),
+            'equilibrium_residual_norm': self.equilibrium_residual_norm,
+            'equilibrium_residual': self.equilibrium_residual.tolist(),
+            'compatibility_residual_max': {
+                'position_m': float(np.abs(self.compatibility_residual[:, :3]).max()),
+                'rotation_rad': float(np.abs(self.compatibility_residual[:, 3:]).max())},
+            'sliders_m': self.sliders.tolist(),
+            'payload_force_n': self.payload_force.tolist(),
+            'payload_moment_nm': self.payload_moment.tolist(),
+            'payload_offset_m': self.payload_offset.tolist(),
+            'solve_time_s': float(self.solve_time_s),
+            'leg_solves': int(self.leg_solves),
+            **self._linearization_dict(),
+        }
+
+    def _linearization_dict(self) -> dict:
+        """Return the compliance / stability keys (None when not computed)."""
+        if self.platform_compliance is None:
+            return {'stable': self.stable, 'platform_compliance': None,
+                    'platform_compliance_eigenvalues': None,
+                    'stiffness_margin_n_per_m': None}
+        translation, rotation = self.compliance_eigenvalues
+        return {
+            'stable': bool(self.stable),
+            'platform_compliance': self.platform_compliance.tolist(),
+            'platform_compliance_eigenvalues': {
+                'translation_m_per_n': translation.tolist(),
+                'rotation_rad_per_nm': rotation.tolist()},
+            'stiffness_margin_n_per_m': float(self.stiffness_margin),
+        }
