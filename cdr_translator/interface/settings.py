@@ -129,8 +129,15 @@ _GEOMETRY = (
                   'towards it in each radial plane', read_only=True),
     ParameterSpec('slider_stroke', 'm, slider positions beyond +-this are rejected',
                   read_only=True),
+)
+
+_CDR_NODE = (
     ParameterSpec('world_frame', 'frame_id of the platform pose; payload wrenches must be '
                   'in it or have an empty frame_id'),
+    ParameterSpec('input_queue_depth', 'messages each input subscription (sliders, '
+                  'platform_wrench, target_position) holds while the node is busy (best '
+                  'effort, keep last); 100 absorbs a 0.1 s stall at 1 kHz',
+                  read_only=True, bounds=(1, 100_000)),
 )
 
 #: Every parameter cdr_node declares: the leg model and the run-time and logging settings
@@ -138,7 +145,7 @@ _GEOMETRY = (
 CDR_SPECS: Mapping[str, ParameterSpec] = {
     **{name: SPECS[name] for name in sorted(MODEL_KEYS)},
     **{name: SPECS[name] for name in sorted(CDR_NODE_ONLY_KEYS) if name in SPECS},
-    **{spec.name: spec for spec in _GEOMETRY}}
+    **{spec.name: spec for spec in _GEOMETRY + _CDR_NODE}}
 
 _FRAME_PAIRS = {'base_frame': 'end_disk_frame', 'end_disk_frame': 'base_frame'}
 
@@ -269,6 +276,7 @@ class CdrSettings:
     log_dir: str
     mcap_flush_messages: int
     mcap_flush_s: float
+    input_queue_depth: int
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> 'CdrSettings':

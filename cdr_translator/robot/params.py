@@ -35,7 +35,7 @@ CDR_NODE_NAME = 'cdr_node'
 #: Keys of the cdr_node section that belong to the ROS node, not to the geometry.
 CDR_NODE_ONLY_KEYS: frozenset = frozenset((
     'world_frame', 'max_force', 'max_moment', 'solve_time_limit_s', 'log_to_mcap',
-    'mcap_path', 'log_dir', 'mcap_flush_messages', 'mcap_flush_s'))
+    'mcap_path', 'log_dir', 'mcap_flush_messages', 'mcap_flush_s', 'input_queue_depth'))
 
 
 @dataclass(frozen=True)

@@ -26,14 +26,14 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
-from .runtime import SHUTDOWN_JOIN_S, type_name
+from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
 from ..interface import cdr_messages, messages
 from ..interface.processing import check_magnitude
@@ -106,13 +106,14 @@ class CdrNode(Node):
                            if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
+        sensor = sensor_qos(self._settings.input_queue_depth)
         self._subscriptions = [
             self.create_subscription(WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC,
-                                     self._on_wrench, qos_profile_sensor_data, raw=True),
+                                     self._on_wrench, sensor, raw=True),
             self.create_subscription(JointState, cdr_messages.SLIDERS_TOPIC, self._on_sliders,
-                                     qos_profile_sensor_data, raw=True),
+                                     sensor, raw=True),
             self.create_subscription(PointStamped, cdr_messages.TARGET_TOPIC, self._on_target,
-                                     qos_profile_sensor_data, raw=True)]
+                                     sensor, raw=True)]
         self.get_logger().info(
             f'ready: {", ".join(s.topic_name for s in self._subscriptions)} -> '
             f'{", ".join(p.topic_name for p in self._publishers_by_topic.values())}; '

@@ -27,6 +27,7 @@ import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
@@ -56,6 +57,13 @@ LOG_QUEUE_CAPACITY = 20000
 
 #: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
 LOG_CHECK_PERIOD_S = 1.0
+
+
+def sensor_qos(depth: int) -> QoSProfile:
+    """Return the sensor-data QoS (best effort, volatile, keep last) ``depth`` deep."""
+    return QoSProfile(depth=depth, reliability=qos_profile_sensor_data.reliability,
+                      durability=qos_profile_sensor_data.durability,
+                      history=qos_profile_sensor_data.history)
 
 
 class LatestMailbox:

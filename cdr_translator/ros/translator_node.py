@@ -27,13 +27,13 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
-from .runtime import SHUTDOWN_JOIN_S, type_name
+from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, node_solver
@@ -82,12 +82,9 @@ class TranslatorNode(Node):
                            if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
-        sensor = QoSProfile(depth=self._settings.wrench_queue_depth,
-                            reliability=qos_profile_sensor_data.reliability,
-                            durability=qos_profile_sensor_data.durability,
-                            history=qos_profile_sensor_data.history)
         self._subscription = self.create_subscription(
-            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench, sensor, raw=True)
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
+            sensor_qos(self._settings.wrench_queue_depth), raw=True)
         self.get_logger().info(
             f'ready: {self._subscription.topic_name} -> '
             f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '

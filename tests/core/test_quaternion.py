@@ -24,10 +24,24 @@ def test_matches_scipy_on_random_and_special_rotations():
         assert ours[3] >= 0.0
 
 
-def test_non_orthonormal_matrix_is_projected_like_scipy():
-    """A matrix off by 1e-6 takes scipy's own path (nearest rotation)."""
-    matrix = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix() + 1e-6
+@pytest.mark.parametrize('offset', [1e-11, 1e-6, 1e-2])
+def test_non_orthonormal_matrix_is_projected_like_scipy(offset):
+    """Off by 1e-11 (a solved frame), 1e-6 or 1e-2 (scipy's path): scipy's nearest rotation."""
+    matrix = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix() + offset
     np.testing.assert_allclose(quaternion_xyzw(matrix), _scipy(matrix), atol=1e-15)
+
+
+def test_a_solved_frame_does_not_need_scipy(monkeypatch):
+    """A solved end-disk frame (orthonormal to ~1e-11 only) is projected without scipy."""
+    solved = Rotation.from_rotvec([0.2, 0.4, -0.1]).as_matrix() * (1.0 + 7e-12)
+    solved[0, 1] += 3e-12
+    expected = _scipy(solved)
+
+    def refuse(*_):
+        raise AssertionError('scipy was called')
+
+    monkeypatch.setattr(Rotation, 'from_matrix', refuse)
+    np.testing.assert_allclose(quaternion_xyzw(solved), expected, rtol=0.0, atol=1e-15)
 
 
 def test_improper_matrix_is_refused():

@@ -147,6 +147,8 @@ def test_values_are_checked_in_one_place():
     ('end_disk_frame', 'b', {'base_frame': 'b'}, 'must differ'),
     ('world_frame', ' ', {}, 'must not be empty'),
     ('mcap_flush_messages', 0, {}, 'mcap_flush_messages must be an integer >= 1'),
+    ('wrench_queue_depth', 0, {}, 'wrench_queue_depth must be an integer >= 1'),
+    ('input_queue_depth', 0, {}, 'input_queue_depth must be an integer >= 1'),
 ])
 def test_check_value_gives_reasons(name, value, others, reason):
     """Run-time values are refused with a reason."""
