@@ -11,6 +11,7 @@ numba puts it (``__pycache__`` beside the sources) while that is writable; an in
 read-only package uses a per-user folder instead, ``$XDG_CACHE_HOME/cdr_translator/numba``
 (``~/.cache/...``). ``NUMBA_CACHE_DIR`` set by the user always wins. ``make setup`` fills
 the cache (``python -m cdr_translator compile``), so the first node start does not compile.
+Kernels cached with other numba options (``JIT_OPTIONS``) are deleted and compiled anew.
 """
 
 import importlib
@@ -20,7 +21,7 @@ import sys
 import tempfile
 import time
 from types import ModuleType
-from typing import Any, Callable, Dict, List, NamedTuple
+from typing import Any, Callable, Dict, List, NamedTuple, Set
 
 import numba
 
@@ -75,11 +76,55 @@ def configure_cache(package_dir: Path = Path(__file__).resolve().parent) -> str:
 CACHE_LOCATION = configure_cache()
 
 
+#: numba's options for every kernel. ``nogil``: a kernel releases the GIL while it runs, so
+#: a node's subscription callback and log thread can run meanwhile (on another core).
+JIT_OPTIONS: Dict[str, Any] = {'cache': True, 'error_model': 'numpy', 'nogil': True}
+
+#: numba's cache index keys on the source and the signature, not on the options: each cache
+#: folder records the options its kernels were compiled with in this file (see jit).
+OPTIONS_STAMP = 'cdr_translator_jit_options.txt'
+
+_stamped_folders: Set[Path] = set()
+
+
+def _options_text() -> str:
+    """Return JIT_OPTIONS as written into OPTIONS_STAMP."""
+    return repr(sorted(JIT_OPTIONS.items())) + '\n'
+
+
+def _clear_if_compiled_otherwise(folder: Path) -> None:
+    """
+    Delete the cached kernels in ``folder`` unless its stamp says they have JIT_OPTIONS.
+
+    Done once per folder and process, when its first kernel is defined (before any of its
+    kernels is loaded); then the stamp is written. A folder without a stamp holds kernels of
+    an older checkout, whose options are unknown. Write errors are ignored: numba does not
+    cache into a read-only folder either (configure_cache avoids them).
+    """
+    if folder in _stamped_folders:
+        return
+    _stamped_folders.add(folder)
+    stamp = folder / OPTIONS_STAMP
+    try:
+        if stamp.read_text() == _options_text():
+            return
+    except OSError:
+        pass
+    try:
+        for path in sorted(folder.glob('*.nbi')) + sorted(folder.glob('*.nbc')):
+            path.unlink()
+        folder.mkdir(parents=True, exist_ok=True)
+        stamp.write_text(_options_text())
+    except OSError:
+        pass
+
+
 def jit(func: Callable) -> Callable:
     """Compile ``func`` with numba (cached on disk), or leave it as Python while copying."""
     if _interpreting:
         return func
-    kernel = numba.njit(cache=True, error_model='numpy')(func)
+    kernel = numba.njit(**JIT_OPTIONS)(func)
+    _clear_if_compiled_otherwise(Path(kernel.stats.cache_path))
     KERNELS.append(kernel)
     return kernel
 

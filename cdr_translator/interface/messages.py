@@ -8,7 +8,7 @@ DiagnosticStatus ``level`` is an int here (rclpy wants it as one byte: ``bytes([
 """
 
 import math
-from typing import Any, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Iterator, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -319,24 +319,36 @@ def output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: s
     whose values are ``solve_diagnostic_values`` followed by ``extra_values`` (e.g. skipped
     messages). A result that did not converge publishes no pose: only an ERROR diagnostic.
     """
-    messages = []
+    return list(iter_output_messages(result, stamp, base_frame, compliance=compliance,
+                                     backbones_params=backbones_params,
+                                     extra_values=extra_values))
+
+
+def iter_output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: str, *,
+                         compliance: bool = True,
+                         backbones_params: Optional[TranslatorParams] = None,
+                         extra_values: Optional[Mapping[str, Any]] = None
+                         ) -> Iterator[Tuple[str, str, dict]]:
+    """
+    Yield what ``output_messages`` returns, in the same order, each built when asked for.
+
+    The pose comes first: translator_node publishes it before it builds the others.
+    """
     if result.converged:
-        messages.append((END_DISK_POSE_TOPIC, POSE_TYPE, pose_message(result, stamp, base_frame)))
-        messages.append((BENDING_ANGLES_TOPIC, JOINT_STATE_TYPE,
-                         joint_state_message(result, stamp, base_frame)))
+        yield END_DISK_POSE_TOPIC, POSE_TYPE, pose_message(result, stamp, base_frame)
+        yield (BENDING_ANGLES_TOPIC, JOINT_STATE_TYPE,
+               joint_state_message(result, stamp, base_frame))
         if compliance and getattr(result, 'compliance', None) is not None:
-            messages.append((COMPLIANCE_EIGENVALUES_TOPIC, FLOAT64_MULTI_ARRAY_TYPE,
-                             compliance_eigenvalues_message(result)))
-            messages.append((COMPLIANCE_TOPIC, FLOAT64_MULTI_ARRAY_TYPE,
-                             compliance_message(result)))
+            yield (COMPLIANCE_EIGENVALUES_TOPIC, FLOAT64_MULTI_ARRAY_TYPE,
+                   compliance_eigenvalues_message(result))
+            yield COMPLIANCE_TOPIC, FLOAT64_MULTI_ARRAY_TYPE, compliance_message(result)
         if backbones_params is not None:
-            messages.append((BACKBONES_TOPIC, MARKER_ARRAY_TYPE,
-                             backbones_message(result, backbones_params, stamp, base_frame)))
+            yield (BACKBONES_TOPIC, MARKER_ARRAY_TYPE,
+                   backbones_message(result, backbones_params, stamp, base_frame))
     values = solve_diagnostic_values(result)
     values.update(extra_values or {})
-    messages.append((DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
-                     diagnostics_message(stamp, solve_level(result), result.message, values)))
-    return messages
+    yield (DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
+           diagnostics_message(stamp, solve_level(result), result.message, values))
 
 
 def rejection_messages(stamp: Mapping[str, int], reason: str,

@@ -9,6 +9,7 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 """
 
 from dataclasses import dataclass
+import math
 from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 import warnings
 
@@ -47,7 +48,7 @@ def check_magnitude(force: ArrayLike, moment: ArrayLike, max_force: float,
     """Raise ValueError naming the magnitude when |force| or |moment| exceeds its limit."""
     for name, vector, limit, unit in (('force', force, max_force, 'N'),
                                       ('moment', moment, max_moment, 'N m')):
-        magnitude = float(np.linalg.norm(np.asarray(vector, dtype=float)))
+        magnitude = math.hypot(*np.asarray(vector, dtype=float).tolist())  # 1 us, not 10
         if magnitude > limit:
             raise ValueError(f'|{name}| = {magnitude:.6g} {unit} exceeds max_{name} = '
                              f'{limit:.6g} {unit}')

@@ -11,16 +11,18 @@ and checks the wrench it takes (cdr_translator.interface.processing: the same ch
 frames and follower-load solve as the offline replay). The subscription's queue is
 ``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
-serialized once, and the same bytes published and logged: every received wrench and every
-published message goes to an MCAP file through a log thread. Only cdr_translator.ros
-imports rclpy or ROS message classes.
+one by one with the pose first (it is published before the others are built), serialized
+once, and the same bytes published and logged: every received wrench and every published
+message goes to an MCAP file through a log thread. The numba kernels release the GIL
+(``nogil``), so the callback and the log thread can run while the solver is in one. Only
+cdr_translator.ros imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
 import sys
 import threading
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
@@ -207,9 +209,15 @@ class TranslatorNode(Node):
                 **log_lost(getattr(self, '_log', None))}
 
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
-                         want_backbones: bool, extra: Dict[str, Any]) -> List[Tuple[str, Any]]:
-        """Fill the messages of one solve (interface.messages defines their content)."""
-        return self._filled(messages.output_messages(
+                         want_backbones: bool, extra: Dict[str, Any]
+                         ) -> Iterator[Tuple[str, Any]]:
+        """
+        Build and fill the messages of one solve one by one, the pose first.
+
+        interface.messages defines their content; each is built when the one before has
+        been published, so the pose goes out before the others are even built.
+        """
+        return self._filled(messages.iter_output_messages(
             result, stamp, self._settings.base_frame, compliance=want_compliance,
             backbones_params=self.solver.params if want_backbones else None,
             extra_values=extra))
@@ -219,12 +227,12 @@ class TranslatorNode(Node):
         return self._log is not None or (
             self._publishers_by_topic[topic].get_subscription_count() > 0)
 
-    def _filled(self, built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
+    def _filled(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, Any]]:
         """Fill the rclpy messages of the wanted outputs among (topic, type, dict) triples."""
-        return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built
-                if self._wanted(topic)]
+        return ((topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built
+                if self._wanted(topic))
 
-    def _publish_all(self, topic_messages: List[Tuple[str, Any]]) -> None:
+    def _publish_all(self, topic_messages: Iterable[Tuple[str, Any]]) -> None:
         """Serialize each output once; publish those bytes and queue them for the MCAP log."""
         for topic, message in topic_messages:
             publisher = self._publishers_by_topic[topic]

@@ -3,8 +3,9 @@ Where the compiled kernels are cached, in subprocesses on copies of the package.
 
 A read-only package (as colcon installs it into a root-owned prefix) must cache into the
 per-user folder; a writable one into its own ``__pycache__``; ``NUMBA_CACHE_DIR`` always
-wins. Read-only means the mode bits for an ordinary user and, for root (who writes whatever
-the mode bits say), a read-only bind mount in a private mount namespace (``unshare -m``).
+wins; kernels cached with other numba options are compiled anew. Read-only means the mode
+bits for an ordinary user and, for root (who writes whatever the mode bits say), a read-only
+bind mount in a private mount namespace (``unshare -m``).
 """
 
 import json
@@ -16,6 +17,7 @@ import sys
 import tempfile
 from typing import Dict, Iterator, List, Optional
 
+from cdr_translator._jit import JIT_OPTIONS, OPTIONS_STAMP
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -114,3 +116,21 @@ def test_numba_cache_dir_wins(copy):
     report = _probe(source, cache_home, numba_cache_dir=chosen)
     assert report['location'] == str(chosen)
     assert list(chosen.rglob('rod.rk4_stage_pose-*.nbi'))
+
+
+@pytest.mark.parametrize('stamp_text', [None, "[('cache', True), ('nogil', False)]\n"],
+                         ids=['no stamp', 'other options'])
+def test_kernels_cached_with_other_options_are_compiled_anew(copy, stamp_text):
+    """A folder stamped with other options (or none) is cleared: numba's index ignores them."""
+    source, cache_home = copy / 'src', copy / 'cache'
+    stamp = source / 'cdr_translator' / '__pycache__' / OPTIONS_STAMP
+    assert _probe(source, cache_home)['compiled'] >= 1
+    assert repr(sorted(JIT_OPTIONS.items())) in stamp.read_text()
+    assert _probe(source, cache_home)['compiled'] == 0  # loaded: same options
+    if stamp_text is None:
+        stamp.unlink()  # as left by a checkout from before the stamp
+    else:
+        stamp.write_text(stamp_text)
+    again = _probe(source, cache_home)
+    assert again['compiled'] >= 1 and again['loaded'] == 0, again
+    assert repr(sorted(JIT_OPTIONS.items())) in stamp.read_text()
