@@ -58,6 +58,13 @@ LOG_QUEUE_CAPACITY = 20000
 #: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
 LOG_CHECK_PERIOD_S = 1.0
 
+#: While the solver works, the log thread holds its records back (they would take the GIL
+#: from the solve) at most this long, then writes what is queued ...
+LOG_HOLD_S = 0.1
+#: ... or as soon as this many records are queued (checked every LOG_HOLD_CHECK_S).
+LOG_HOLD_RECORDS = 1000
+LOG_HOLD_CHECK_S = 0.02
+
 
 def sensor_qos(depth: int) -> QoSProfile:
     """Return the sensor-data QoS (best effort, volatile, keep last) ``depth`` deep."""
@@ -70,7 +77,9 @@ class LatestMailbox:
     """
     One-slot, thread-safe mailbox: ``put`` replaces an untaken item (counted as skipped).
 
-    The consumer always gets the newest item; nothing ever queues up behind it.
+    The consumer always gets the newest item; nothing ever queues up behind it. ``idle`` is
+    set while the consumer waits with nothing to take (and once closed): the time a node's
+    log thread writes in.
     """
 
     def __init__(self) -> None:
@@ -80,6 +89,7 @@ class LatestMailbox:
         self._full = False
         self._closed = False
         self.skipped = 0
+        self.idle = threading.Event()
 
     def put(self, item: Any) -> bool:
         """Leave ``item``; return True if it replaced one nobody had taken yet."""
@@ -88,22 +98,27 @@ class LatestMailbox:
             if replaced:
                 self.skipped += 1
             self._item, self._full = item, True
+            self.idle.clear()
             self._condition.notify()
             return replaced
 
     def take(self, timeout: Optional[float] = None) -> Any:
         """Wait for an item and return it; None once closed (or after ``timeout`` s)."""
         with self._condition:
+            if not self._full:
+                self.idle.set()
             self._condition.wait_for(lambda: self._full or self._closed, timeout)
             if self._closed or not self._full:
                 return None
             item, self._item, self._full = self._item, None, False
+            self.idle.clear()
             return item
 
     def close(self) -> None:
         """Wake the consumer for good; an untaken item is dropped."""
         with self._condition:
             self._closed = True
+            self.idle.set()
             self._condition.notify_all()
 
 
@@ -168,6 +183,12 @@ class LogThread:
     messages and T seconds. ``enqueue_wait_s`` and ``write_time_s`` measure whether logging
     ever holds up the solver.
 
+    With ``idle`` (the solver's LatestMailbox.idle), records are written while the solver
+    waits for input: a write holds the GIL for tens of microseconds, and a solver waiting
+    for it can lose up to Python's switch interval (5 ms) each time. While the solver
+    works, records wait at most ``hold_s`` (then what is queued is written) or until
+    ``hold_records`` are queued.
+
     Log times never go back on a channel (what MCAP readers and ``mcap doctor`` expect): a
     record whose log time is earlier than the previous one of its topic (two producer
     threads, or rmw receive stamps out of step) is written with that previous time and
@@ -176,9 +197,15 @@ class LogThread:
     serialized.
     """
 
-    def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY) -> None:
-        """Start writing to ``log`` (an McapLog, closed by ``close()``)."""
+    def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY,
+                 idle: Optional[threading.Event] = None, hold_s: float = LOG_HOLD_S,
+                 hold_records: int = LOG_HOLD_RECORDS) -> None:
+        """Start writing to ``log`` (an McapLog, closed by ``close()``), while ``idle`` is set."""
         self._log = log
+        self._idle = idle
+        self._hold_s = hold_s
+        self._hold_records = hold_records
+        self.held = 0
         self._queue: queue.Queue = queue.Queue(maxsize=capacity)
         self.submitted = 0
         self.written = 0
@@ -213,10 +240,16 @@ class LogThread:
 
     def _run(self) -> None:
         """Write queued records until the ``None`` that close() queues."""
+        ungated = 0  # records to write without waiting (queued when a hold ran out)
         while True:
             record = self._queue.get()
             if record is None:
                 return
+            if ungated > 0:
+                ungated -= 1
+            elif self._idle is not None and not self._idle.is_set():
+                self.held += 1
+                ungated = self._hold(self._idle)
             topic, name, message, log_time_ns, publish_time_ns = record
             started = time.perf_counter()
             previous = self._last_log_time.get(topic, 0)
@@ -232,6 +265,22 @@ class LogThread:
                 self.errors += 1
                 self.last_error = f'{topic}: {error}'
             self.write_time_s += time.perf_counter() - started
+
+    def _hold(self, idle: threading.Event) -> int:
+        """
+        Wait until ``idle``, at most hold_s or until hold_records are queued.
+
+        Return 0 when the solver waits for input now, else the number of records queued,
+        to be written without waiting again.
+        """
+        deadline = time.monotonic() + self._hold_s
+        while self._queue.qsize() < self._hold_records:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                break
+            if idle.wait(min(remaining, LOG_HOLD_CHECK_S)):
+                return 0
+        return self._queue.qsize()
 
     def status(self) -> LogStatus:
         """Return the McapLog's status: records written and lost, the last error."""
@@ -342,8 +391,8 @@ def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[A
     return SetParametersResult(successful=True)
 
 
-def open_log(settings: Any, prefix: str,
-             topics: Sequence[Tuple[str, str, str]]) -> Tuple[Optional[LogThread], str]:
+def open_log(settings: Any, prefix: str, topics: Sequence[Tuple[str, str, str]],
+             idle: Optional[threading.Event] = None) -> Tuple[Optional[LogThread], str]:
     """
     Open a node's MCAP log and its writer thread; (None, '') when logging is off.
 
@@ -352,8 +401,8 @@ def open_log(settings: Any, prefix: str,
     free name if that exists). A given mcap_path is created exclusively: an existing file
     (an earlier run's log) or one another writer holds is an OSError naming it (and the
     holder's PID), which ``run`` turns into exit code 2. ``topics`` are (resolved name, type
-    name, 'sensor_data' or 'reliable') to register up front. The path returned is the file
-    actually written.
+    name, 'sensor_data' or 'reliable') to register up front; ``idle``: when the log thread
+    writes (LogThread). The path returned is the file actually written.
     """
     if not settings.log_to_mcap:
         return None, ''
@@ -365,7 +414,7 @@ def open_log(settings: Any, prefix: str,
                   if_exists='fail' if settings.mcap_path else 'rename')
     for topic, name, qos in topics:
         log.register(topic, name, qos=qos)
-    return LogThread(log), str(log.path)
+    return LogThread(log, idle=idle), str(log.path)
 
 
 def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None) -> int:

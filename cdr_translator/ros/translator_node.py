@@ -13,7 +13,8 @@ frames and follower-load solve as the offline replay). The subscription's queue 
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
 one by one with the pose first (it is published before the others are built), serialized
 once, and the same bytes published and logged: every received wrench and every published
-message goes to an MCAP file through a log thread. The numba kernels release the GIL
+message goes to an MCAP file through a log thread, which writes while the solver thread
+waits for a wrench (or when records have waited 0.1 s). The numba kernels release the GIL
 (``nogil``), so the callback and the log thread can run while the solver is in one. Only
 cdr_translator.ros imports rclpy or ROS message classes.
 """
@@ -119,7 +120,7 @@ class TranslatorNode(Node):
                    'sensor_data')]
         topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
-        return open_log(self._settings, 'translator', topics)
+        return open_log(self._settings, 'translator', topics, idle=self._mailbox.idle)
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""

@@ -1,6 +1,7 @@
 """translator_node's parts that need no DDS: parameters, input checks, mailbox, filler, log."""
 
 import threading
+import time
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import check_magnitude, in_end_disk_frame
@@ -104,3 +105,49 @@ def test_log_thread_writes_bytes_and_messages_in_order(tmp_path):
     assert decoded[1].publish_time_ns == 15
     assert log.written == 2 and log.errors == 0
     assert deserialize_message(serialize_message(second), DiagnosticArray) == second
+
+
+def _wait(condition, timeout_s=10.0):
+    """Wait (bounded) until ``condition()`` holds; return whether it did."""
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return condition()
+
+
+def test_log_thread_writes_while_the_solver_waits(tmp_path):
+    """A record waits while the solver works (mailbox not idle) and is written once it waits."""
+    mailbox = LatestMailbox()
+    assert not mailbox.idle.is_set()
+    log = LogThread(McapLog(tmp_path / 'log.mcap', flush_every_s=0.0), idle=mailbox.idle,
+                    hold_s=600.0)
+    stamp = {'sec': 1, 'nanosec': 2}
+    record = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 0, 'a', {}))
+    mailbox.put('wrench')
+    log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, record, 10)
+    assert _wait(lambda: log.held == 1)
+    assert log.written == 0  # held: hold_s is 10 minutes
+    assert mailbox.take() == 'wrench' and not mailbox.idle.is_set()  # the solver works
+    assert mailbox.take(timeout=0.05) is None and mailbox.idle.is_set()  # then waits
+    assert _wait(lambda: log.written == 1)
+    mailbox.put('next')
+    assert not mailbox.idle.is_set()
+    mailbox.close()
+    assert mailbox.idle.is_set()
+    log.close()
+
+
+@pytest.mark.parametrize('hold_s, hold_records', [(0.0, 1000), (600.0, 2)],
+                         ids=['held long enough', 'too many held'])
+def test_log_thread_stops_holding_back(tmp_path, hold_s, hold_records):
+    """While the solver works: written after hold_s, or once hold_records are queued."""
+    busy = threading.Event()  # never set: the solver never waits
+    log = LogThread(McapLog(tmp_path / 'log.mcap', flush_every_s=0.0), idle=busy,
+                    hold_s=hold_s, hold_records=hold_records)
+    stamp = {'sec': 1, 'nanosec': 2}
+    record = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 0, 'a', {}))
+    for index in range(3):
+        log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, record, 10 + index)
+    assert _wait(lambda: log.written >= 2)
+    log.close()
+    assert log.written == 3
