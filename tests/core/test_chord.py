@@ -8,7 +8,7 @@ from scipy.linalg import lu_factor, lu_solve
 
 @pytest.fixture
 def factorized():
-    """A random well-conditioned 40x40 system and scipy's LU factors of it."""
+    """Return a random well-conditioned 40x40 matrix and scipy's LU factors of it."""
     rng = np.random.default_rng(7)
     matrix = rng.normal(size=(40, 40)) + 8.0 * np.eye(40)
     return matrix, lu_factor(matrix)
