@@ -102,6 +102,11 @@ class Problem:
         self._secant_steps = np.empty((MAX_SECANT_UPDATES, self.size))
         self._secant: Tuple[Optional[tuple], int] = (None, 0)
 
+    @property
+    def model_args(self) -> tuple:
+        """Return the kernel's parameter arguments (model.translator_residual, after wrench)."""
+        return self._args
+
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at nondimensional unknowns ``xs``."""
         out = np.empty(self.size)

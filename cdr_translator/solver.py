@@ -322,7 +322,8 @@ class TranslatorSolver:
                         wrench: np.ndarray) -> None:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
         pose = outcome.pose[0] if outcome.pose is not None else None
-        frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+        frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
+                  else np.stack([result.frames[name] for name in FRAME_NAMES]))
         estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
                                   outcome.lu, pose)
         result.error_estimate_m = estimate.position_m
