@@ -17,7 +17,7 @@ import sys
 import tempfile
 from typing import Dict, Iterator, List, Optional
 
-from cdr_translator._jit import options_text, OPTIONS_STAMP
+from cdr_translator._jit import OPTIONS_STAMP, options_text
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -118,7 +118,7 @@ def test_numba_cache_dir_wins(copy):
     assert list(chosen.rglob('rod.rk4_stage_pose-*.nbi'))
 
 
-@pytest.mark.parametrize('stamp_text', [None, "cache=True, nogil=False\n"],
+@pytest.mark.parametrize('stamp_text', [None, 'cache=True, nogil=False\n'],
                          ids=['no stamp', 'other options'])
 def test_kernels_cached_with_other_options_are_compiled_anew(copy, stamp_text):
     """A folder stamped with other options (or none) is cleared: numba's index ignores them."""
