@@ -239,7 +239,7 @@ class TranslatorSolver:
     def start_at(self, xs: np.ndarray, wrench: np.ndarray,
                  factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None) -> None:
         """
-        Warm-start the next solve from nondimensional unknowns ``xs`` (``problem``'s) at ``wrench``.
+        Warm-start the next solve from nondimensional unknowns ``xs`` at ``wrench`` (SI).
 
         For a caller that iterates on the shooting residual itself (robot/delta.py's coupled
         Newton): a solve at ``wrench`` then only confirms the residual and judges stability

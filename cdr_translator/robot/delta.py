@@ -63,8 +63,6 @@ REUSE_DISTANCE = 1e-9
 #: coupled Newton may predict; a step predicting more is shortened.
 PREDICTOR_REACH = 3.0
 
-#: Chord steps of a leg's own shooting problem per evaluation in the coupled Newton.
-LEG_CHORD_STEPS = 4
 
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
@@ -449,7 +447,7 @@ class DeltaRobot:
         than CHORD_RATE, or failing, rebuilds the factorization.
         """
         try:
-            evaluated = self._evaluate(state, coupled, factorization)
+            evaluated = self._evaluate(state, coupled)
         except _Deadline as error:
             return _Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), factorization)
         if not evaluated:
@@ -534,7 +532,7 @@ class DeltaRobot:
         scale = 1.0
         for _ in range(10):
             trial = state.moved(scale * step[0], scale * step[1])
-            if self._evaluate(trial, coupled, factorization):
+            if self._evaluate(trial, coupled):
                 residual = self._residual(trial, inputs)
                 simplified = self._step(trial, residual,
                                         trial.leg_residuals if coupled else None, factorization)
@@ -552,43 +550,24 @@ class DeltaRobot:
                     and state.leg_error <= self._leg_tolerance)
 
     # legs ------------------------------------------------------------------------------------
-    def _evaluate(self, state: _State, coupled: bool,
-                  factorization: Optional[_Factorization] = None) -> bool:
+    def _evaluate(self, state: _State, coupled: bool) -> bool:
         """
         Give ``state`` its legs' end-disk frames; False if a leg cannot be evaluated there.
 
-        ``coupled``: one residual shot per leg at the state's leg unknowns, then (given a
-        ``factorization``) up to LEG_CHORD_STEPS chord steps of each leg's own shooting
-        problem on its stored LU while they halve its residual: the legs' equilibria are
-        their nonlinear part, and a leg chord step costs one shot where a platform
-        iteration costs three. Else each leg is solved under its wrench (warm-started),
-        its unknowns replaced by the solution.
+        ``coupled``: one residual shot per leg at the state's leg unknowns. Else each leg
+        is solved under its wrench (warm-started), its unknowns replaced by the solution.
         """
         if not coupled:
             legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
             self._store_legs(state, legs)
             return all(leg.converged for leg in legs)
-        unknowns = state.unknowns.copy()
-        residuals = np.empty_like(unknowns)
+        residuals = np.empty_like(state.unknowns)
         frames = np.empty((3, 4, 4))
         for k, solver in enumerate(self.leg_solvers):
-            problem, wrench = solver.problem, state.wrenches[k]
-            residuals[k], frames[k] = problem.residual_and_end_frame(unknowns[k], wrench)
-            self._counts['leg_shots'] += 1
-            if factorization is None:
-                continue
-            error = float(np.abs(residuals[k]).max())
-            for _ in range(LEG_CHORD_STEPS):
-                if not error > self._leg_tolerance:  # converged, or not finite
-                    break
-                trial = unknowns[k] - solve_lu(factorization.legs[k].lu, residuals[k])
-                residual, frame = problem.residual_and_end_frame(trial, wrench)
-                self._counts['leg_shots'] += 1
-                trial_error = float(np.abs(residual).max())
-                if not trial_error < 0.5 * error:
-                    break
-                unknowns[k], residuals[k], frames[k], error = trial, residual, frame, trial_error
-        state.unknowns, state.leg_residuals, state.frames = unknowns, residuals, frames
+            residuals[k], frames[k] = solver.problem.residual_and_end_frame(
+                state.unknowns[k], state.wrenches[k])
+        self._counts['leg_shots'] += 3
+        state.leg_residuals, state.frames = residuals, frames
         state.leg_error = float(np.abs(residuals).max())
         return math.isfinite(state.leg_error) and bool(np.all(np.isfinite(frames)))
 
@@ -614,7 +593,7 @@ class DeltaRobot:
     def _leg_results(self, state: _State,
                      factorization: Optional[_Factorization]) -> List[SolveResult]:
         """
-        The legs' SolveResults at ``state`` (shape, stability, error estimate of each leg).
+        Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
 
         A coupled iterate has none yet: each leg solver is started at the state's leg
         unknowns with the leg's factorization (TranslatorSolver.start_at), so its solve
@@ -639,13 +618,15 @@ class DeltaRobot:
 
         ArithmeticError when a leg Jacobian or the platform Jacobian is singular.
         """
+        if state.frames is None:
+            raise RuntimeError('the legs have not been evaluated at this state')
         legs = []
         for k, solver in enumerate(self.leg_solvers):
             problem = solver.problem
             _, jacobian, pose = problem.exact_jacobian(state.unknowns[k], state.wrenches[k])
             lu = lu_factor(jacobian, check_finite=False)
             gain = solve_lu(lu, problem.wrench_sensitivity)
-            rotation = state.frames[k][:3, :3].copy()
+            rotation = state.frames[k, :3, :3].copy()
             twist = pose_twist(pose, rotation)
             compliance = -twist @ gain
             if not np.all(np.isfinite(compliance)):
