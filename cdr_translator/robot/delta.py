@@ -49,9 +49,11 @@ SIZE = 24
 #: Smallest fraction of the remaining input change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
 
-#: A chord step that contracts the Newton correction by less than this rebuilds the
-#: factorization (three exact leg Jacobians and the platform LU).
+#: Chord steps whose contractions of the Newton correction have a geometric mean above
+#: this, or one step contracting by less than SLOW_CHORD, rebuild the factorization (three
+#: exact leg Jacobians and the platform LU).
 CHORD_RATE = 0.25
+SLOW_CHORD = 0.5
 
 #: A factorization made within this distance of the solution (largest change of the scaled
 #: unknowns, platform and legs) serves the compliance and stability verdict there: it
@@ -288,9 +290,12 @@ class DeltaRobot:
             self._previous = (self._home[0], np.zeros(12))
             self._factorization = self._home[1]
         previous, factorization = self._previous, self._factorization
+        # from home the legs' shooting is far from linear (a coupled Newton needed 5-10
+        # times the iterations): there each iterate's legs are solved in full
+        coupled = previous[0] is not self._home[0]
         with np.errstate(over='ignore', invalid='ignore'):
-            outcome = self._continuation(inputs, coupled=True)
-            if not outcome.converged and time.perf_counter() < self._deadline:
+            outcome = self._continuation(inputs, coupled)
+            if coupled and not outcome.converged and time.perf_counter() < self._deadline:
                 # the coupled iteration stalled: solve the legs in full at every iterate
                 self._previous, self._factorization = previous, factorization
                 nested = self._continuation(inputs, coupled=False)
@@ -454,7 +459,7 @@ class DeltaRobot:
             return _Outcome(state, np.full(SIZE, np.inf), 0, False,
                             'a leg did not converge at the predicted wrenches', factorization)
         residual = self._residual(state, inputs)
-        fresh = False
+        fresh, chord_steps, chord_log = False, 0, 0.0
         for iteration in range(1, self.max_iterations + 1):
             if self._converged(residual, state):
                 return _Outcome(state, residual, iteration - 1, True, 'converged',
@@ -478,8 +483,16 @@ class DeltaRobot:
                 factorization = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             state, residual, contraction = trial
-            if not fresh and contraction > CHORD_RATE:
-                factorization = None  # chord steps converge too slowly; rebuild
+            if fresh:
+                chord_steps, chord_log = 0, 0.0
+            else:
+                # chord steps contract erratically (the iteration matrix is far from normal:
+                # 0.15, 0.01, 0.35 in a row is typical along the slider circle): judge their
+                # geometric mean, and only a single step that barely contracts on its own
+                chord_steps += 1
+                chord_log += math.log(max(contraction, 1e-300))
+                if contraction > SLOW_CHORD or chord_log > chord_steps * math.log(CHORD_RATE):
+                    factorization = None  # chord steps converge too slowly; rebuild
             fresh = False
         converged = self._converged(residual, state)
         return _Outcome(state, residual, self.max_iterations, converged,
