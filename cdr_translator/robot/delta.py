@@ -18,11 +18,22 @@ Residuals (24):
 
 Newton's method solves them; the Jacobian couples the legs only through the platform
 pose, each leg entering through its 6x6 compliance (d twist / d wrench at the end disk,
-{pe_i}: ``TranslatorSolver.solve(..., compliance=True)``, implicit differentiation). Steps
-are damped by Deuflhard's natural monotonicity test and reuse a factorization while it
-contracts. Every leg solve is warm-started from that leg's previous solution, and the robot
-walks from its previous solution (or home: straight legs, no load) to the requested input
-by predictor-corrector continuation, as the leg solver does for one translator.
+{pe_i}), from the leg's exact linearization (one tangent-linear shot: its shooting
+Jacobian and end-disk pose derivative; implicit differentiation). Two iterations:
+
+* coupled (warm solves): the legs' own shooting unknowns join the platform's; an iterate
+  costs one residual shot per leg, the Newton system is reduced to the platform's 24 by
+  eliminating each leg with its LU (see ``_step``), and chord steps reuse that
+  factorization across iterations and solves until they contract too slowly. Once
+  converged, each leg solver confirms its leg (TranslatorSolver.start_at), which gives the
+  legs' SolveResults (shape, stability, error estimate).
+* nested (cold solves from home, where the legs' shooting is far from linear, and the
+  fallback of a stalled coupled solve): every iterate solves each leg in full under its
+  wrench, warm-started.
+
+Steps are damped by Deuflhard's natural monotonicity test. The robot walks from its
+previous solution (or home: straight legs, no load) to the requested input by
+predictor-corrector continuation, as the leg solver does for one translator.
 """
 
 from dataclasses import dataclass, fields
