@@ -287,7 +287,7 @@ def main() -> None:
             for force in exact['cold']) + '.',
     ]
     lines += ['', 'CDR forward statics (bench/delta_statics.py; its output: '
-              'bench/results/delta_statics.txt): cold cases (median of 3, ms) ' + ', '.join(
+              'bench/results/delta_statics.md): cold cases (median of 3, ms) ' + ', '.join(
                   f'q = {sliders} m, payload {payload} N: {_ms(seconds)}'
                   for (sliders, payload), seconds in zip(COLD_CASES, cdr.cold_s))
               + f"; warm: {cdr.warm_leg_solves:.1f} leg solves and "

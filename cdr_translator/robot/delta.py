@@ -36,7 +36,7 @@ previous solution (or home: straight legs, no load) to the requested input by
 predictor-corrector continuation, as the leg solver does for one translator.
 """
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 import math
 from pathlib import Path
 import time
@@ -76,6 +76,8 @@ REUSE_DISTANCE = 1e-9
 #: coupled Newton may predict; a step predicting more is shortened.
 PREDICTOR_REACH = 3.0
 
+
+COUPLE_WITHIN = 0.1
 
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
@@ -168,6 +170,22 @@ class _Factorization:
     platform: tuple
     legs: Tuple[_LegLinearization, ...]
     state: _State  # where it was made
+    # for the chord steps, stacked over the legs: J_k^-1 (3, n, n), T_k (3, 6, n) and
+    # J_k^-1 dr/dw (3, n, 6), and the scaled platform Jacobian's inverse (24, 24): a chord
+    # step is then a few matrix products, where LU solves cost ten times as much (their
+    # LAPACK call's overhead on these small systems)
+    inverses: np.ndarray = field(init=False)
+    twists: np.ndarray = field(init=False)
+    gains: np.ndarray = field(init=False)
+    platform_inverse: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        """Stack the legs' matrices and invert the Jacobians for the chord steps."""
+        size = self.legs[0].gain.shape[0]
+        self.inverses = np.stack([solve_lu(leg.lu, np.eye(size)) for leg in self.legs])
+        self.twists = np.stack([leg.twist for leg in self.legs])
+        self.gains = np.stack([leg.gain for leg in self.legs])
+        self.platform_inverse = solve_lu(self.platform, np.eye(SIZE))
 
 
 @dataclass
@@ -485,6 +503,7 @@ class DeltaRobot:
                 step = self._step(state, residual, state.leg_residuals if coupled else None,
                                   factorization)
                 trial = self._line_search(state, step, inputs, factorization, coupled)
+                step_size = self._step_norm(step, coupled)
             except (_Deadline, ArithmeticError) as error:
                 return _Outcome(state, residual, iteration, False, str(error), factorization)
             if trial is None:
@@ -505,6 +524,14 @@ class DeltaRobot:
                 if contraction > SLOW_CHORD or chord_log > chord_steps * math.log(CHORD_RATE):
                     factorization = None  # chord steps converge too slowly; rebuild
             fresh = False
+            if not coupled and step_size * contraction < COUPLE_WITHIN \
+                    and not self._converged(residual, state):
+                # near the solution the legs' shooting is nearly linear: finish coupled,
+                # three shots per iterate instead of three leg solves
+                finish = self._newton(state, inputs, factorization, True)
+                finish.iterations += iteration
+                if finish.converged:
+                    return finish
         converged = self._converged(residual, state)
         return _Outcome(state, residual, self.max_iterations, converged,
                         'converged' if converged
@@ -522,20 +549,21 @@ class DeltaRobot:
         compatibility residual. Without ``leg_residuals`` (legs solved in full, or the
         continuation predictor) only the wrench response moves the legs.
         """
-        corrections = np.zeros_like(self._home[0].unknowns)
         modified = residual / self._r_scale
-        if leg_residuals is not None:
-            for k, leg in enumerate(factorization.legs):
-                corrections[k] = solve_lu(leg.lu, leg_residuals[k])
-                # the twist enters the rotation error through the inverse left Jacobian of
-                # SO(3), the identity to first order in that (small) error: a change of the
-                # Newton matrix only, which leaves the solution where it is
-                modified[6 * k:6 * k + 6] -= (leg.twist @ corrections[k]) / self._r_scale[:6]
-        platform = -self._x_scale * solve_lu(factorization.platform, modified)
-        wrenches = platform[6:].reshape(3, 6)
-        legs = np.stack([-corrections[k] - leg.gain @ wrenches[k]
-                         for k, leg in enumerate(factorization.legs)])
-        return platform, legs
+        if leg_residuals is None:
+            corrections = None
+        else:
+            corrections = np.matmul(factorization.inverses, leg_residuals[:, :, None])
+            # the twist enters the rotation error through the inverse left Jacobian of
+            # SO(3), the identity to first order in that (small) error: a change of the
+            # Newton matrix only, which leaves the solution where it is
+            twists = np.matmul(factorization.twists, corrections)[:, :, 0]
+            modified[:18] -= twists.ravel() / self._r_scale[:18]
+        platform = -self._x_scale * (factorization.platform_inverse @ modified)
+        legs = -np.matmul(factorization.gains, platform[6:].reshape(3, 6, 1))
+        if corrections is not None:
+            legs -= corrections
+        return platform, legs[:, :, 0]
 
     def _step_norm(self, step: Tuple[np.ndarray, np.ndarray], coupled: bool) -> float:
         """Norm of a step in the scaled unknowns (the legs' count only when ``coupled``)."""
