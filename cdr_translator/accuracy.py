@@ -19,7 +19,9 @@ It is applied to two families of quantities, and the estimate is the larger of t
   J dx = -(r_M(x_N) - r_N(x_N)) (one Newton step on the solve's factorization), and the
   pose moves by the difference of the shots plus dT/dx dx (stability.pose_twist).
 
-Cost: one residual shot at M = N / 2 steps (half a solve iteration) and one LU solve.
+Cost: one residual shot at M = N / 2 steps (half a solve iteration) and one LU solve. When
+that coarse shot overflows (a state so curved that N / 2 steps diverge), the comparison is
+made with M = 2 N instead (factor 16/15; two solve iterations' worth).
 """
 
 from dataclasses import dataclass
@@ -64,8 +66,12 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
     """
     steps = problem.params.steps_per_segment
     other = coarse_steps(steps)
-    factor = 1.0 / abs((steps / other) ** 4 - 1.0)
     rs_other, frames_other = problem.shot_with_steps(xs, wrench, other)
+    if not np.all(np.isfinite(rs_other)) and other < steps:
+        # the coarse shot overflowed (a very curved state): compare with a finer one instead
+        other = 2 * steps
+        rs_other, frames_other = problem.shot_with_steps(xs, wrench, other)
+    factor = 1.0 / abs((steps / other) ** 4 - 1.0)
     defect = rs_other - rs
     si = np.abs(defect * problem.residual_scale)
     if not np.all(np.isfinite(si)):

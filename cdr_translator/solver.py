@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor
 
-from . import path_following, stability
+from . import chord, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
@@ -85,6 +85,8 @@ class _Outcome:
     pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
     #: (unknowns, wrench) of the last converged state of a stalled continuation
     reached: Optional[Tuple[np.ndarray, np.ndarray]] = None
+    #: (the unknowns it belongs to, centre lines, frames) recorded by the last shot, if any
+    shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
 
 
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
@@ -660,47 +662,51 @@ class TranslatorSolver:
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
                 pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
-        """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
+        """
+        Damped Newton; given ``lu`` it starts with chord steps on that factorization.
+
+        The iterations run compiled (chord.chord_iterations: backtracking line search, a
+        chord step that shrinks the residual by less than CHORD_RATE discards the
+        factorization); Python only refactors, between those calls, and checks the deadline.
+        """
         problem = self.problem
-        rs = problem.residual(xs, wrench)
+        xs = np.array(xs, dtype=float)
+        rs = problem.residual_and_shape(xs, wrench)
         norm = _norm(rs)
-        fresh = False
-        pose = pose_in
-        for iteration in range(1, max_iterations + 1):
+        slot, done, fresh, pose = 0, 0, False, pose_in
+
+        def ended(converged: bool, message: str) -> _Outcome:
+            outcome = _Outcome(xs, rs, done, converged, message, lu, pose)
+            outcome.shape = (xs, *problem.recorded_shape(slot))
+            return outcome
+
+        while True:
             if not math.isfinite(norm):
-                return _Outcome(xs, rs, iteration - 1, False,
-                                'residual became non-finite during the iteration', lu, pose)
+                return ended(False, 'residual became non-finite during the iteration')
             if np.abs(rs).max() <= self.tolerance:
-                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu, pose)
+                return ended(True, 'converged')
+            if done >= max_iterations:
+                return ended(False, f'no convergence in {max_iterations} iterations')
             if time.perf_counter() > deadline:
-                return _Outcome(xs, rs, iteration - 1, False,
-                                f'time limit of {self.time_limit_s} s reached', lu, pose)
+                return ended(False, f'time limit of {self.time_limit_s} s reached')
             if lu is None:
                 with warnings.catch_warnings():  # a singular J shows as a non-finite step
                     warnings.simplefilter('ignore', LinAlgWarning)
                     lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
                 pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
-            step = -solve_lu(lu, rs)
-            finite = bool(np.isfinite(step).all())
-            trial = _line_search(problem, xs, step, wrench, norm) if finite else None
-            if trial is None:
-                if fresh:
-                    return _Outcome(xs, rs, iteration, False,
-                                    'line search found no decrease of the residual' if finite
-                                    else 'Newton step is not finite (singular or non-finite '
-                                    'Jacobian)', lu, pose)
-                lu = None  # a stale Jacobian pointed the wrong way; rebuild it
-                continue
-            xs, rs, new_norm = trial
-            if not fresh and new_norm > CHORD_RATE * norm:
-                lu = None  # chord steps converge too slowly; rebuild the Jacobian
-            norm = new_norm
+            status, used, norm, slot = problem.chord_newton(
+                xs, rs, wrench, lu, fresh, self.tolerance, max_iterations - done, CHORD_RATE,
+                slot)
+            done += used
             fresh = False
-        converged = bool(np.abs(rs).max() <= self.tolerance)
-        return _Outcome(xs, rs, max_iterations, converged,
-                        'converged' if converged
-                        else f'no convergence in {max_iterations} iterations', lu, pose)
+            if status == chord.REFACTOR:
+                lu = None
+            elif status == chord.NO_DECREASE:
+                return ended(False, 'line search found no decrease of the residual')
+            elif status == chord.SINGULAR:
+                return ended(False, 'Newton step is not finite (singular or non-finite '
+                                    'Jacobian)')
 
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                              lu: Optional[tuple], max_iterations: int,
@@ -743,7 +749,10 @@ class TranslatorSolver:
     # result ----------------------------------------------------------------------------------
     def _result(self, outcome: _Outcome, wrench: np.ndarray, elapsed: float) -> SolveResult:
         problem = self.problem
-        points, frames = problem.shape(outcome.xs, wrench)
+        if outcome.shape is not None and outcome.shape[0] is outcome.xs:
+            points, frames = outcome.shape[1:]
+        else:
+            points, frames = problem.shape(outcome.xs, wrench)
         return SolveResult(
             converged=outcome.converged, message=outcome.message,
             iterations=outcome.iterations, residual_norm=_norm(outcome.rs),
@@ -758,17 +767,3 @@ class TranslatorSolver:
 def _norm(values: np.ndarray) -> float:
     with np.errstate(over='ignore', invalid='ignore'):
         return float(np.sqrt(values @ values))
-
-
-def _line_search(problem: Problem, xs: np.ndarray, step: np.ndarray, wrench: np.ndarray,
-                 norm: float) -> Optional[Tuple[np.ndarray, np.ndarray, float]]:
-    """Backtrack along ``step`` until the residual norm decreases; None if it never does."""
-    scale = 1.0
-    for _ in range(12):
-        trial = xs + scale * step
-        rs = problem.residual(trial, wrench)
-        trial_norm = _norm(rs)
-        if trial_norm < (1.0 - 1e-4 * scale) * norm:
-            return trial, rs, trial_norm
-        scale *= 0.5
-    return None
