@@ -290,8 +290,8 @@ def main() -> None:
               'bench/results/delta_statics.md): cold cases (median of 3, ms) ' + ', '.join(
                   f'q = {sliders} m, payload {payload} N: {_ms(seconds)}'
                   for (sliders, payload), seconds in zip(COLD_CASES, cdr.cold_s))
-              + f"; warm: {cdr.warm_leg_solves:.1f} leg solves and "
-              f"{cdr.warm_leg_jacobians:.2f} exact leg Jacobians per solve (mean)."]
+              + f'; warm: {cdr.warm_leg_solves:.1f} leg solves and '
+              f'{cdr.warm_leg_jacobians:.2f} exact leg Jacobians per solve (mean).']
     if paper:
         lines += ['', f'Paper baseline (method=paper, cold 12 N): {paper:.2f} s.']
     if slope:
