@@ -89,11 +89,14 @@ def _skew(vector: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def _cross(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Cross products along the last axis (np.cross without its argument handling)."""
-    x1, y1, z1 = first[..., 0], first[..., 1], first[..., 2]
-    x2, y2, z2 = second[..., 0], second[..., 1], second[..., 2]
-    return np.stack([y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2], axis=-1)
+def _cross_sum(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Sum of the cross products of the rows of two (k, 3) arrays (a few us, np.cross 50)."""
+    sx = sy = sz = 0.0
+    for (x1, y1, z1), (x2, y2, z2) in zip(first.tolist(), second.tolist()):
+        sx += y1 * z2 - z1 * y2
+        sy += z1 * x2 - x1 * z2
+        sz += x1 * y2 - y1 * x2
+    return np.array([sx, sy, sz])
 
 
 def _rotation_matrix(vector: np.ndarray) -> np.ndarray:
@@ -737,8 +740,8 @@ class DeltaRobot:
         forces = -np.matmul(rotations, state.wrenches[:, :3, None])[:, :, 0]  # on the platform
         moments = np.matmul(rotations, state.wrenches[:, 3:, None])[:, :, 0]
         residual[18:21] = force + forces.sum(axis=0)
-        residual[21:24] = (moment + _cross(state.rotation @ offset, force)
-                           + _cross(arms, forces).sum(axis=0) - moments.sum(axis=0))
+        residual[21:24] = (moment + _cross_sum((state.rotation @ offset)[None], force[None])
+                           + _cross_sum(arms, forces) - moments.sum(axis=0))
         return residual
 
     def _jacobian(self, state: _State, inputs: np.ndarray,
