@@ -25,6 +25,10 @@ RESIDUAL_KINDS = ('position_m', 'orientation_rad', 'force_n', 'moment_nm')
 #: 1e-9 keeps Newton quadratic there and costs ~1e-6 relative rounding at small loads.
 FD_STEP = 1e-9
 
+#: Broyden updates kept on one factorization at most; more are not gathered (a chord step
+#: that converges too slowly then rebuilds the Jacobian, which starts afresh).
+MAX_SECANT_UPDATES = 24
+
 #: Ways to compute the Jacobian: 'exact' (tangent-linear shot, model.translator_jacobian)
 #: or 'fd' (forward differences, one shot per unknown: the paper's way and the check).
 JACOBIANS = ('exact', 'fd')
@@ -92,6 +96,16 @@ class Problem:
         #: two shape buffers (centre lines, frames) that chord_newton's shots alternate on
         self._shape_points = np.empty((2, model.N_RODS, rows, 3))
         self._shape_frames = np.empty((2, 4, 4, 4))
+        #: Broyden updates (chord.broyden_apply's u_i and s_i) on the factorization they
+        #: were gathered on, and how many: (factorization or None, count)
+        self._secant_updates = np.empty((MAX_SECANT_UPDATES, self.size))
+        self._secant_steps = np.empty((MAX_SECANT_UPDATES, self.size))
+        self._secant: Tuple[Optional[tuple], int] = (None, 0)
+
+    @property
+    def model_args(self) -> tuple:
+        """Return the kernel's parameter arguments (model.translator_residual, after wrench)."""
+        return self._args
 
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at nondimensional unknowns ``xs``."""
@@ -152,18 +166,34 @@ class Problem:
                      fresh: bool, tolerance: float, max_iterations: int, chord_rate: float,
                      slot: int) -> Tuple[int, int, float, int]:
         """
-        Newton iterations on the factorization ``lu`` in one compiled call (chord.py).
+        Newton-Broyden iterations on the factorization ``lu`` in one compiled call (chord.py).
 
         ``xs``, ``rs`` (nondimensional, residual at xs) are updated in place; the shape of
         the accepted iterate is in ``recorded_shape(slot)`` for the slot returned, the
-        shape of ``xs`` on entry being in ``slot``. Returns (status, iterations, residual
-        norm, slot); status is one of chord's codes.
+        shape of ``xs`` on entry being in ``slot``. The Broyden updates gathered on ``lu``
+        are kept for the next call on the same factorization (``inverse_apply``). Returns
+        (status, iterations, residual norm, slot); status is one of chord's codes.
         """
-        status, done, norm, slot = chord.chord_iterations(
+        count = self._secant_count(lu)
+        status, done, norm, slot, count = chord.chord_iterations(
             xs, rs, float(np.sqrt(rs @ rs)), wrench, self.x_scale, self.residual_scale,
-            self._args, lu[0], lu[1], fresh, tolerance, max_iterations, chord_rate,
-            self._shape_points, self._shape_frames, slot)
+            self._args, lu[0], lu[1], self._secant_updates, self._secant_steps, count, fresh,
+            tolerance, max_iterations, chord_rate, self._shape_points, self._shape_frames,
+            slot)
+        self._secant = (lu, int(count))
         return int(status), int(done), float(norm), int(slot)
+
+    def inverse_apply(self, lu: tuple, rhs: np.ndarray) -> np.ndarray:
+        """Return J^-1 rhs for the factorization ``lu`` and its Broyden updates so far."""
+        out = np.empty(self.size)
+        chord.broyden_apply(lu[0], lu[1], self._secant_updates, self._secant_steps,
+                            self._secant_count(lu), np.ascontiguousarray(rhs, dtype=float), out)
+        return out
+
+    def _secant_count(self, lu: tuple) -> int:
+        """Return the Broyden updates valid on ``lu``: none for another factorization."""
+        bound, count = self._secant
+        return count if bound is lu else 0
 
     def recorded_shape(self, slot: int) -> Tuple[np.ndarray, np.ndarray]:
         """Return copies of the centre lines (5, rows, 3) and frames (4, 4, 4) in ``slot``."""

@@ -29,7 +29,6 @@ from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
-from .stability import solve_lu
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
@@ -341,7 +340,8 @@ class TranslatorSolver:
                         wrench: np.ndarray) -> None:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
         pose = outcome.pose[0] if outcome.pose is not None else None
-        frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+        frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
+                  else np.stack([result.frames[name] for name in FRAME_NAMES]))
         estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
                                   outcome.lu, pose)
         result.error_estimate_m = estimate.position_m
@@ -534,14 +534,22 @@ class TranslatorSolver:
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
-        done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
+        # the whole step's linear prediction: sizes the first step, is its predictor if whole
+        whole = None if lu is None else self.problem.inverse_apply(
+            lu, sensitivity @ (wrench - start))
+        done, step, iterations = 0.0, _first_step(whole), 0
         current = start
         outcome: Optional[_Outcome] = None
         grow = 2.0
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            guess = xs if lu is None else xs - solve_lu(lu, sensitivity @ (goal - current))
+            if lu is None:
+                guess = xs
+            elif whole is not None and target == 1.0 and done == 0.0:
+                guess = xs - whole
+            else:
+                guess = xs - self.problem.inverse_apply(lu, sensitivity @ (goal - current))
             outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
@@ -618,21 +626,6 @@ class TranslatorSolver:
                 break
         assert outcome is not None
         return outcome
-
-    def _first_step(self, lu: Optional[tuple], change: np.ndarray) -> float:
-        """
-        Fraction of the wrench change to try first: whole if the linear prediction is small.
-
-        A first step whose predicted change of the unknowns exceeds PREDICTOR_REACH
-        (nondimensional) left the linear regime; trying it anyway cost a failed corrector
-        and a halving (cold 12 N: 30 ms with the whole step, 9 ms sized this way).
-        """
-        if lu is None:
-            return 1.0
-        predicted = np.abs(solve_lu(lu, self.problem.wrench_sensitivity @ change)).max()
-        if predicted <= PREDICTOR_REACH:
-            return 1.0
-        return max(PREDICTOR_REACH / predicted, MIN_CONTINUATION_STEP)
 
     def _stalled(self, xs: np.ndarray, failed: _Outcome, wrench: np.ndarray, done: float,
                  iterations: int, deadline: float) -> _Outcome:
@@ -762,6 +755,23 @@ class TranslatorSolver:
             backbones=points, solve_time_s=elapsed, method=self.method,
             unknowns=outcome.xs * problem.x_scale,
             steps_per_segment=self.params.steps_per_segment)
+
+
+def _first_step(predicted: Optional[np.ndarray]) -> float:
+    """
+    Fraction of the wrench change to try first: whole if its linear prediction is small.
+
+    ``predicted`` is the predicted change of the unknowns for the whole step (None without
+    a factorization). A first step whose predicted change exceeds PREDICTOR_REACH
+    (nondimensional) left the linear regime; trying it anyway cost a failed corrector and a
+    halving (cold 12 N: 30 ms with the whole step, 9 ms sized this way).
+    """
+    if predicted is None:
+        return 1.0
+    largest = np.abs(predicted).max()
+    if largest <= PREDICTOR_REACH:
+        return 1.0
+    return max(PREDICTOR_REACH / largest, MIN_CONTINUATION_STEP)
 
 
 def _norm(values: np.ndarray) -> float:
