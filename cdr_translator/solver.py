@@ -237,6 +237,24 @@ class TranslatorSolver:
         self._lu = None
         self._pose = None
 
+    def start_at(self, xs: np.ndarray, wrench: np.ndarray,
+                 factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None) -> None:
+        """
+        Warm-start the next solve from nondimensional unknowns ``xs`` at ``wrench`` (SI).
+
+        For a caller that iterates on the shooting residual itself (robot/delta.py's coupled
+        Newton): a solve at ``wrench`` then only confirms the residual and judges stability
+        and the discretization error. ``factorization`` = (LU of the Jacobian, its end-frame
+        derivative ``problem.pose_jacobian``, the wrench it was made at) is used for both and
+        for chord steps; without one, the stability verdict factors an exact Jacobian.
+        """
+        self._previous = (np.array(xs, dtype=float), check_wrench(wrench[:3], wrench[3:]))
+        if factorization is None:
+            self._lu, self._pose = None, None
+        else:
+            lu, pose, made_at = factorization
+            self._lu, self._pose = lu, (pose, np.array(made_at, dtype=float))
+
     @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
