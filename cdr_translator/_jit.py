@@ -81,10 +81,11 @@ CACHE_LOCATION = configure_cache()
 #: 'ninf': the solver relies on non-finite values propagating to its isfinite checks.
 FASTMATH = frozenset({'contract', 'reassoc', 'arcp', 'nsz'})
 
-#: numba's options for every kernel. ``nogil``: a kernel releases the GIL while it runs, so
-#: a node's subscription callback and log thread can run meanwhile (on another core).
+#: numba's options for every kernel. ``nogil`` stays False: releasing the GIL in every kernel
+#: let translator_node's callback run during a solve but cost the solver the GIL back after
+#: each kernel; at 1-2 kHz it answered 30-50 % fewer wrenches (bench/results/node_rate.md).
 JIT_OPTIONS: Dict[str, Any] = {'cache': True, 'error_model': 'numpy', 'fastmath': FASTMATH,
-                               'nogil': True}
+                               'nogil': False}
 
 #: numba's cache index keys on the source and the signature, not on the options: each cache
 #: folder records the options its kernels were compiled with in this file (see jit).

@@ -14,9 +14,8 @@ it. Outputs are built only for topics someone subscribes to (all of them while l
 one by one with the pose first (it is published before the others are built), serialized
 once, and the same bytes published and logged: every received wrench and every published
 message goes to an MCAP file through a log thread, which writes while the solver thread
-waits for a wrench (or when records have waited 0.1 s). The numba kernels release the GIL
-(``nogil``), so the callback and the log thread can run while the solver is in one. Only
-cdr_translator.ros imports rclpy or ROS message classes.
+waits for a wrench (or when records have waited 0.1 s). Only cdr_translator.ros imports
+rclpy or ROS message classes.
 """
 
 from pathlib import Path
