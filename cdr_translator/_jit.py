@@ -131,9 +131,11 @@ def jit(func: Callable) -> Callable:
     """Compile ``func`` with numba (cached on disk), or leave it as Python while copying."""
     if _interpreting:
         return func
-    kernel = numba.njit(**{name: set(value) if isinstance(value, frozenset) else value
-                           for name, value in JIT_OPTIONS.items()})(func)
-    _clear_if_compiled_otherwise(Path(kernel.stats.cache_path))
+    options: Dict[str, Any] = {name: set(value) if isinstance(value, frozenset) else value
+                               for name, value in JIT_OPTIONS.items()}
+    kernel = numba.njit(**options)(func)
+    if kernel.stats.cache_path:
+        _clear_if_compiled_otherwise(Path(kernel.stats.cache_path))
     KERNELS.append(kernel)
     return kernel
 
