@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from ._jit import jit
+from ._jit import jit, jit_inline
 from .rod import (integrate_segment, integrate_segment_tangent, LOCAL_DIRECTIONS, LOCAL_LENGTH,
                   LOCAL_M, LOCAL_N, LOCAL_OUT_M, LOCAL_OUTPUTS, LOCAL_ROT, TANGENT_P,
                   TANGENT_ROT)
@@ -392,27 +392,56 @@ def _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, live):
                 break
 
 
+@jit_inline
+def _add4(acc, c0, c1, c2, c3, s0, s1, s2, s3):
+    """Return acc + c0 s0 + c1 s1 + c2 s2 + c3 s3, added in this order."""
+    return acc + c0 * s0 + c1 * s1 + c2 * s2 + c3 * s3
+
+
+@jit
+def _chain_rows(local, row, out, stack, active, live, keep):
+    """
+    Set out[c] (c < 3, columns < live) to sum_j local[row + c, j] stack[j], plus out if keep.
+
+    Directions go in blocks of four, so that each pass reads four rows of ``stack`` and
+    writes three (a loop that writes few rows is vectorized); blocks with no active
+    direction are skipped. The sum runs in direction order, as the plain loop would.
+    """
+    started = keep
+    for j in range(0, LOCAL_DIRECTIONS, 4):
+        if not (active[j] or active[j + 1] or active[j + 2] or active[j + 3]):
+            continue
+        a0, a1, a2, a3 = local[row, j], local[row, j + 1], local[row, j + 2], local[row, j + 3]
+        b0, b1, b2, b3 = (local[row + 1, j], local[row + 1, j + 1], local[row + 1, j + 2],
+                          local[row + 1, j + 3])
+        c0, c1, c2, c3 = (local[row + 2, j], local[row + 2, j + 1], local[row + 2, j + 2],
+                          local[row + 2, j + 3])
+        if started:
+            for d in range(live):
+                s0, s1, s2, s3 = stack[j, d], stack[j + 1, d], stack[j + 2, d], stack[j + 3, d]
+                out[0, d] = _add4(out[0, d], a0, a1, a2, a3, s0, s1, s2, s3)
+                out[1, d] = _add4(out[1, d], b0, b1, b2, b3, s0, s1, s2, s3)
+                out[2, d] = _add4(out[2, d], c0, c1, c2, c3, s0, s1, s2, s3)
+        else:
+            for d in range(live):
+                s0, s1, s2, s3 = stack[j, d], stack[j + 1, d], stack[j + 2, d], stack[j + 3, d]
+                out[0, d] = a0 * s0 + a1 * s1 + a2 * s2 + a3 * s3
+                out[1, d] = b0 * s0 + b1 * s1 + b2 * s2 + b3 * s3
+                out[2, d] = c0 * s0 + c1 * s1 + c2 * s2 + c3 * s3
+        started = True
+    if not started:
+        for c in range(3):
+            for d in range(live):
+                out[c, d] = 0.0
+
+
 @jit
 def _chain_segment(k, local, tp, trot, tm, stack, active, live):
     """Chain rod k's local segment derivative ``local`` into its global tangents."""
+    _chain_rows(local, TANGENT_P, tp[k], stack, active, live, True)
+    _chain_rows(local, LOCAL_OUT_M, tm[k], stack, active, live, False)
     for a in range(3):
-        for d in range(live):
-            tm[k, a, d] = 0.0
-        for j in range(LOCAL_DIRECTIONS):
-            if active[j]:
-                coefficient_p = local[TANGENT_P + a, j]
-                coefficient_m = local[LOCAL_OUT_M + a, j]
-                for d in range(live):
-                    tp[k, a, d] += coefficient_p * stack[j, d]
-                    tm[k, a, d] += coefficient_m * stack[j, d]
-        for b in range(3):
-            for d in range(live):
-                trot[k, a, b, d] = 0.0
-            for j in range(LOCAL_DIRECTIONS):
-                if active[j]:
-                    coefficient = local[TANGENT_ROT + 3 * a + b, j]
-                    for d in range(live):
-                        trot[k, a, b, d] += coefficient * stack[j, d]
+        _chain_rows(local, TANGENT_ROT + 3 * a, trot[k, a], stack, active, live, False)
 
 
 @jit
