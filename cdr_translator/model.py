@@ -550,6 +550,7 @@ def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, tr
     mk = np.empty(3)
     tlat = np.empty((3, live))
     tlat2 = np.empty((3, live))
+    tscalar = np.empty((4, live))  # tangents of the axial force, torsion, cos and sin
     lat = np.empty(3)
     lat2 = np.empty(3)
     for i in range(4):
@@ -578,27 +579,38 @@ def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, tr
         _in_plane(rot[0], x[u + 3], x[u + 4], lat2)
         _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], column + 1, tlat, live)
         _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], column + 3, tlat2, live)
+        # (loops that write few rows each, so that they are vectorized)
+        n0, n1, n2 = n[k, 0], n[k, 1], n[k, 2]
+        m0, m1, m2 = m[k, 0], m[k, 1], m[k, 2]
+        z0, z1, z2 = rot[k, 0, 2], rot[k, 1, 2], rot[k, 2, 2]
         for d in range(live):
-            t_axial = 0.0
-            t_torsion = 0.0
-            for c in range(3):
-                t_axial += taxis[c, d] * n[k, c] + axis[c] * tn[k, c, d]
-                t_torsion += trot[k, c, 2, d] * m[k, c] + rot[k, c, 2] * tm[k, c, d]
+            t_axial = (taxis[0, d] * n0 + axis[0] * tn[k, 0, d]
+                       + (taxis[1, d] * n1 + axis[1] * tn[k, 1, d])
+                       + (taxis[2, d] * n2 + axis[2] * tn[k, 2, d]))
+            t_torsion = (trot[k, 0, 2, d] * m0 + z0 * tm[k, 0, d]
+                         + (trot[k, 1, 2, d] * m1 + z1 * tm[k, 1, d])
+                         + (trot[k, 2, 2, d] * m2 + z2 * tm[k, 2, d]))
             t_inside = -tube_length * inv_kse[2] * t_axial / denominator ** 2
             tused[i, d] += t_inside
             t_twist = inv_kbt[2] * (t_torsion * inside + torsion * t_inside)
-            t_cos = -sin_t * t_twist
-            t_sin = cos_t * t_twist
-            for c in range(3):  # R <- R Rz(twist)
-                r0 = rot[k, c, 0]
-                r1 = rot[k, c, 1]
+            tscalar[0, d] = t_axial
+            tscalar[1, d] = t_torsion
+            tscalar[2, d] = -sin_t * t_twist  # of cos(twist)
+            tscalar[3, d] = cos_t * t_twist  # of sin(twist)
+        for c in range(3):  # R <- R Rz(twist)
+            r0 = rot[k, c, 0]
+            r1 = rot[k, c, 1]
+            for d in range(live):
+                t_cos = tscalar[2, d]
+                t_sin = tscalar[3, d]
                 s0 = trot[k, c, 0, d]
                 s1 = trot[k, c, 1, d]
                 trot[k, c, 0, d] = t_cos * r0 + cos_t * s0 + t_sin * r1 + sin_t * s1
                 trot[k, c, 1, d] = -t_sin * r0 - sin_t * s0 + t_cos * r1 + cos_t * s1
                 tp[k, c, d] += tube_length * taxis[c, d]
-                tn[k, c, d] = t_axial * axis[c] + axial_force * taxis[c, d] + tlat[c, d]
-                tm[k, c, d] = t_torsion * axis[c] + torsion * taxis[c, d] + tlat2[c, d]
+            for d in range(live):
+                tn[k, c, d] = tscalar[0, d] * axis[c] + axial_force * taxis[c, d] + tlat[c, d]
+                tm[k, c, d] = tscalar[1, d] * axis[c] + torsion * taxis[c, d] + tlat2[c, d]
                 tarm[c, d] = tp[k, c, d] - tproximal[c, d]
                 tchange_force[c, d] += tn[k, c, d]
                 tchange_moment[c, d] += tm[k, c, d]
@@ -627,13 +639,12 @@ def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, tr
     _cross_tangent_sub(arm, tarm, nk, tn[0], tm[0], live)
 
 
-@jit
+@jit_inline
 def _relative_rotation_tangent(rot, trot, k, a, b, d):
     """Tangent (column d) of entry (a, b) of R_0^T R_k."""
-    acc = 0.0
-    for c in range(3):
-        acc += trot[0, c, a, d] * rot[k, c, b] + rot[0, c, a] * trot[k, c, b, d]
-    return acc
+    return (trot[0, 0, a, d] * rot[k, 0, b] + rot[0, 0, a] * trot[k, 0, b, d]
+            + (trot[0, 1, a, d] * rot[k, 1, b] + rot[0, 1, a] * trot[k, 1, b, d])
+            + (trot[0, 2, a, d] * rot[k, 2, b] + rot[0, 2, a] * trot[k, 2, b, d]))
 
 
 @jit
@@ -665,27 +676,41 @@ def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row, live):
                                  + (trot[0, 1, c, d] * arm[1] + r1 * tarm[1, d])
                                  + (trot[0, 2, c, d] * arm[2] + r2 * tarm[2, d]))
         # the skew part of R_0^T R_k (see _end_disk)
-        for d in range(live):
-            jac[r + 3, d] = 0.5 * (_relative_rotation_tangent(rot, trot, k, 2, 1, d)
-                                   - _relative_rotation_tangent(rot, trot, k, 1, 2, d))
-            jac[r + 4, d] = 0.5 * (_relative_rotation_tangent(rot, trot, k, 0, 2, d)
-                                   - _relative_rotation_tangent(rot, trot, k, 2, 0, d))
-            jac[r + 5, d] = 0.5 * (_relative_rotation_tangent(rot, trot, k, 1, 0, d)
-                                   - _relative_rotation_tangent(rot, trot, k, 0, 1, d))
+        for c in range(3):
+            a = (c + 2) % 3  # the entries (a, b) - (b, a) of R_0^T R_k give component c
+            b = (c + 1) % 3
+            for d in range(live):
+                jac[r + 3 + c, d] = 0.5 * (_relative_rotation_tangent(rot, trot, k, a, b, d)
+                                           - _relative_rotation_tangent(rot, trot, k, b, a, d))
     for c in range(3):
         for d in range(live):
             jac[row + 27 + c, d] = tmoment[c, d]
 
 
 @jit
-def _unknowns_order(matrix, order):
-    """Put the columns of ``matrix`` (tangent-column order) in the unknowns' order, in place."""
-    row = np.empty(matrix.shape[1])
-    for r in range(matrix.shape[0]):
-        for q in range(matrix.shape[1]):
-            row[q] = matrix[r, q]
-        for q in range(matrix.shape[1]):
-            matrix[r, order[q]] = row[q]
+def _unknowns_order(jac, nst):
+    """
+    Put the Jacobian's columns (tangent-column order) in the unknowns' order, in place.
+
+    The rows of station t were written only for the columns before station t + 1's (the
+    rest are zero by construction), so nothing else need be cleared beforehand.
+    """
+    size = jac.shape[1]
+    row = np.empty(size)
+    for r in range(jac.shape[0]):
+        live = size
+        if r < 4 * STATION_WIDTH * nst:
+            live = _station_column(r // STATION_WIDTH % nst + 1, 0)
+        for q in range(live):
+            row[q] = jac[r, q]
+        for q in range(live, size):
+            row[q] = 0.0
+        for t in range(nst):
+            for i in range(4):
+                source = _station_column(t, i)
+                target = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
+                for c in range(STATION_WIDTH):
+                    jac[r, target + c] = row[source + c]
 
 
 @jit
@@ -717,9 +742,6 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     _store_frame(rot[0], p[0], frames[0])
     secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
     used = np.zeros(4)
-    for r in range(jac.shape[0]):
-        for d in range(size):
-            jac[r, d] = 0.0
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
@@ -770,4 +792,4 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             for i in range(4):
                 for c in range(STATION_WIDTH):
                     out[STATION_WIDTH * (i * nst + t) + c] = res[STATION_WIDTH * i + c]
-    _unknowns_order(jac, order)
+    _unknowns_order(jac, nst)
