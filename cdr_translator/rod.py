@@ -148,6 +148,40 @@ LOCAL_OUTPUTS = 15
 
 
 @jit_inline
+def _moment_tangent(tstate, d, n0, n1, n2, dx, dy, dz):
+    """
+    Tangent (column d of ``tstate``) of m = m(0) - (p - p(0)) x n, (dx, dy, dz) = p - p(0).
+
+    dm = dm(0) - dp x n - (p - p(0)) x dn, as in ``carry_moment``.
+    """
+    tpx = tstate[TANGENT_P, d]
+    tpy = tstate[TANGENT_P + 1, d]
+    tpz = tstate[TANGENT_P + 2, d]
+    tnx = tstate[TANGENT_N, d]
+    tny = tstate[TANGENT_N + 1, d]
+    tnz = tstate[TANGENT_N + 2, d]
+    return (tstate[TANGENT_M, d] - (tpy * n2 - tpz * n1) - (dy * tnz - dz * tny),
+            tstate[TANGENT_M + 1, d] - (tpz * n0 - tpx * n2) - (dz * tnx - dx * tnz),
+            tstate[TANGENT_M + 2, d] - (tpx * n1 - tpy * n0) - (dx * tny - dy * tnx))
+
+
+@jit_inline
+def _transposed_tangent(t, r, a, ta, scale):
+    """
+    Tangent scale * (T^T a + R^T ta) of scale * R^T a, as three values.
+
+    ``t`` and ``r`` hold T and R column by column (9-tuples), ``a``, ``ta`` and ``scale``
+    are 3-tuples (the scale is elementwise).
+    """
+    return ((t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + r[0] * ta[0] + r[1] * ta[1]
+             + r[2] * ta[2]) * scale[0],
+            (t[3] * a[0] + t[4] * a[1] + t[5] * a[2] + r[3] * ta[0] + r[4] * ta[1]
+             + r[5] * ta[2]) * scale[1],
+            (t[6] * a[0] + t[7] * a[1] + t[8] * a[2] + r[6] * ta[0] + r[7] * ta[1]
+             + r[8] * ta[2]) * scale[2])
+
+
+@jit_inline
 def _rate_row_tangent(rot, tstate, strains, tstrains, row, trate):
     """
     Tangents of row ``row`` of p' = R v and R' = R [u]x into ``trate``, all directions.
@@ -200,10 +234,9 @@ def pose_derivative_tangent(p, rot, n, m_start, p_start, inv_kse, inv_kbt, tstat
     r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
     se0, se1, se2 = inv_kse[0], inv_kse[1], inv_kse[2]
     bt0, bt1, bt2 = inv_kbt[0], inv_kbt[1], inv_kbt[2]
+    r_columns = (r00, r10, r20, r01, r11, r21, r02, r12, r22)
     for d in range(tstate.shape[1]):
-        tpx = tstate[TANGENT_P, d]
-        tpy = tstate[TANGENT_P + 1, d]
-        tpz = tstate[TANGENT_P + 2, d]
+        tmx, tmy, tmz = _moment_tangent(tstate, d, n0, n1, n2, dx, dy, dz)
         t00 = tstate[TANGENT_ROT, d]
         t01 = tstate[TANGENT_ROT + 1, d]
         t02 = tstate[TANGENT_ROT + 2, d]
@@ -216,21 +249,12 @@ def pose_derivative_tangent(p, rot, n, m_start, p_start, inv_kse, inv_kbt, tstat
         tnx = tstate[TANGENT_N, d]
         tny = tstate[TANGENT_N + 1, d]
         tnz = tstate[TANGENT_N + 2, d]
-        tmx = tstate[TANGENT_M, d] - (tpy * n2 - tpz * n1) - (dy * tnz - dz * tny)
-        tmy = tstate[TANGENT_M + 1, d] - (tpz * n0 - tpx * n2) - (dz * tnx - dx * tnz)
-        tmz = tstate[TANGENT_M + 2, d] - (tpx * n1 - tpy * n0) - (dx * tny - dy * tnx)
-        tstrains[0, d] = (t00 * n0 + t10 * n1 + t20 * n2 + r00 * tnx + r10 * tny
-                          + r20 * tnz) * se0
-        tstrains[1, d] = (t01 * n0 + t11 * n1 + t21 * n2 + r01 * tnx + r11 * tny
-                          + r21 * tnz) * se1
-        tstrains[2, d] = (t02 * n0 + t12 * n1 + t22 * n2 + r02 * tnx + r12 * tny
-                          + r22 * tnz) * se2
-        tstrains[3, d] = (t00 * mx + t10 * my + t20 * mz + r00 * tmx + r10 * tmy
-                          + r20 * tmz) * bt0
-        tstrains[4, d] = (t01 * mx + t11 * my + t21 * mz + r01 * tmx + r11 * tmy
-                          + r21 * tmz) * bt1
-        tstrains[5, d] = (t02 * mx + t12 * my + t22 * mz + r02 * tmx + r12 * tmy
-                          + r22 * tmz) * bt2
+        # v = e3 + Kse^-1 R^T n, u = Kbt^-1 R^T m
+        t_columns = (t00, t10, t20, t01, t11, t21, t02, t12, t22)
+        (tstrains[0, d], tstrains[1, d], tstrains[2, d]) = _transposed_tangent(
+            t_columns, r_columns, (n0, n1, n2), (tnx, tny, tnz), (se0, se1, se2))
+        (tstrains[3, d], tstrains[4, d], tstrains[5, d]) = _transposed_tangent(
+            t_columns, r_columns, (mx, my, mz), (tmx, tmy, tmz), (bt0, bt1, bt2))
     strains[0] = v0
     strains[1] = v1
     strains[2] = v2
@@ -328,18 +352,9 @@ def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, act
         j = directions[slot]
         for r in range(TANGENT_POSE):
             local[r, j] = state[r, slot]
-        tpx = state[TANGENT_P, slot]
-        tpy = state[TANGENT_P + 1, slot]
-        tpz = state[TANGENT_P + 2, slot]
-        tnx = state[TANGENT_N, slot]
-        tny = state[TANGENT_N + 1, slot]
-        tnz = state[TANGENT_N + 2, slot]
-        local[LOCAL_OUT_M, j] = (state[TANGENT_M, slot] - (tpy * n[2] - tpz * n[1])
-                                 - (dy * tnz - dz * tny))
-        local[LOCAL_OUT_M + 1, j] = (state[TANGENT_M + 1, slot] - (tpz * n[0] - tpx * n[2])
-                                     - (dz * tnx - dx * tnz))
-        local[LOCAL_OUT_M + 2, j] = (state[TANGENT_M + 2, slot] - (tpx * n[1] - tpy * n[0])
-                                     - (dx * tny - dy * tnx))
+        (local[LOCAL_OUT_M, j], local[LOCAL_OUT_M + 1, j],
+         local[LOCAL_OUT_M + 2, j]) = _moment_tangent(state, slot, n[0], n[1], n[2], dx, dy,
+                                                      dz)
 
 
 def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: float):
