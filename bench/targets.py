@@ -11,6 +11,8 @@ Prints, and writes to bench/results/targets.md:
 * compliance on top of a solve (its own time, median along 200 warm samples);
 * 3 spacer disks per joint: cold (20 N) and warm (sequence, first 200 samples);
 * the stability verdict and error estimate together, as a fraction of the warm solve;
+* CDR forward statics (bench.delta_statics): warm along its slider circle (median), cold
+  from home over its COLD_CASES (median of 3 each; the worst is the row);
 * optionally (--spacers-slope) cold 2 N solves for 1..9 spacer disks per joint;
 * the paper baseline (method='paper', cold 12 N) for the ratio, unless --skip-paper.
 
@@ -21,22 +23,25 @@ carry that noise; the ratios much less.
 """
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 import platform
 import statistics
 import time
 from typing import Callable, Dict, List
 
+from bench.delta_statics import COLD_CASES, cold_solves, warm_solves
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.paper import TABLE_II
+from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
 
 RESULT = Path(__file__).resolve().parent / 'results' / 'targets.md'
 
 #: Issue 13's targets (seconds).
 TARGETS = {'warm': 0.1e-3, 'cold': 3e-3, 'compliance': 0.03e-3, 'spacers3_cold': 10e-3,
-           'spacers3_warm': 0.4e-3, 'overhead': 0.10}
+           'spacers3_warm': 0.4e-3, 'overhead': 0.10, 'cdr_warm': 1e-3, 'cdr_cold': 10e-3}
 
 
 def _median(samples: List[float]) -> float:
@@ -168,6 +173,27 @@ def spacer_slope(params: TranslatorParams) -> Dict[int, float]:
     return out
 
 
+@dataclass
+class CdrTimes:
+    """CDR forward statics: warm median (s) and work along the circle, cold median per case."""
+
+    warm_s: float
+    warm_leg_solves: float
+    warm_leg_jacobians: float
+    cold_s: List[float]
+
+
+def cdr_times() -> CdrTimes:
+    """Time the CDR forward statics: bench.delta_statics' warm circle and cold cases."""
+    robot = DeltaRobot()
+    warm = warm_solves(robot)
+    cold = cold_solves(robot)
+    return CdrTimes(_median([result.solve_time_s for result in warm]),
+                    statistics.mean(result.leg_solves for result in warm),
+                    statistics.mean(result.leg_jacobians for result in warm),
+                    [median for median, _ in cold])
+
+
 def paper_baseline(params: TranslatorParams) -> float:
     """One cold 12 N solve with the paper's numerics (interpreted kernel, LM, FD)."""
     solver = TranslatorSolver(params, method='paper', time_limit_s=900.0)
@@ -200,6 +226,7 @@ def main() -> None:
     rows = {name: {'warm': warm[name], 'cold': cold[name],
                    'compliance': compliance_time(solver, sequence),
                    'spacers3': three[name]} for name, solver in solvers.items()}
+    cdr = cdr_times()
     paper = None if args.skip_paper else paper_baseline(params)
     slope = spacer_slope(params) if args.spacers_slope else None
     exact, fd = rows['exact'], rows['fd']
@@ -212,6 +239,11 @@ def main() -> None:
         ratio_paper = f'{paper / measured:.0f}' if paper else '-'
         return (f'| {name} | {_ms(target)} | {_ms(measured)} | {"yes" if met else "no"} | '
                 f'{_ms(reference)} | {ratio_fd:.1f} | {ratio_paper} |')
+
+    def own(name, target, measured):
+        """Return a row without a forward-difference counterpart (the CDR: exact legs)."""
+        return (f'| {name} | {_ms(target)} | {_ms(measured)} | '
+                f'{"yes" if measured <= target else "no"} | - | - | - |')
 
     lines = [
         '# Issue 13 targets: exact Jacobian, stability and error estimate on every solve',
@@ -239,6 +271,10 @@ def main() -> None:
              exact['spacers3']['cold_s'], fd['spacers3']['cold_s']),
         line('3 spacer disks per joint, warm (median)', TARGETS['spacers3_warm'],
              exact['spacers3']['warm_s'], fd['spacers3']['warm_s']),
+        own('CDR forward statics, warm, slider circle (median)', TARGETS['cdr_warm'],
+            cdr.warm_s),
+        own('CDR forward statics, cold, delta_statics cases (worst median)',
+            TARGETS['cdr_cold'], max(cdr.cold_s)),
         '',
         'Stability verdict + error estimate inside a warm solve: median '
         f"{_ms(exact['warm']['overhead_median_s'])} ms = "
@@ -250,6 +286,12 @@ def main() -> None:
             f'{force:g} N: exact {_ms(exact["cold"][force])}, fd {_ms(fd["cold"][force])}'
             for force in exact['cold']) + '.',
     ]
+    lines += ['', 'CDR forward statics (bench/delta_statics.py; its output: '
+              'bench/results/delta_statics.md): cold cases (median of 3, ms) ' + ', '.join(
+                  f'q = {sliders} m, payload {payload} N: {_ms(seconds)}'
+                  for (sliders, payload), seconds in zip(COLD_CASES, cdr.cold_s))
+              + f'; warm: {cdr.warm_leg_solves:.1f} leg solves and '
+              f'{cdr.warm_leg_jacobians:.2f} exact leg Jacobians per solve (mean).']
     if paper:
         lines += ['', f'Paper baseline (method=paper, cold 12 N): {paper:.2f} s.']
     if slope:

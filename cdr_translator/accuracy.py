@@ -19,7 +19,9 @@ It is applied to two families of quantities, and the estimate is the larger of t
   J dx = -(r_M(x_N) - r_N(x_N)) (one Newton step on the solve's factorization), and the
   pose moves by the difference of the shots plus dT/dx dx (stability.pose_twist).
 
-Cost: one residual shot at M = N / 2 steps (half a solve iteration) and one LU solve.
+Cost: one residual shot at M = N / 2 steps (half a solve iteration) and one LU solve. When
+that coarse shot overflows (a state so curved that N / 2 steps diverge), the comparison is
+made with M = 2 N instead (factor 16/15; two solve iterations' worth).
 """
 
 from dataclasses import dataclass
@@ -28,8 +30,9 @@ from typing import Optional
 
 import numpy as np
 
-from . import stability
 from ._jit import jit
+from .chord import lu_solve
+from .model import N_RODS, translator_residual
 from .problem import Problem
 
 
@@ -48,6 +51,7 @@ class ErrorEstimate:
         return math.degrees(self.angle_rad)
 
 
+@jit
 def coarse_steps(steps: int) -> int:
     """Return the steps of the comparison shot: half (rounded down), or 2 for 1 step."""
     return steps // 2 if steps >= 2 else 2
@@ -61,22 +65,68 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
 
     ``lu`` and ``pose`` (the solve's factorization and end-disk pose derivative) add the
     solution's end-disk pose change; without them only the fixed-x part is estimated.
+    One compiled call (``_estimate``): the comparison shot and both measures.
     """
     steps = problem.params.steps_per_segment
+    with_solution = lu is not None and pose is not None
+    factors, pivots = lu if lu is not None else (_NO_FACTORS, _NO_PIVOTS)
+    position, angle, other = _estimate(
+        xs, wrench, problem.x_scale, problem.residual_scale, problem.residual_kind,
+        problem.model_args, rs, frames, factors, pivots,
+        pose if pose is not None else _NO_POSE, with_solution)
+    return ErrorEstimate(position, angle, steps, other)
+
+
+#: Stand-ins of the factorization and pose derivative when a solve has none (same types).
+_NO_FACTORS = np.empty((0, 0), order='F')
+_NO_PIVOTS = np.empty(0, dtype=np.int32)
+_NO_POSE = np.empty((12, 0))
+
+
+@jit
+def _estimate(xs, wrench, x_scale, residual_scale, kind, model_args, rs, frames, factors,
+              pivots, pose, with_solution):
+    """Return (position, angle, comparison steps) of ``estimate`` (see the module docstring)."""
+    pitch_radius, spacing, tube_length, spacers, steps, inv_kse, inv_kbt = model_args
+    size = xs.shape[0]
+    unknowns = np.empty(size)
+    for i in range(size):
+        unknowns[i] = xs[i] * x_scale[i]
     other = coarse_steps(steps)
+    no_points = np.empty((N_RODS, 0, 3))
+    frames_other = np.empty((4, 4, 4))
+    defect = np.empty(size)
+    for attempt in range(2):
+        translator_residual(unknowns, wrench, pitch_radius, spacing, tube_length, spacers,
+                            other, inv_kse, inv_kbt, defect, no_points, frames_other)
+        finite = True
+        for i in range(size):
+            defect[i] = defect[i] / residual_scale[i] - rs[i]
+            finite = finite and math.isfinite(defect[i])
+        if finite or other > steps:
+            break
+        # the coarse shot overflowed (a very curved state): compare with a finer one instead
+        other = 2 * steps
+    if not finite:
+        return math.inf, math.inf, other
     factor = 1.0 / abs((steps / other) ** 4 - 1.0)
-    rs_other, frames_other = problem.shot_with_steps(xs, wrench, other)
-    defect = rs_other - rs
-    si = np.abs(defect * problem.residual_scale)
-    if not np.all(np.isfinite(si)):
-        return ErrorEstimate(math.inf, math.inf, steps, other)
-    position, angle = _fixed_x_measures(si, problem.residual_kind, frames, frames_other)
-    if lu is not None and pose is not None:
+    si = np.empty(size)
+    for i in range(size):
+        si[i] = abs(defect[i] * residual_scale[i])
+    position, angle = _fixed_x_measures(si, kind, frames, frames_other)
+    if with_solution:
         # the end disk of the other discretization's solution: one Newton step from x_N
-        moved, turned = _solution_measures(pose @ stability.solve_lu(lu, -defect), frames[3],
-                                           frames_other[3])
+        for i in range(size):
+            defect[i] = -defect[i]
+        step = np.empty(size)
+        lu_solve(factors, pivots, defect, step)
+        change = np.zeros(12)
+        for r in range(12):
+            for i in range(size):
+                change[r] += pose[r, i] * step[i]
+        moved, turned = _solution_measures(change, frames[3], frames_other[3])
         position, angle = max(position, moved), max(angle, turned)
-    return ErrorEstimate(factor * position, factor * angle, steps, other)
+    return factor * position, factor * angle, other
 
 
 @jit

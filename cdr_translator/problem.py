@@ -11,7 +11,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from . import model
+from . import chord, model
 from .params import TranslatorParams
 from .rod import inverse_stiffness
 
@@ -24,6 +24,10 @@ RESIDUAL_KINDS = ('position_m', 'orientation_rad', 'force_n', 'moment_nm')
 #: wrong that Newton converged only linearly (factor 0.25) and continuation stalled;
 #: 1e-9 keeps Newton quadratic there and costs ~1e-6 relative rounding at small loads.
 FD_STEP = 1e-9
+
+#: Broyden updates kept on one factorization at most; more are not gathered (a chord step
+#: that converges too slowly then rebuilds the Jacobian, which starts afresh).
+MAX_SECANT_UPDATES = 24
 
 #: Ways to compute the Jacobian: 'exact' (tangent-linear shot, model.translator_jacobian)
 #: or 'fd' (forward differences, one shot per unknown: the paper's way and the check).
@@ -71,6 +75,7 @@ class Problem:
         kind[n_station_values + 24:] = [2, 2, 2, 3, 3, 3]
         self.x_scale = x_scale
         self.residual_kind = kind
+        self._kind_rows = [np.flatnonzero(kind == code) for code in range(len(RESIDUAL_KINDS))]
         self.residual_scale = np.array([length, 1.0, force, moment])[kind]
         self.wrench_scale = np.repeat([force, moment], 3)
         #: rows of the end-disk equilibrium, the only residuals the applied wrench enters
@@ -87,6 +92,20 @@ class Problem:
         #: derivative of the end-disk frame {de} (centre, then rotation matrix row-major;
         #: SI per nondimensional unknown) at the last Jacobian, or None
         self.pose_jacobian: Optional[np.ndarray] = None
+        rows = model.grid_points_per_rod(spacers, params.steps_per_segment)
+        #: two shape buffers (centre lines, frames) that chord_newton's shots alternate on
+        self._shape_points = np.empty((2, model.N_RODS, rows, 3))
+        self._shape_frames = np.empty((2, 4, 4, 4))
+        #: Broyden updates (chord.broyden_apply's u_i and s_i) on the factorization they
+        #: were gathered on, and how many: (factorization or None, count)
+        self._secant_updates = np.empty((MAX_SECANT_UPDATES, self.size))
+        self._secant_steps = np.empty((MAX_SECANT_UPDATES, self.size))
+        self._secant: Tuple[Optional[tuple], int] = (None, 0)
+
+    @property
+    def model_args(self) -> tuple:
+        """Return the kernel's parameter arguments (model.translator_residual, after wrench)."""
+        return self._args
 
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at nondimensional unknowns ``xs``."""
@@ -136,6 +155,50 @@ class Problem:
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
                 self.pose_jacobian)
 
+    def residual_and_shape(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+        """Nondimensional residual at ``xs``; its shape goes to slot 0 (``recorded_shape``)."""
+        out = np.empty(self.size)
+        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                        self._shape_points[0], self._shape_frames[0])
+        return out / self.residual_scale
+
+    def chord_newton(self, xs: np.ndarray, rs: np.ndarray, wrench: np.ndarray, lu: tuple,
+                     fresh: bool, tolerance: float, max_iterations: int, chord_rate: float,
+                     slot: int) -> Tuple[int, int, float, int]:
+        """
+        Newton-Broyden iterations on the factorization ``lu`` in one compiled call (chord.py).
+
+        ``xs``, ``rs`` (nondimensional, residual at xs) are updated in place; the shape of
+        the accepted iterate is in ``recorded_shape(slot)`` for the slot returned, the
+        shape of ``xs`` on entry being in ``slot``. The Broyden updates gathered on ``lu``
+        are kept for the next call on the same factorization (``inverse_apply``). Returns
+        (status, iterations, residual norm, slot); status is one of chord's codes.
+        """
+        count = self._secant_count(lu)
+        status, done, norm, slot, count = chord.chord_iterations(
+            xs, rs, float(np.sqrt(rs @ rs)), wrench, self.x_scale, self.residual_scale,
+            self._args, lu[0], lu[1], self._secant_updates, self._secant_steps, count, fresh,
+            tolerance, max_iterations, chord_rate, self._shape_points, self._shape_frames,
+            slot)
+        self._secant = (lu, int(count))
+        return int(status), int(done), float(norm), int(slot)
+
+    def inverse_apply(self, lu: tuple, rhs: np.ndarray) -> np.ndarray:
+        """Return J^-1 rhs for the factorization ``lu`` and its Broyden updates so far."""
+        out = np.empty(self.size)
+        chord.broyden_apply(lu[0], lu[1], self._secant_updates, self._secant_steps,
+                            self._secant_count(lu), np.ascontiguousarray(rhs, dtype=float), out)
+        return out
+
+    def _secant_count(self, lu: tuple) -> int:
+        """Return the Broyden updates valid on ``lu``: none for another factorization."""
+        bound, count = self._secant
+        return count if bound is lu else 0
+
+    def recorded_shape(self, slot: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Return copies of the centre lines (5, rows, 3) and frames (4, 4, 4) in ``slot``."""
+        return self._shape_points[slot].copy(), self._shape_frames[slot].copy()
+
     def shot_with_steps(self, xs: np.ndarray, wrench: np.ndarray,
                         steps: int) -> Tuple[np.ndarray, np.ndarray]:
         """Nondimensional residual and frames (4, 4, 4) at ``steps`` RK4 steps per interval."""
@@ -160,8 +223,8 @@ class Problem:
     def residual_by_kind(self, rs: np.ndarray) -> dict:
         """Largest absolute residual of each kind, in SI units."""
         si = np.abs(rs * self.residual_scale)
-        return {name: float(si[self.residual_kind == code].max(initial=0.0))
-                for code, name in enumerate(RESIDUAL_KINDS)}
+        return {name: float(si[rows].max(initial=0.0))
+                for name, rows in zip(RESIDUAL_KINDS, self._kind_rows)}
 
     def straight_guess(self, wrench: np.ndarray) -> np.ndarray:
         """Unloaded shape with the whole wrench carried by the primary backbone."""

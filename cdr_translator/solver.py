@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor
 
-from . import path_following, stability
+from . import chord, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
@@ -29,7 +29,6 @@ from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
-from .stability import solve_lu
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
@@ -85,6 +84,8 @@ class _Outcome:
     pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
     #: (unknowns, wrench) of the last converged state of a stalled continuation
     reached: Optional[Tuple[np.ndarray, np.ndarray]] = None
+    #: (the unknowns it belongs to, centre lines, frames) recorded by the last shot, if any
+    shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
 
 
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
@@ -236,6 +237,24 @@ class TranslatorSolver:
         self._lu = None
         self._pose = None
 
+    def start_at(self, xs: np.ndarray, wrench: np.ndarray,
+                 factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None) -> None:
+        """
+        Warm-start the next solve from nondimensional unknowns ``xs`` at ``wrench`` (SI).
+
+        For a caller that iterates on the shooting residual itself (robot/delta.py's coupled
+        Newton): a solve at ``wrench`` then only confirms the residual and judges stability
+        and the discretization error. ``factorization`` = (LU of the Jacobian, its end-frame
+        derivative ``problem.pose_jacobian``, the wrench it was made at) is used for both and
+        for chord steps; without one, the stability verdict factors an exact Jacobian.
+        """
+        self._previous = (np.array(xs, dtype=float), check_wrench(wrench[:3], wrench[3:]))
+        if factorization is None:
+            self._lu, self._pose = None, None
+        else:
+            lu, pose, made_at = factorization
+            self._lu, self._pose = lu, (pose, np.array(made_at, dtype=float))
+
     @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
@@ -321,7 +340,8 @@ class TranslatorSolver:
                         wrench: np.ndarray) -> None:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
         pose = outcome.pose[0] if outcome.pose is not None else None
-        frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+        frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
+                  else np.stack([result.frames[name] for name in FRAME_NAMES]))
         estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
                                   outcome.lu, pose)
         result.error_estimate_m = estimate.position_m
@@ -514,14 +534,22 @@ class TranslatorSolver:
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
-        done, step, iterations = 0.0, self._first_step(lu, wrench - start), 0
+        # the whole step's linear prediction: sizes the first step, is its predictor if whole
+        whole = None if lu is None else self.problem.inverse_apply(
+            lu, sensitivity @ (wrench - start))
+        done, step, iterations = 0.0, _first_step(whole), 0
         current = start
         outcome: Optional[_Outcome] = None
         grow = 2.0
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            guess = xs if lu is None else xs - solve_lu(lu, sensitivity @ (goal - current))
+            if lu is None:
+                guess = xs
+            elif whole is not None and target == 1.0 and done == 0.0:
+                guess = xs - whole
+            else:
+                guess = xs - self.problem.inverse_apply(lu, sensitivity @ (goal - current))
             outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
@@ -599,21 +627,6 @@ class TranslatorSolver:
         assert outcome is not None
         return outcome
 
-    def _first_step(self, lu: Optional[tuple], change: np.ndarray) -> float:
-        """
-        Fraction of the wrench change to try first: whole if the linear prediction is small.
-
-        A first step whose predicted change of the unknowns exceeds PREDICTOR_REACH
-        (nondimensional) left the linear regime; trying it anyway cost a failed corrector
-        and a halving (cold 12 N: 30 ms with the whole step, 9 ms sized this way).
-        """
-        if lu is None:
-            return 1.0
-        predicted = np.abs(solve_lu(lu, self.problem.wrench_sensitivity @ change)).max()
-        if predicted <= PREDICTOR_REACH:
-            return 1.0
-        return max(PREDICTOR_REACH / predicted, MIN_CONTINUATION_STEP)
-
     def _stalled(self, xs: np.ndarray, failed: _Outcome, wrench: np.ndarray, done: float,
                  iterations: int, deadline: float) -> _Outcome:
         """Best of the last converged state and the failed iterate, judged at ``wrench``."""
@@ -642,47 +655,51 @@ class TranslatorSolver:
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
                 pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
-        """Damped Newton; given ``lu`` it starts with chord steps on that factorization."""
+        """
+        Damped Newton; given ``lu`` it starts with chord steps on that factorization.
+
+        The iterations run compiled (chord.chord_iterations: backtracking line search, a
+        chord step that shrinks the residual by less than CHORD_RATE discards the
+        factorization); Python only refactors, between those calls, and checks the deadline.
+        """
         problem = self.problem
-        rs = problem.residual(xs, wrench)
+        xs = np.array(xs, dtype=float)
+        rs = problem.residual_and_shape(xs, wrench)
         norm = _norm(rs)
-        fresh = False
-        pose = pose_in
-        for iteration in range(1, max_iterations + 1):
+        slot, done, fresh, pose = 0, 0, False, pose_in
+
+        def ended(converged: bool, message: str) -> _Outcome:
+            outcome = _Outcome(xs, rs, done, converged, message, lu, pose)
+            outcome.shape = (xs, *problem.recorded_shape(slot))
+            return outcome
+
+        while True:
             if not math.isfinite(norm):
-                return _Outcome(xs, rs, iteration - 1, False,
-                                'residual became non-finite during the iteration', lu, pose)
+                return ended(False, 'residual became non-finite during the iteration')
             if np.abs(rs).max() <= self.tolerance:
-                return _Outcome(xs, rs, iteration - 1, True, 'converged', lu, pose)
+                return ended(True, 'converged')
+            if done >= max_iterations:
+                return ended(False, f'no convergence in {max_iterations} iterations')
             if time.perf_counter() > deadline:
-                return _Outcome(xs, rs, iteration - 1, False,
-                                f'time limit of {self.time_limit_s} s reached', lu, pose)
+                return ended(False, f'time limit of {self.time_limit_s} s reached')
             if lu is None:
                 with warnings.catch_warnings():  # a singular J shows as a non-finite step
                     warnings.simplefilter('ignore', LinAlgWarning)
                     lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
                 pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
-            step = -solve_lu(lu, rs)
-            finite = bool(np.isfinite(step).all())
-            trial = _line_search(problem, xs, step, wrench, norm) if finite else None
-            if trial is None:
-                if fresh:
-                    return _Outcome(xs, rs, iteration, False,
-                                    'line search found no decrease of the residual' if finite
-                                    else 'Newton step is not finite (singular or non-finite '
-                                    'Jacobian)', lu, pose)
-                lu = None  # a stale Jacobian pointed the wrong way; rebuild it
-                continue
-            xs, rs, new_norm = trial
-            if not fresh and new_norm > CHORD_RATE * norm:
-                lu = None  # chord steps converge too slowly; rebuild the Jacobian
-            norm = new_norm
+            status, used, norm, slot = problem.chord_newton(
+                xs, rs, wrench, lu, fresh, self.tolerance, max_iterations - done, CHORD_RATE,
+                slot)
+            done += used
             fresh = False
-        converged = bool(np.abs(rs).max() <= self.tolerance)
-        return _Outcome(xs, rs, max_iterations, converged,
-                        'converged' if converged
-                        else f'no convergence in {max_iterations} iterations', lu, pose)
+            if status == chord.REFACTOR:
+                lu = None
+            elif status == chord.NO_DECREASE:
+                return ended(False, 'line search found no decrease of the residual')
+            elif status == chord.SINGULAR:
+                return ended(False, 'Newton step is not finite (singular or non-finite '
+                                    'Jacobian)')
 
     def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                              lu: Optional[tuple], max_iterations: int,
@@ -725,7 +742,10 @@ class TranslatorSolver:
     # result ----------------------------------------------------------------------------------
     def _result(self, outcome: _Outcome, wrench: np.ndarray, elapsed: float) -> SolveResult:
         problem = self.problem
-        points, frames = problem.shape(outcome.xs, wrench)
+        if outcome.shape is not None and outcome.shape[0] is outcome.xs:
+            points, frames = outcome.shape[1:]
+        else:
+            points, frames = problem.shape(outcome.xs, wrench)
         return SolveResult(
             converged=outcome.converged, message=outcome.message,
             iterations=outcome.iterations, residual_norm=_norm(outcome.rs),
@@ -737,20 +757,23 @@ class TranslatorSolver:
             steps_per_segment=self.params.steps_per_segment)
 
 
+def _first_step(predicted: Optional[np.ndarray]) -> float:
+    """
+    Fraction of the wrench change to try first: whole if its linear prediction is small.
+
+    ``predicted`` is the predicted change of the unknowns for the whole step (None without
+    a factorization). A first step whose predicted change exceeds PREDICTOR_REACH
+    (nondimensional) left the linear regime; trying it anyway cost a failed corrector and a
+    halving (cold 12 N: 30 ms with the whole step, 9 ms sized this way).
+    """
+    if predicted is None:
+        return 1.0
+    largest = np.abs(predicted).max()
+    if largest <= PREDICTOR_REACH:
+        return 1.0
+    return max(PREDICTOR_REACH / largest, MIN_CONTINUATION_STEP)
+
+
 def _norm(values: np.ndarray) -> float:
     with np.errstate(over='ignore', invalid='ignore'):
         return float(np.sqrt(values @ values))
-
-
-def _line_search(problem: Problem, xs: np.ndarray, step: np.ndarray, wrench: np.ndarray,
-                 norm: float) -> Optional[Tuple[np.ndarray, np.ndarray, float]]:
-    """Backtrack along ``step`` until the residual norm decreases; None if it never does."""
-    scale = 1.0
-    for _ in range(12):
-        trial = xs + scale * step
-        rs = problem.residual(trial, wrench)
-        trial_norm = _norm(rs)
-        if trial_norm < (1.0 - 1e-4 * scale) * norm:
-            return trial, rs, trial_norm
-        scale *= 0.5
-    return None

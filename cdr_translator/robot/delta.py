@@ -18,14 +18,25 @@ Residuals (24):
 
 Newton's method solves them; the Jacobian couples the legs only through the platform
 pose, each leg entering through its 6x6 compliance (d twist / d wrench at the end disk,
-{pe_i}: ``TranslatorSolver.solve(..., compliance=True)``, implicit differentiation). Steps
-are damped by Deuflhard's natural monotonicity test and reuse a factorization while it
-contracts. Every leg solve is warm-started from that leg's previous solution, and the robot
-walks from its previous solution (or home: straight legs, no load) to the requested input
-by predictor-corrector continuation, as the leg solver does for one translator.
+{pe_i}), from the leg's exact linearization (one tangent-linear shot: its shooting
+Jacobian and end-disk pose derivative; implicit differentiation). Two iterations:
+
+* coupled (warm solves): the legs' own shooting unknowns join the platform's; an iterate
+  costs one residual shot per leg, the Newton system is reduced to the platform's 24 by
+  eliminating each leg with its LU (see ``_step``), and chord steps reuse that
+  factorization across iterations and solves until they contract too slowly. Once
+  converged, each leg solver confirms its leg (TranslatorSolver.start_at), which gives the
+  legs' SolveResults (shape, stability, error estimate).
+* nested (cold solves from home, where the legs' shooting is far from linear, and the
+  fallback of a stalled coupled solve): every iterate solves each leg in full under its
+  wrench, warm-started.
+
+Steps are damped by Deuflhard's natural monotonicity test. The robot walks from its
+previous solution (or home: straight legs, no load) to the requested input by
+predictor-corrector continuation, as the leg solver does for one translator.
 """
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 import math
 from pathlib import Path
 import time
@@ -33,21 +44,43 @@ from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg import lu_factor, lu_solve
-from scipy.spatial.transform import Rotation
+from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
-from ..solver import check_wrench, TranslatorSolver
+from ..solver import check_wrench, one_blas_thread, TranslatorSolver
+from ..stability import pose_twist, solve_lu
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).
 SIZE = 24
 
 #: Smallest fraction of the remaining input change a continuation step may take.
 MIN_CONTINUATION_STEP = 1e-3
+
+#: Chord steps whose contractions of the Newton correction have a geometric mean above
+#: this, or one step contracting by less than SLOW_CHORD, rebuild the factorization (three
+#: exact leg Jacobians and the platform LU).
+CHORD_RATE = 0.25
+SLOW_CHORD = 0.5
+
+#: A factorization made within this distance of the solution (largest change of the scaled
+#: unknowns, platform and legs) serves the compliance and stability verdict there: it
+#: moves the compliance by about as much, relatively, below the 1e-8 to which implicit and
+#: finite-difference compliances agree.
+REUSE_DISTANCE = 1e-9
+
+#: Largest change of the scaled unknowns (platform and legs) a continuation step of the
+#: coupled Newton may predict; a step predicting more is shortened.
+PREDICTOR_REACH = 3.0
+
+
+COUPLE_WITHIN = 0.1
+
+#: The work counters of a solve (DeltaResult fields of the same names).
+COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
 
 
 def _skew(vector: np.ndarray) -> np.ndarray:
@@ -56,9 +89,24 @@ def _skew(vector: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
+def _cross_sum(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Sum of the cross products of the rows of two (k, 3) arrays (a few us, np.cross 50)."""
+    sx = sy = sz = 0.0
+    for (x1, y1, z1), (x2, y2, z2) in zip(first.tolist(), second.tolist()):
+        sx += y1 * z2 - z1 * y2
+        sy += z1 * x2 - x1 * z2
+        sz += x1 * y2 - y1 * x2
+    return np.array([sx, sy, sz])
+
+
 def _rotation_matrix(vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad)."""
-    return Rotation.from_rotvec(vector).as_matrix()
+    """Rotation matrix of a rotation vector (rad): Rodrigues' formula."""
+    angle = math.sqrt(float(vector @ vector))
+    cross = _skew(vector)
+    if angle < 1e-6:  # the series, error below angle^3 / 6
+        return np.eye(3) + cross + 0.5 * cross @ cross
+    return (np.eye(3) + math.sin(angle) / angle * cross
+            + (1.0 - math.cos(angle)) / angle ** 2 * cross @ cross)
 
 
 def _inverse_left_jacobian(vector: np.ndarray) -> np.ndarray:
@@ -80,24 +128,67 @@ def _inverse_left_jacobian(vector: np.ndarray) -> np.ndarray:
 
 @dataclass
 class _State:
-    """Platform pose and leg wrenches: the unknowns, plus the legs solved under them."""
+    """
+    Platform pose and leg wrenches (the platform unknowns), and the legs' own unknowns.
+
+    ``unknowns`` (3, n): each leg's nondimensional shooting unknowns (its Problem's);
+    ``frames`` (3, 4, 4): each leg's end-disk frame in {pe_i} there; ``leg_error``: the
+    largest nondimensional leg residual; ``legs``: the legs' SolveResults when they were
+    solved (nested) or confirmed (coupled) at this state, else None.
+    """
 
     position: np.ndarray
     rotation: np.ndarray
     wrenches: np.ndarray
+    unknowns: np.ndarray
+    frames: Optional[np.ndarray] = None
+    leg_residuals: Optional[np.ndarray] = None
+    leg_error: float = math.inf
     legs: Optional[List[SolveResult]] = None
 
-    def moved(self, step: np.ndarray) -> '_State':
-        """Apply a step [dp; dphi; dw_1; dw_2; dw_3] (legs not yet solved)."""
-        return _State(self.position + step[:3], _rotation_matrix(step[3:6]) @ self.rotation,
-                      self.wrenches + step[6:].reshape(3, 6))
+    def moved(self, platform: np.ndarray, legs: np.ndarray) -> '_State':
+        """Apply a step [dp; dphi; dw_1; dw_2; dw_3] and leg steps (3, n); not yet shot."""
+        return _State(self.position + platform[:3],
+                      _rotation_matrix(platform[3:6]) @ self.rotation,
+                      self.wrenches + platform[6:].reshape(3, 6), self.unknowns + legs)
 
 
-def _solved(state: _State) -> List[SolveResult]:
-    """Return the legs solved under ``state`` (a residual is only taken after solving them)."""
-    if state.legs is None:
-        raise RuntimeError('the legs have not been solved under this state')
-    return state.legs
+@dataclass
+class _LegLinearization:
+    """One leg's exact linearization at a state: what the platform Newton needs of it."""
+
+    lu: tuple  # LU factorization of the leg's shooting Jacobian (nondimensional)
+    pose: np.ndarray  # d(end-disk frame)/d(unknowns), (12, n): Problem.pose_jacobian
+    twist: np.ndarray  # d(end-disk twist)/d(unknowns), (6, n): stability.pose_twist of it
+    rotation: np.ndarray  # end-disk rotation in {pe_i} there
+    gain: np.ndarray  # J^-1 dr/dw (n, 6): unknowns per SI wrench
+    compliance: np.ndarray  # (6, 6) SI, cdr_translator/compliance.py's convention
+    wrench: np.ndarray  # the wrench it was made at
+
+
+@dataclass
+class _Factorization:
+    """The platform Jacobian's LU (scaled) and the leg linearizations it was built from."""
+
+    platform: tuple
+    legs: Tuple[_LegLinearization, ...]
+    state: _State  # where it was made
+    # for the chord steps, stacked over the legs: J_k^-1 (3, n, n), T_k (3, 6, n) and
+    # J_k^-1 dr/dw (3, n, 6), and the scaled platform Jacobian's inverse (24, 24): a chord
+    # step is then a few matrix products, where LU solves cost ten times as much (their
+    # LAPACK call's overhead on these small systems)
+    inverses: np.ndarray = field(init=False)
+    twists: np.ndarray = field(init=False)
+    gains: np.ndarray = field(init=False)
+    platform_inverse: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        """Stack the legs' matrices and invert the Jacobians for the chord steps."""
+        size = self.legs[0].gain.shape[0]
+        self.inverses = np.stack([solve_lu(leg.lu, np.eye(size)) for leg in self.legs])
+        self.twists = np.stack([leg.twist for leg in self.legs])
+        self.gains = np.stack([leg.gain for leg in self.legs])
+        self.platform_inverse = solve_lu(self.platform, np.eye(SIZE))
 
 
 @dataclass
@@ -109,15 +200,11 @@ class _Outcome:
     iterations: int
     converged: bool
     message: str
-    lu: Optional[tuple] = None
+    factorization: Optional[_Factorization] = None
 
 
 class _Deadline(Exception):
     """The time limit passed during a leg solve."""
-
-
-class _LegFailure(Exception):
-    """A leg solve needed for the Jacobian failed."""
 
 
 class DeltaRobot:
@@ -137,10 +224,12 @@ class DeltaRobot:
         Set up three leg solvers for ``params`` and the CDR ``geometry`` (default: YAML).
 
         Converged means every equilibrium component is within ``equilibrium_tolerance``
-        (N, N m) and every leg's end disk within ``position_tolerance`` (m) and
-        ``rotation_tolerance`` (rad) of its platform attachment. ``max_iterations`` caps
-        the Newton iterations of one continuation step (a step that needs more is
-        halved), ``time_limit_s`` a whole solve.
+        (N, N m), every leg's end disk within ``position_tolerance`` (m) and
+        ``rotation_tolerance`` (rad) of its platform attachment, and every leg's own
+        shooting residual within its solver's tolerance. ``max_iterations`` caps the
+        Newton iterations of one continuation step (a step that needs more is halved),
+        ``time_limit_s`` a whole solve. The linearization at home (three exact leg
+        Jacobians, a few ms) is made here, once: cold solves start from it.
         """
         if max_iterations < 1:
             raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
@@ -161,6 +250,7 @@ class DeltaRobot:
                                                   accuracy=Accuracy(0.0, 0.0),
                                                   follow_stable_branch=False)
                                  for _ in range(3))
+        self._leg_tolerance = min(solver.tolerance for solver in self.leg_solvers)
         # scales for a balanced Newton system: the stack height, and the force that bends
         # the five backbones of a leg noticeably over it
         length = height
@@ -169,11 +259,18 @@ class DeltaRobot:
             [np.full(3, length), np.ones(3), np.tile(np.repeat([force, force * length], 3), 3)])
         self._r_scale = np.concatenate(
             [np.tile(np.repeat([length, 1.0], 3), 3), np.repeat([force, force * length], 3)])
-        self._leg_solves = 0
+        rotations = np.stack([leg.rotation for leg in self.legs])
+        self._leg_rotations = (rotations, rotations.transpose(0, 2, 1).copy())
+        self._attachments = np.stack([leg.attachment for leg in self.legs])
+        self._home_bases = np.stack([leg.home_base for leg in self.legs])
+        self._slider_axes = np.stack([leg.slider_axis for leg in self.legs])
+        self._counts = dict.fromkeys(COUNTS, 0)
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
-        self._lu: Optional[tuple] = None
+        self._factorization: Optional[_Factorization] = None
         self._inverse = InverseSolver(self)
+        home = self._home_state()
+        self._home = (home, self._factorize(home, np.zeros(12)))
 
     @classmethod
     def from_yaml(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH,
@@ -189,12 +286,13 @@ class DeltaRobot:
     def reset(self) -> None:
         """Forget the previous solution: the next solve starts from home."""
         self._previous = None
-        self._lu = None
+        self._factorization = None
         self._inverse.reset()
         for solver in self.leg_solvers:
             solver.reset()
 
     # public ----------------------------------------------------------------------------------
+    @one_blas_thread
     def solve(self, sliders: ArrayLike, payload_force: ArrayLike,
               payload_moment: ArrayLike = (0.0, 0.0, 0.0),
               payload_offset: ArrayLike = (0.0, 0.0, 0.0),
@@ -205,8 +303,11 @@ class DeltaRobot:
         ``payload_force`` (N) and ``payload_moment`` (N m) are in {w}; the force acts at
         ``payload_offset`` (m), a point fixed in the platform frame {p} (default: the
         platform origin). ``compliance`` adds the platform compliance, the input
-        sensitivity and the stability verdict (see DeltaResult; three more leg solves).
-        Bad input raises ValueError; non-convergence is a result.
+        sensitivity and the stability verdict (see DeltaResult). They need the legs'
+        exact linearization at the solution: reused when the last factorization was made
+        there (within REUSE_DISTANCE), else three exact leg Jacobians (one tangent-linear
+        shot each; the dominant cost of a warm solve with ``compliance``), which the next
+        solve then iterates on. Bad input raises ValueError; non-convergence is a result.
         """
         offset = np.asarray(payload_offset, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
@@ -215,34 +316,54 @@ class DeltaRobot:
                                  check_wrench(payload_force, payload_moment), offset])
         started = time.perf_counter()
         self._deadline = started + self.time_limit_s
-        self._leg_solves = 0
+        self._counts = dict.fromkeys(COUNTS, 0)
         if not (warm_start and self._previous is not None):
             self.reset()
-            self._previous = (self._home_state(), np.zeros(12))
+            self._previous = (self._home[0], np.zeros(12))
+            self._factorization = self._home[1]
+        previous, factorization = self._previous, self._factorization
+        # from home the legs' shooting is far from linear (a coupled Newton needed 5-10
+        # times the iterations): there each iterate's legs are solved in full
+        coupled = previous[0] is not self._home[0]
         with np.errstate(over='ignore', invalid='ignore'):
-            outcome = self._continuation(inputs)
+            outcome = self._continuation(inputs, coupled)
+            if coupled and not outcome.converged and time.perf_counter() < self._deadline:
+                # the coupled iteration stalled: solve the legs in full at every iterate
+                self._previous, self._factorization = previous, factorization
+                nested = self._continuation(inputs, coupled=False)
+                nested.iterations += outcome.iterations
+                if nested.converged:
+                    nested.message += ' (legs solved in full after the coupled Newton ' \
+                        f'stalled: {outcome.message})'
+                if nested.converged or (np.linalg.norm(nested.residual)
+                                        < np.linalg.norm(outcome.residual)):
+                    outcome = nested
+            legs = self._leg_results(outcome.state, outcome.factorization)
         if outcome.converged:
             self._previous = (outcome.state, inputs)
-        result = self._result(outcome, inputs, time.perf_counter() - started)
+        result = self._result(outcome, legs, inputs, time.perf_counter() - started)
         if compliance and outcome.converged:
             with np.errstate(over='ignore', invalid='ignore'):
-                self._linearize(result, outcome.state, inputs)
+                self._linearize(result, outcome, inputs)
             result.solve_time_s = time.perf_counter() - started
-            result.leg_solves = self._leg_solves
+            self._count_into(result)
         return result
 
-    def _linearize(self, result: DeltaResult, state: _State, inputs: np.ndarray) -> None:
+    def _linearize(self, result: DeltaResult, outcome: _Outcome, inputs: np.ndarray) -> None:
         """Add the compliance, input sensitivity and stability verdict to ``result``."""
+        state, factorization = outcome.state, outcome.factorization
         try:
-            jacobian = self._jacobian(state, inputs)
-            lu = lu_factor(jacobian / self._r_scale[:, None] * self._x_scale[None, :],
-                           check_finite=False)
+            if factorization is None or _distance(factorization.state, state,
+                                                  self._x_scale) > REUSE_DISTANCE:
+                factorization = self._factorize(state, inputs)
+                self._factorization = factorization  # exact at the solution: the next
+                # solve's chord steps start from it
             right = np.zeros((SIZE, 18))
             right[:, :12] = self._input_sensitivity(state, inputs)
             right[18:, 12:] = np.eye(6)
-            solved = -self._x_scale[:6, None] * lu_solve(
-                lu, right / self._r_scale[:, None], check_finite=False)[:6]
-        except (_Deadline, _LegFailure, np.linalg.LinAlgError, ValueError) as error:
+            solved = -self._x_scale[:6, None] * solve_lu(factorization.platform,
+                                                         right / self._r_scale[:, None])[:6]
+        except (_Deadline, ArithmeticError, np.linalg.LinAlgError, ValueError) as error:
             result.stable = False
             result.message += f'; no platform compliance: {error}'
             return
@@ -282,23 +403,25 @@ class DeltaRobot:
     # continuation ----------------------------------------------------------------------------
     def _home_state(self) -> _State:
         """Straight legs, no load, platform at home: an exact solution for q = 0, no payload."""
-        state = _State(self.home_position.copy(), np.eye(3), np.zeros((3, 6)))
-        state.legs = [solver.solve(np.zeros(3)) for solver in self.leg_solvers]
-        self._leg_solves += 3
+        state = _State(self.home_position.copy(), np.eye(3), np.zeros((3, 6)),
+                       np.zeros((3, self.leg_solvers[0].problem.size)))
+        self._store_legs(state, [solver.solve(np.zeros(3)) for solver in self.leg_solvers])
+        self._counts['leg_solves'] += 3
         return state
 
-    def _continuation(self, inputs: np.ndarray) -> _Outcome:
+    def _continuation(self, inputs: np.ndarray, coupled: bool) -> _Outcome:
         """
         Walk from the previous solution to ``inputs`` (sliders, payload).
 
-        Each step predicts the solution to first order with the stored LU of the Jacobian,
-        dx = -J^-1 (dr/du) du, and Newton corrects it; a failed step is halved, a good one
-        doubled.
+        Each step predicts the solution to first order with the stored factorization,
+        dx = -J^-1 (dr/du) du, and Newton corrects it (``coupled``: leg unknowns and
+        platform together; else every iterate's legs solved in full); a failed step is
+        halved, a good one doubled.
         """
         if self._previous is None:
             raise RuntimeError('continuation needs a previous solution')
         state, start = self._previous
-        lu = self._lu
+        factorization = self._factorization
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome: Optional[_Outcome] = None
@@ -306,131 +429,272 @@ class DeltaRobot:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
             guess = state
-            if lu is not None:
-                guess = state.moved(-self._x_scale * lu_solve(
-                    lu, self._input_sensitivity(state, current) @ (goal - current)
-                    / self._r_scale, check_finite=False))
-            outcome = self._newton(guess, goal, lu)
+            if factorization is not None:
+                change = self._input_sensitivity(state, current) @ (goal - current)
+                platform, legs = self._step(state, change, None, factorization)
+                reach = max(float(np.abs(platform / self._x_scale).max()),
+                            float(np.abs(legs).max()))
+                if coupled and reach > PREDICTOR_REACH:
+                    # beyond the linear regime of the legs' shooting: a shorter step
+                    fraction = max(PREDICTOR_REACH / reach,
+                                   MIN_CONTINUATION_STEP / (target - done))
+                    target = done + fraction * (target - done)
+                    goal = start + target * (inputs - start)
+                    platform, legs = fraction * platform, fraction * legs
+                guess = state.moved(platform, legs)
+            outcome = self._newton(guess, goal, factorization, coupled)
             iterations += outcome.iterations
             if outcome.converged:
-                done, state, current, lu = target, outcome.state, goal, outcome.lu
+                done, state, current = target, outcome.state, goal
+                factorization = outcome.factorization
                 step *= 2.0
                 continue
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or time.perf_counter() > self._deadline:
-                if outcome.state.legs is None \
-                        or not all(leg.converged for leg in outcome.state.legs):
+                if not outcome.state.leg_error <= self._leg_tolerance:
                     outcome.state = state  # the last solution every leg converged at
+                    outcome.factorization = factorization
                 outcome.residual = self._residual(outcome.state, inputs)
                 outcome.iterations = iterations
                 outcome.message = (f'continuation stalled at {done:.1%} of the way to the '
                                    f'sliders and payload: {outcome.message}')
                 return outcome
-        self._lu = lu
+        self._factorization = factorization
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
         return outcome
 
     # Newton ----------------------------------------------------------------------------------
-    def _newton(self, state: _State, inputs: np.ndarray, lu: Optional[tuple]) -> _Outcome:
+    def _newton(self, state: _State, inputs: np.ndarray,
+                factorization: Optional[_Factorization], coupled: bool) -> _Outcome:
         """
-        Damped Newton with the natural monotonicity test; given ``lu``, chord steps first.
+        Damped Newton with the natural monotonicity test; given a factorization, chord steps.
 
+        ``coupled``: the unknowns are the platform's and the legs' own shooting unknowns
+        together, each iterate one residual shot per leg; the Newton system is reduced to
+        the platform's 24 by eliminating each leg's unknowns with its LU (the legs enter
+        through their compliances, as in the nested form, plus the twist each leg's own
+        Newton correction makes). Else every iterate solves the legs in full.
         A step is judged in the unknowns, not in the residual: the trial point must shrink
         the simplified Newton correction J^-1 r (same factorization) relative to the step
         (Deuflhard's restricted monotonicity test). That needs no weighting of metres
         against newtons, and it accepts the full step of the force-stiff leg axes that a
-        residual-norm test rejects far from the solution.
+        residual-norm test rejects far from the solution. A chord step contracting by less
+        than CHORD_RATE, or failing, rebuilds the factorization.
         """
         try:
-            legs = self._solve_legs(state)
+            evaluated = self._evaluate(state, coupled)
         except _Deadline as error:
-            return _Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), lu)
-        if not all(leg.converged for leg in legs):
+            return _Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), factorization)
+        if not evaluated:
             return _Outcome(state, np.full(SIZE, np.inf), 0, False,
-                            'a leg did not converge at the predicted wrenches', lu)
+                            'a leg did not converge at the predicted wrenches', factorization)
         residual = self._residual(state, inputs)
-        fresh = False
+        fresh, chord_steps, chord_log = False, 0, 0.0
         for iteration in range(1, self.max_iterations + 1):
-            if self._converged(residual):
-                return _Outcome(state, residual, iteration - 1, True, 'converged', lu)
+            if self._converged(residual, state):
+                return _Outcome(state, residual, iteration - 1, True, 'converged',
+                                factorization)
             if time.perf_counter() > self._deadline:
                 return _Outcome(state, residual, iteration - 1, False,
-                                f'time limit of {self.time_limit_s} s reached', lu)
+                                f'time limit of {self.time_limit_s} s reached', factorization)
             try:
-                if lu is None:
-                    jacobian = self._jacobian(state, inputs)
-                    lu = lu_factor(jacobian / self._r_scale[:, None] * self._x_scale[None, :],
-                                   check_finite=False)
+                if factorization is None:
+                    factorization = self._factorize(state, inputs)
                     fresh = True
-                step = -lu_solve(lu, residual / self._r_scale, check_finite=False)
-                trial = self._line_search(state, step, inputs, lu)
-            except (_Deadline, _LegFailure) as error:
-                return _Outcome(state, residual, iteration, False, str(error), lu)
+                step = self._step(state, residual, state.leg_residuals if coupled else None,
+                                  factorization)
+                trial = self._line_search(state, step, inputs, factorization, coupled)
+                step_size = self._step_norm(step, coupled)
+            except (_Deadline, ArithmeticError) as error:
+                return _Outcome(state, residual, iteration, False, str(error), factorization)
             if trial is None:
                 if fresh:
                     return _Outcome(state, residual, iteration, False,
-                                    'damping found no contracting Newton step', lu)
-                lu = None  # a stale Jacobian pointed the wrong way; rebuild it
+                                    'damping found no contracting Newton step', factorization)
+                factorization = None  # a stale Jacobian pointed the wrong way; rebuild it
                 continue
             state, residual, contraction = trial
-            if not fresh and contraction > 0.25:
-                lu = None  # chord steps converge too slowly; rebuild the Jacobian
+            if fresh:
+                chord_steps, chord_log = 0, 0.0
+            else:
+                # chord steps contract erratically (the iteration matrix is far from normal:
+                # 0.15, 0.01, 0.35 in a row is typical along the slider circle): judge their
+                # geometric mean, and only a single step that barely contracts on its own
+                chord_steps += 1
+                chord_log += math.log(max(contraction, 1e-300))
+                if contraction > SLOW_CHORD or chord_log > chord_steps * math.log(CHORD_RATE):
+                    factorization = None  # chord steps converge too slowly; rebuild
             fresh = False
-        converged = self._converged(residual)
+            if not coupled and step_size * contraction < COUPLE_WITHIN \
+                    and not self._converged(residual, state):
+                # near the solution the legs' shooting is nearly linear: finish coupled,
+                # three shots per iterate instead of three leg solves
+                finish = self._newton(state, inputs, factorization, True)
+                finish.iterations += iteration
+                if finish.converged:
+                    return finish
+        converged = self._converged(residual, state)
         return _Outcome(state, residual, self.max_iterations, converged,
                         'converged' if converged
-                        else f'no convergence in {self.max_iterations} iterations', lu)
+                        else f'no convergence in {self.max_iterations} iterations',
+                        factorization)
 
-    def _line_search(self, state: _State, step: np.ndarray, inputs: np.ndarray,
-                     lu: tuple) -> Optional[Tuple[_State, np.ndarray, float]]:
+    def _step(self, state: _State, residual: np.ndarray, leg_residuals: Optional[np.ndarray],
+              factorization: _Factorization) -> Tuple[np.ndarray, np.ndarray]:
         """
-        Halve the scaled Newton ``step`` until a trial passes the monotonicity test.
+        Newton step (platform unknowns, SI; leg unknowns (3, n)) for the given residuals.
+
+        Leg k's unknowns move by -J_k^-1 (r_k + dr_k/dw dw_k): its own Newton correction
+        a_k = J_k^-1 r_k, which turns its end disk by the twist -T_k a_k, and the response
+        to the wrench change. The platform step absorbs those twists into its
+        compatibility residual. Without ``leg_residuals`` (legs solved in full, or the
+        continuation predictor) only the wrench response moves the legs.
+        """
+        modified = residual / self._r_scale
+        if leg_residuals is None:
+            corrections = None
+        else:
+            corrections = np.matmul(factorization.inverses, leg_residuals[:, :, None])
+            # the twist enters the rotation error through the inverse left Jacobian of
+            # SO(3), the identity to first order in that (small) error: a change of the
+            # Newton matrix only, which leaves the solution where it is
+            twists = np.matmul(factorization.twists, corrections)[:, :, 0]
+            modified[:18] -= twists.ravel() / self._r_scale[:18]
+        platform = -self._x_scale * (factorization.platform_inverse @ modified)
+        legs = -np.matmul(factorization.gains, platform[6:].reshape(3, 6, 1))
+        if corrections is not None:
+            legs -= corrections
+        return platform, legs[:, :, 0]
+
+    def _step_norm(self, step: Tuple[np.ndarray, np.ndarray], coupled: bool) -> float:
+        """Norm of a step in the scaled unknowns (the legs' count only when ``coupled``)."""
+        platform = step[0] / self._x_scale
+        if not coupled:
+            return float(np.linalg.norm(platform))
+        return math.sqrt(float(platform @ platform) + float(np.sum(step[1] ** 2)))
+
+    def _line_search(self, state: _State, step: Tuple[np.ndarray, np.ndarray],
+                     inputs: np.ndarray, factorization: _Factorization,
+                     coupled: bool) -> Optional[Tuple[_State, np.ndarray, float]]:
+        """
+        Halve the Newton ``step`` until a trial passes the monotonicity test.
 
         Return (state, residual, contraction ||J^-1 r_trial|| / ||step||), or None.
         """
-        norm = float(np.linalg.norm(step))
+        norm = self._step_norm(step, coupled)
         scale = 1.0
         for _ in range(10):
-            trial = state.moved(scale * self._x_scale * step)
-            if all(leg.converged for leg in self._solve_legs(trial)):
+            trial = state.moved(scale * step[0], scale * step[1])
+            if self._evaluate(trial, coupled):
                 residual = self._residual(trial, inputs)
-                simplified = lu_solve(lu, residual / self._r_scale, check_finite=False)
-                contraction = float(np.linalg.norm(simplified)) / norm
+                simplified = self._step(trial, residual,
+                                        trial.leg_residuals if coupled else None, factorization)
+                contraction = self._step_norm(simplified, coupled) / norm
                 if contraction < 1.0 - 0.25 * scale:
                     return trial, residual, contraction
             scale *= 0.5
         return None
 
-    def _converged(self, residual: np.ndarray) -> bool:
+    def _converged(self, residual: np.ndarray, state: _State) -> bool:
         compatibility = residual[:18].reshape(3, 2, 3)
         return bool(np.abs(residual[18:]).max() <= self.equilibrium_tolerance
                     and np.abs(compatibility[:, 0]).max() <= self.position_tolerance
-                    and np.abs(compatibility[:, 1]).max() <= self.rotation_tolerance)
+                    and np.abs(compatibility[:, 1]).max() <= self.rotation_tolerance
+                    and state.leg_error <= self._leg_tolerance)
 
     # legs ------------------------------------------------------------------------------------
-    def _solve_legs(self, state: _State) -> List[SolveResult]:
-        """Solve each leg under its wrench (warm-started); store the results in ``state`` too."""
-        legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
-        state.legs = legs
-        return legs
+    def _evaluate(self, state: _State, coupled: bool) -> bool:
+        """
+        Give ``state`` its legs' end-disk frames; False if a leg cannot be evaluated there.
 
-    def _solve_leg(self, k: int, wrench: np.ndarray, compliance: bool = False) -> SolveResult:
+        ``coupled``: one residual shot per leg at the state's leg unknowns. Else each leg
+        is solved under its wrench (warm-started), its unknowns replaced by the solution.
+        """
+        if not coupled:
+            legs = [self._solve_leg(k, state.wrenches[k]) for k in range(3)]
+            self._store_legs(state, legs)
+            return all(leg.converged for leg in legs)
+        residuals = np.empty_like(state.unknowns)
+        frames = np.empty((3, 4, 4))
+        for k, solver in enumerate(self.leg_solvers):
+            residuals[k], frames[k] = solver.problem.residual_and_end_frame(
+                state.unknowns[k], state.wrenches[k])
+        self._counts['leg_shots'] += 3
+        state.leg_residuals, state.frames = residuals, frames
+        state.leg_error = float(np.abs(residuals).max())
+        return math.isfinite(state.leg_error) and bool(np.all(np.isfinite(frames)))
+
+    def _store_legs(self, state: _State, legs: List[SolveResult]) -> None:
+        """Set ``state``'s leg unknowns, frames and residual size from solved legs."""
+        state.legs = legs
+        state.frames = np.stack([leg.frames['de'] for leg in legs])
+        state.unknowns = np.stack([leg.unknowns / solver.problem.x_scale
+                                   for leg, solver in zip(legs, self.leg_solvers)])
+        state.leg_residuals = None
+        # a converged leg met its solver's tolerance on the largest residual component
+        state.leg_error = 0.0 if all(leg.converged for leg in legs) else math.inf
+
+    def _solve_leg(self, k: int, wrench: np.ndarray) -> SolveResult:
         remaining = self._deadline - time.perf_counter()
         if remaining <= 0.0:
             raise _Deadline(f'time limit of {self.time_limit_s} s reached')
         solver = self.leg_solvers[k]
         solver.time_limit_s = remaining
-        self._leg_solves += 1
-        return solver.solve(wrench[:3], wrench[3:], compliance=compliance)
+        self._counts['leg_solves'] += 1
+        return solver.solve(wrench[:3], wrench[3:])
 
-    def _compliance(self, k: int, wrench: np.ndarray) -> np.ndarray:
-        """Compliance of leg k at ``wrench``: d[v; w]/d[f; m] at the end disk in {pe_k}."""
-        result = self._solve_leg(k, wrench, compliance=True)
-        if result.compliance is None:
-            raise _LegFailure(f'no compliance of leg {k + 1}: {result.message}')
-        return result.compliance.matrix
+    def _leg_results(self, state: _State,
+                     factorization: Optional[_Factorization]) -> List[SolveResult]:
+        """
+        Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
+
+        A coupled iterate has none yet: each leg solver is started at the state's leg
+        unknowns with the leg's factorization (TranslatorSolver.start_at), so its solve
+        only confirms the residual and adds its verdicts.
+        """
+        if state.legs is not None:
+            return state.legs
+        legs = []
+        for k, solver in enumerate(self.leg_solvers):
+            leg = factorization.legs[k] if factorization is not None else None
+            solver.start_at(state.unknowns[k], state.wrenches[k],
+                            None if leg is None else (leg.lu, leg.pose, leg.wrench))
+            solver.time_limit_s = max(self._deadline - time.perf_counter(), 0.0)
+            legs.append(solver.solve(state.wrenches[k, :3], state.wrenches[k, 3:]))
+        self._counts['leg_solves'] += 3
+        state.legs = legs
+        return legs
+
+    def _factorize(self, state: _State, inputs: np.ndarray) -> _Factorization:
+        """
+        Exact linearization at ``state``: each leg's tangent-linear shot, and the platform LU.
+
+        ArithmeticError when a leg Jacobian or the platform Jacobian is singular.
+        """
+        if state.frames is None:
+            raise RuntimeError('the legs have not been evaluated at this state')
+        legs = []
+        for k, solver in enumerate(self.leg_solvers):
+            problem = solver.problem
+            _, jacobian, pose = problem.exact_jacobian(state.unknowns[k], state.wrenches[k])
+            lu = lu_factor(jacobian, check_finite=False)
+            gain = solve_lu(lu, problem.wrench_sensitivity)
+            rotation = state.frames[k, :3, :3].copy()
+            twist = pose_twist(pose, rotation)
+            compliance = -twist @ gain
+            if not np.all(np.isfinite(compliance)):
+                raise ArithmeticError(f'the Jacobian of leg {k + 1} is singular')
+            legs.append(_LegLinearization(lu, pose.copy(), twist, rotation, gain, compliance,
+                                          state.wrenches[k].copy()))
+        self._counts['leg_jacobians'] += 3
+        jacobian = self._jacobian(state, inputs, [leg.compliance for leg in legs])
+        platform = lu_factor(jacobian / self._r_scale[:, None] * self._x_scale[None, :],
+                             check_finite=False)
+        if not np.all(np.isfinite(platform[0])) or np.any(np.diag(platform[0]) == 0.0):
+            raise ArithmeticError('the platform Jacobian is singular')
+        return _Factorization(platform, tuple(legs), state)
 
     # residual and derivatives ----------------------------------------------------------------
     def _targets(self, state: _State, sliders: np.ndarray) -> List[Tuple[np.ndarray,
@@ -458,22 +722,31 @@ class DeltaRobot:
 
     def _residual(self, state: _State, inputs: np.ndarray) -> np.ndarray:
         """Compatibility (18: m, rad, in {pe_i}) and equilibrium (6: N, N m, in {w})."""
-        sliders, force, moment, offset = inputs[:3], inputs[3:6], inputs[6:9], inputs[9:]
+        if state.frames is None:
+            raise RuntimeError('the legs have not been evaluated at this state')
+        force, moment, offset = inputs[3:6], inputs[6:9], inputs[9:]
+        rotations, transposed = self._leg_rotations
+        arms = self._attachments @ state.rotation.T  # (3, 3): R a_i
+        bases = self._home_bases + inputs[:3, None] * self._slider_axes
+        # each attachment's position in its leg base frame, R_i^T (p + R a_i - b_i)
+        positions = np.matmul(transposed, (state.position + arms - bases)[:, :, None])
+        # R_de (R_i^T R R_i)^T = R_de R_i^T R^T R_i
+        errors = state.frames[:, :3, :3] @ (transposed @ state.rotation.T @ rotations)
         residual = np.empty(SIZE)
-        for k, (rotation, position) in enumerate(self._targets(state, sliders)):
-            frame = _solved(state)[k].frames['de']
-            residual[6 * k:6 * k + 3] = frame[:3, 3] - position
-            residual[6 * k + 3:6 * k + 6] = rotation_vector(frame[:3, :3] @ rotation.T)
-        forces, arms = self._reactions(state)
+        compatibility = residual[:18].reshape(3, 6)
+        compatibility[:, :3] = state.frames[:, :3, 3] - positions[:, :, 0]
+        for k in range(3):
+            compatibility[k, 3:] = rotation_vector(errors[k])
+        forces = -np.matmul(rotations, state.wrenches[:, :3, None])[:, :, 0]  # on the platform
+        moments = np.matmul(rotations, state.wrenches[:, 3:, None])[:, :, 0]
         residual[18:21] = force + forces.sum(axis=0)
-        residual[21:24] = (moment + np.cross(state.rotation @ offset, force)
-                           + np.cross(arms, forces).sum(axis=0))
-        for k, leg in enumerate(self.legs):
-            residual[21:24] -= leg.rotation @ state.wrenches[k, 3:]
+        residual[21:24] = (moment + _cross_sum((state.rotation @ offset)[None], force[None])
+                           + _cross_sum(arms, forces) - moments.sum(axis=0))
         return residual
 
-    def _jacobian(self, state: _State, inputs: np.ndarray) -> np.ndarray:
-        """d(residual)/d(unknowns), the leg blocks from each leg's compliance."""
+    def _jacobian(self, state: _State, inputs: np.ndarray,
+                  compliances: List[np.ndarray]) -> np.ndarray:
+        """d(residual)/d(platform unknowns), each leg entering through its ``compliances``."""
         force, offset = inputs[3:6], inputs[9:]
         jacobian = np.zeros((SIZE, SIZE))
         forces, arms = self._reactions(state)
@@ -481,7 +754,7 @@ class DeltaRobot:
         jacobian[21:24, 3:6] = _skew(force) @ _skew(state.rotation @ offset)
         for k, leg in enumerate(self.legs):
             columns = slice(6 + 6 * k, 12 + 6 * k)
-            compliance = self._compliance(k, state.wrenches[k])
+            compliance = compliances[k]
             # the rotation error log(R_de R_target^T): the end disk turns it from the left,
             # the platform from the right
             inverse = _inverse_left_jacobian(residual[6 * k + 3:6 * k + 6])
@@ -508,22 +781,38 @@ class DeltaRobot:
         return sensitivity
 
     # result ----------------------------------------------------------------------------------
-    def _result(self, outcome: _Outcome, inputs: np.ndarray, elapsed: float) -> DeltaResult:
+    def _count_into(self, result: DeltaResult) -> None:
+        result.leg_solves = self._counts['leg_solves']
+        result.leg_shots = self._counts['leg_shots']
+        result.leg_jacobians = self._counts['leg_jacobians']
+
+    def _result(self, outcome: _Outcome, legs: List[SolveResult], inputs: np.ndarray,
+                elapsed: float) -> DeltaResult:
         state = outcome.state
         residual = outcome.residual
-        if state.legs is None or not np.all(np.isfinite(residual)):
+        if not np.all(np.isfinite(residual)):
             residual = np.full(SIZE, np.nan)
-        return DeltaResult(
+        result = DeltaResult(
             converged=outcome.converged, message=outcome.message,
             iterations=outcome.iterations, sliders=inputs[:3].copy(),
             payload_force=inputs[3:6].copy(), payload_moment=inputs[6:9].copy(),
             payload_offset=inputs[9:].copy(), platform_position=state.position.copy(),
             platform_rotation=state.rotation.copy(), home_position=self.home_position.copy(),
-            leg_results=tuple(state.legs) if state.legs is not None else (),
-            leg_tip_wrenches=state.wrenches.copy(),
+            leg_results=tuple(legs), leg_tip_wrenches=state.wrenches.copy(),
             equilibrium_residual=residual[18:].copy(),
             compatibility_residual=residual[:18].reshape(3, 6).copy(),
-            solve_time_s=elapsed, leg_solves=self._leg_solves)
+            solve_time_s=elapsed, leg_solves=0)
+        self._count_into(result)
+        return result
+
+
+def _distance(first: _State, second: _State, x_scale: np.ndarray) -> float:
+    """Largest difference of two states in the scaled unknowns (platform and legs)."""
+    platform = np.concatenate([first.position - second.position,
+                               rotation_vector(first.rotation @ second.rotation.T),
+                               (first.wrenches - second.wrenches).ravel()]) / x_scale
+    return max(float(np.abs(platform).max()),
+               float(np.abs(first.unknowns - second.unknowns).max()))
 
 
 def solve_delta(sliders: ArrayLike, payload_force: ArrayLike,

@@ -1,0 +1,77 @@
+"""The compiled Newton-Broyden loop (cdr_translator/chord.py) against plain linear algebra."""
+
+from cdr_translator import chord
+import numpy as np
+import pytest
+from scipy.linalg import lu_factor, lu_solve
+
+
+@pytest.fixture
+def factorized():
+    """Return a random well-conditioned 40x40 matrix and scipy's LU factors of it."""
+    rng = np.random.default_rng(7)
+    matrix = rng.normal(size=(40, 40)) + 8.0 * np.eye(40)
+    return matrix, lu_factor(matrix)
+
+
+def test_lu_solve_matches_lapack(factorized):
+    """The compiled substitutions give LAPACK's solution (pivoting included)."""
+    matrix, (lu, pivots) = factorized
+    rhs = np.random.default_rng(8).normal(size=40)
+    out = np.empty(40)
+    chord.lu_solve(lu, pivots, rhs, out)
+    assert np.allclose(out, lu_solve((lu, pivots), rhs), rtol=0, atol=1e-12)
+    assert np.allclose(matrix @ out, rhs, atol=1e-10)
+
+
+def test_broyden_updates_meet_the_secant_condition(factorized):
+    """After the update from (s, y), H y = s: the defining property of Broyden's formula."""
+    _, (lu, pivots) = factorized
+    rng = np.random.default_rng(9)
+    updates = np.empty((4, 40))
+    steps = np.empty((4, 40))
+    for count in range(3):
+        step, change = rng.normal(size=40), rng.normal(size=40)
+        mapped = np.empty(40)
+        chord.broyden_apply(lu, pivots, updates, steps, count, change, mapped)
+        updates[count] = (step - mapped) / (step @ mapped)
+        steps[count] = step
+        after = np.empty(40)
+        chord.broyden_apply(lu, pivots, updates, steps, count + 1, change, after)
+        assert np.allclose(after, step, atol=1e-10)
+
+
+def test_chord_iterations_converge_on_the_translator(solver):
+    """From a perturbed solution, on the factorization at the solution, chord steps converge."""
+    problem = solver.problem
+    wrench = np.array([12.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    solution = solver.solve(wrench[:3]).unknowns / problem.x_scale
+    factorization = lu_factor(problem.exact_jacobian(solution, wrench)[1])
+    xs = solution * (1.0 + 1e-4 * np.random.default_rng(3).normal(size=problem.size))
+    rs = problem.residual_and_shape(xs, wrench)
+    status, iterations, norm, slot = problem.chord_newton(
+        xs, rs, wrench, factorization, False, 1e-10, 40, 0.9, 0)
+    assert status == chord.CONVERGED, status
+    assert 0 < iterations <= 40
+    assert np.abs(rs).max() <= 1e-10 and norm == pytest.approx(np.linalg.norm(rs))
+    assert np.allclose(xs, solution, atol=1e-7)
+    points, frames = problem.recorded_shape(slot)
+    expected_points, expected_frames = problem.shape(xs, wrench)
+    assert np.allclose(frames, expected_frames, atol=1e-14)
+    assert np.allclose(points, expected_points, atol=1e-14)
+
+
+def test_a_stale_factorization_asks_for_a_new_one(solver):
+    """Chord steps on a factorization from another load that shrink the residual too little."""
+    problem = solver.problem
+    nearby = solver.solve([10.0, 0.0, 0.0]).unknowns / problem.x_scale
+    stale = lu_factor(problem.exact_jacobian(nearby, np.array([10.0, 0, 0, 0, 0, 0]))[1])
+    wrench = np.array([12.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    solution = solver.solve(wrench[:3]).unknowns / problem.x_scale
+    xs = solution * (1.0 + 1e-4 * np.random.default_rng(3).normal(size=problem.size))
+    rs = problem.residual_and_shape(xs, wrench)
+    start = np.linalg.norm(rs)
+    status, iterations, norm, _ = problem.chord_newton(
+        xs, rs, wrench, stale, False, 1e-10, 40, 0.9, 0)
+    assert status == chord.REFACTOR
+    assert iterations >= 1 and norm < start  # the steps it took were accepted descents
