@@ -101,7 +101,8 @@ def jit_inline(func: Callable) -> Callable:
     """
     if _interpreting:
         return func
-    return numba.njit(cache=True, error_model='numpy', inline='always')(func)
+    return numba.njit(cache=True, error_model='numpy', fastmath=set(FASTMATH),
+                      inline='always')(func)
 
 
 def _index_files(kernel: Any) -> List[Path]:
