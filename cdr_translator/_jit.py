@@ -140,6 +140,21 @@ def jit(func: Callable) -> Callable:
     return kernel
 
 
+def jit_inline(func: Callable) -> Callable:
+    """
+    ``jit`` for a helper called in a hot loop: numba inlines it into every caller.
+
+    A call of a compiled function costs an atomic reference-count update for every array
+    it is handed, a few ns each (more than the helper's own work when the arrays are
+    small); inlined, the compiler removes them. Such a helper is never compiled on its
+    own, so it is not in KERNELS (it would count as uncached forever).
+    """
+    if _interpreting:
+        return func
+    return numba.njit(cache=True, error_model='numpy', fastmath=set(FASTMATH),
+                      inline='always')(func)
+
+
 def _index_files(kernel: Any) -> List[Path]:
     """Return the cache index files numba keeps for ``kernel`` (empty: never cached)."""
     func = kernel.py_func

@@ -36,9 +36,10 @@ import math
 
 import numpy as np
 
-from ._jit import jit
+from ._jit import jit, jit_inline
 from .rod import (integrate_segment, integrate_segment_tangent, LOCAL_DIRECTIONS, LOCAL_LENGTH,
-                  LOCAL_M, LOCAL_N, LOCAL_ROT)
+                  LOCAL_M, LOCAL_N, LOCAL_OUT_M, LOCAL_OUTPUTS, LOCAL_ROT, TANGENT_P,
+                  TANGENT_ROT)
 
 N_RODS = 5
 N_BASE_UNKNOWNS = 6 * N_RODS
@@ -338,166 +339,235 @@ def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, space
 # differentiated by hand, line by line against the primal helpers above, which still do the
 # primal update. The result is the derivative of the discrete residual itself (to rounding),
 # which central differences confirm (tests/core/test_jacobian.py).
+#
+# The tangent columns are kept station by station (``_internal_columns``): the base
+# unknowns, then station 0's 20, station 1's, ... Upstream of station t's disk no tangent
+# depends on a later station's unknowns, so every loop runs over the prefix of ``live``
+# columns that can be nonzero, contiguous and innermost (compiled to vector instructions);
+# the Jacobian's columns are put back in the unknowns' order at the end.
 
 @jit
-def _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, columns):
-    """
-    Gather rod k's input tangents into ``stack`` (LOCAL_DIRECTIONS, size); return counts.
+def _internal_columns(size, nst):
+    """Return the unknown of each tangent column: base unknowns, then station by station."""
+    order = np.empty(size, dtype=np.int64)
+    for q in range(N_BASE_UNKNOWNS):
+        order[q] = q
+    for t in range(nst):
+        for i in range(4):
+            for c in range(STATION_WIDTH):
+                order[_station_column(t, i) + c] = (N_BASE_UNKNOWNS
+                                                    + STATION_WIDTH * (i * nst + t) + c)
+    return order
 
-    ``active[j]`` says whether local direction j has any nonzero tangent (only those are
-    integrated), ``columns[:count]`` lists the unknowns whose tangent columns are nonzero
-    (only those are chained): near the base most are zero. Returns the column count.
+
+@jit
+def _station_column(t, i):
+    """Tangent column of secondary i's first unknown at station t (see _internal_columns)."""
+    return N_BASE_UNKNOWNS + STATION_WIDTH * (4 * t + i)
+
+
+@jit
+def _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, live):
     """
-    nd = tp.shape[2]
+    Gather rod k's input tangents into ``stack`` (LOCAL_DIRECTIONS, size), columns < live.
+
+    ``active[j]`` says whether local direction j has any nonzero tangent: only those are
+    integrated and chained.
+    """
     for a in range(3):
         for b in range(3):
-            for d in range(nd):
+            for d in range(live):
                 stack[LOCAL_ROT + 3 * a + b, d] = trot[k, a, b, d]
-        for d in range(nd):
+        for d in range(live):
             stack[LOCAL_N + a, d] = tn[k, a, d]
+        for d in range(live):
             stack[LOCAL_M + a, d] = tm[k, a, d]
-    for d in range(nd):
+    for d in range(live):
         stack[LOCAL_LENGTH, d] = tl[d]
-    count = 0
     for j in range(LOCAL_DIRECTIONS):
         active[j] = False
-    for d in range(nd):
-        used = False
-        for j in range(LOCAL_DIRECTIONS):
+        for d in range(live):
             if stack[j, d] != 0.0:
                 active[j] = True
-                used = True
-        if used:
-            columns[count] = d
-            count += 1
-    return count
+                break
+
+
+@jit_inline
+def _add4(acc, c0, c1, c2, c3, s0, s1, s2, s3):
+    """Return acc + c0 s0 + c1 s1 + c2 s2 + c3 s3, added in this order."""
+    return acc + c0 * s0 + c1 * s1 + c2 * s2 + c3 * s3
 
 
 @jit
-def _chain_segment(k, lp, lrot, lm, tp, trot, tm, stack, active, columns, count):
-    """Chain rod k's local segment derivative into its global tangents (nonzero columns)."""
+def _chain_rows(local, row, out, stack, active, live, keep):
+    """
+    Set out[c] (c < 3, columns < live) to sum_j local[row + c, j] stack[j], plus out if keep.
+
+    Directions go in blocks of four, so that each pass reads four rows of ``stack`` and
+    writes three (a loop that writes few rows is vectorized); blocks with no active
+    direction are skipped. The sum runs in direction order, as the plain loop would.
+    """
+    started = keep
+    for j in range(0, LOCAL_DIRECTIONS, 4):
+        if not (active[j] or active[j + 1] or active[j + 2] or active[j + 3]):
+            continue
+        a0, a1, a2, a3 = local[row, j], local[row, j + 1], local[row, j + 2], local[row, j + 3]
+        b0, b1, b2, b3 = (local[row + 1, j], local[row + 1, j + 1], local[row + 1, j + 2],
+                          local[row + 1, j + 3])
+        c0, c1, c2, c3 = (local[row + 2, j], local[row + 2, j + 1], local[row + 2, j + 2],
+                          local[row + 2, j + 3])
+        if started:
+            for d in range(live):
+                s0, s1, s2, s3 = stack[j, d], stack[j + 1, d], stack[j + 2, d], stack[j + 3, d]
+                out[0, d] = _add4(out[0, d], a0, a1, a2, a3, s0, s1, s2, s3)
+                out[1, d] = _add4(out[1, d], b0, b1, b2, b3, s0, s1, s2, s3)
+                out[2, d] = _add4(out[2, d], c0, c1, c2, c3, s0, s1, s2, s3)
+        else:
+            for d in range(live):
+                s0, s1, s2, s3 = stack[j, d], stack[j + 1, d], stack[j + 2, d], stack[j + 3, d]
+                out[0, d] = a0 * s0 + a1 * s1 + a2 * s2 + a3 * s3
+                out[1, d] = b0 * s0 + b1 * s1 + b2 * s2 + b3 * s3
+                out[2, d] = c0 * s0 + c1 * s1 + c2 * s2 + c3 * s3
+        started = True
+    if not started:
+        for c in range(3):
+            for d in range(live):
+                out[c, d] = 0.0
+
+
+@jit
+def _chain_segment(k, local, tp, trot, tm, stack, active, live):
+    """Chain rod k's local segment derivative ``local`` into its global tangents."""
+    _chain_rows(local, TANGENT_P, tp[k], stack, active, live, True)
+    _chain_rows(local, LOCAL_OUT_M, tm[k], stack, active, live, False)
     for a in range(3):
-        for index in range(count):
-            d = columns[index]
-            acc_p = tp[k, a, d]
-            acc_m = 0.0
-            for j in range(LOCAL_DIRECTIONS):
-                if active[j]:
-                    s = stack[j, d]
-                    acc_p += lp[a, j] * s
-                    acc_m += lm[a, j] * s
-            tp[k, a, d] = acc_p
-            tm[k, a, d] = acc_m
-        for b in range(3):
-            for index in range(count):
-                d = columns[index]
-                acc = 0.0
-                for j in range(LOCAL_DIRECTIONS):
-                    if active[j]:
-                        acc += lrot[a, b, j] * stack[j, d]
-                trot[k, a, b, d] = acc
+        _chain_rows(local, TANGENT_ROT + 3 * a, trot[k, a], stack, active, live, False)
 
 
 @jit
-def _station_tangent(p, rot, tp, trot, i, jac, row):
+def _segment_tangent(k, length, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp, trot, tn, tm,
+                     stack, active, local, live):
+    """Integrate rod k over a segment of ``length`` (tangent ``tl``), chaining its tangents."""
+    _segment_inputs(k, tl, tp, trot, tn, tm, stack, active, live)
+    integrate_segment_tangent(p[k], rot[k], n[k], m[k], length, steps, inv_kse, inv_kbt,
+                              active, local)
+    _chain_segment(k, local, tp, trot, tm, stack, active, live)
+
+
+@jit
+def _station_tangent(p, rot, tp, trot, i, jac, row, live):
     """Tangents of the 5 conditions of secondary i at a disk (see _station_residuals)."""
-    nd = tp.shape[2]
+    e0 = p[i + 1, 0] - p[0, 0]
+    e1 = p[i + 1, 1] - p[0, 1]
+    e2 = p[i + 1, 2] - p[0, 2]
     for c in range(3):
-        for d in range(nd):
-            acc = 0.0
-            for a in range(3):
-                acc += (trot[0, a, c, d] * (p[i + 1, a] - p[0, a])
-                        + rot[0, a, c] * (tp[i + 1, a, d] - tp[0, a, d]))
-            jac[row + c, d] = acc
+        r0 = rot[0, 0, c]
+        r1 = rot[0, 1, c]
+        r2 = rot[0, 2, c]
+        for d in range(live):
+            jac[row + c, d] = (trot[0, 0, c, d] * e0 + r0 * (tp[i + 1, 0, d] - tp[0, 0, d])
+                               + (trot[0, 1, c, d] * e1
+                                  + r1 * (tp[i + 1, 1, d] - tp[0, 1, d]))
+                               + (trot[0, 2, c, d] * e2
+                                  + r2 * (tp[i + 1, 2, d] - tp[0, 2, d])))
     for c in range(2):
-        for d in range(nd):
-            acc = 0.0
-            for a in range(3):
-                acc += trot[0, a, c, d] * rot[i + 1, a, 2] + rot[0, a, c] * trot[i + 1, a, 2, d]
-            jac[row + 3 + c, d] = acc
+        r0 = rot[0, 0, c]
+        r1 = rot[0, 1, c]
+        r2 = rot[0, 2, c]
+        s0 = rot[i + 1, 0, 2]
+        s1 = rot[i + 1, 1, 2]
+        s2 = rot[i + 1, 2, 2]
+        for d in range(live):
+            jac[row + 3 + c, d] = (trot[0, 0, c, d] * s0 + r0 * trot[i + 1, 0, 2, d]
+                                   + (trot[0, 1, c, d] * s1 + r1 * trot[i + 1, 1, 2, d])
+                                   + (trot[0, 2, c, d] * s2 + r2 * trot[i + 1, 2, 2, d]))
 
 
 @jit
-def _in_plane_tangent(rot, trot, a, b, col_a, out):
-    """Tangent of a * (disk x axis) + b * (disk y axis); a, b the unknowns col_a, col_a + 1."""
-    nd = trot.shape[2]
+def _in_plane_tangent(rot, trot, a, b, col_a, out, live):
+    """Tangent of a * (disk x axis) + b * (disk y axis); a, b the columns col_a, col_a + 1."""
     for c in range(3):
-        for d in range(nd):
+        for d in range(live):
             out[c, d] = a * trot[c, 0, d] + b * trot[c, 1, d]
         out[c, col_a] += rot[c, 0]
         out[c, col_a + 1] += rot[c, 1]
 
 
 @jit
-def _cross_tangent_sub(a, ta, b, tb, out):
-    """Subtract the tangent of a x b, (ta x b + a x tb), from out (3, nd)."""
-    for d in range(out.shape[1]):
+def _cross_tangent_sub(a, ta, b, tb, out, live):
+    """Subtract the tangent of a x b, (ta x b + a x tb), from out (3, columns < live)."""
+    for d in range(live):
         out[0, d] -= ta[1, d] * b[2] - ta[2, d] * b[1] + a[1] * tb[2, d] - a[2] * tb[1, d]
         out[1, d] -= ta[2, d] * b[0] - ta[0, d] * b[2] + a[2] * tb[0, d] - a[0] * tb[2, d]
         out[2, d] -= ta[0, d] * b[1] - ta[1, d] * b[0] + a[0] * tb[1, d] - a[1] * tb[0, d]
 
 
 @jit
-def _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac):
+def _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac, live):
     """Tangents of ``_spacer_disk`` at station t; call it before the primal helper."""
-    nd = tp.shape[2]
     force = np.empty(3)
     arm = np.empty(3)
-    tforce = np.empty((3, nd))
-    tmoment = np.empty((3, nd))
-    tarm = np.empty((3, nd))
+    tforce = np.empty((3, live))
+    tmoment = np.empty((3, live))
+    tarm = np.empty((3, live))
     for i in range(4):
         u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
-        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t))
+        column = _station_column(t, i)
+        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t), live)
         _in_plane(rot[0], x[u + 1], x[u + 2], force)
-        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], u + 1, tforce)
-        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], u + 3, tmoment)
+        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], column + 1, tforce, live)
+        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], column + 3, tmoment, live)
         for c in range(3):
             arm[c] = p[i + 1, c] - p[0, c]
-            for d in range(nd):
+            for d in range(live):
                 tarm[c, d] = tp[i + 1, c, d] - tp[0, c, d]
                 tn[i + 1, c, d] += tforce[c, d]
                 tm[i + 1, c, d] += tmoment[c, d]
                 tn[0, c, d] -= tforce[c, d]
                 tm[0, c, d] -= tmoment[c, d]
-        _cross_tangent_sub(arm, tarm, force, tforce, tm[0])
+        _cross_tangent_sub(arm, tarm, force, tforce, tm[0], live)
 
 
 @jit
 def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, trot, tn, tm,
-                  tused, jac):
+                  tused, jac, live):
     """Tangents of ``_tube`` at station t; call it before the primal helper."""
-    nd = tp.shape[2]
     axis = rot[0, :, 2].copy()
-    taxis = trot[0, :, 2, :].copy()
+    taxis = np.empty((3, live))
+    tproximal = np.empty((3, live))
+    for c in range(3):
+        for d in range(live):
+            taxis[c, d] = trot[0, c, 2, d]
+            tproximal[c, d] = tp[0, c, d]
     proximal = p[0].copy()
-    tproximal = tp[0].copy()
-    tchange_force = np.zeros((3, nd))
-    tchange_moment = np.zeros((3, nd))
+    tchange_force = np.zeros((3, live))
+    tchange_moment = np.zeros((3, live))
     change_force = np.zeros(3)
     change_moment = np.zeros(3)
     arm = np.empty(3)
-    tarm = np.empty((3, nd))
+    tarm = np.empty((3, live))
     nk = np.empty(3)
     mk = np.empty(3)
-    tlat = np.empty((3, nd))
-    tlat2 = np.empty((3, nd))
+    tlat = np.empty((3, live))
+    tlat2 = np.empty((3, live))
+    tscalar = np.empty((4, live))  # tangents of the axial force, torsion, cos and sin
     lat = np.empty(3)
     lat2 = np.empty(3)
     for i in range(4):
         k = i + 1
         u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
-        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t))
+        column = _station_column(t, i)
+        _station_tangent(p, rot, tp, trot, i, jac, STATION_WIDTH * (i * nst + t), live)
         for c in range(3):
             arm[c] = p[k, c] - proximal[c]
             change_force[c] -= n[k, c]
             change_moment[c] -= m[k, c]
-            for d in range(nd):
+            for d in range(live):
                 tarm[c, d] = tp[k, c, d] - tproximal[c, d]
                 tchange_force[c, d] -= tn[k, c, d]
                 tchange_moment[c, d] -= tm[k, c, d]
         _cross_sub(arm, n[k], change_moment)
-        _cross_tangent_sub(arm, tarm, n[k], tn[k], tchange_moment)
+        _cross_tangent_sub(arm, tarm, n[k], tn[k], tchange_moment, live)
         axial_force = axis[0] * n[k, 0] + axis[1] * n[k, 1] + axis[2] * n[k, 2]
         torsion = rot[k, 0, 2] * m[k, 0] + rot[k, 1, 2] * m[k, 1] + rot[k, 2, 2] * m[k, 2]
         denominator = 1.0 + inv_kse[2] * axial_force
@@ -507,29 +577,40 @@ def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, tr
         sin_t = math.sin(twist)
         _in_plane(rot[0], x[u + 1], x[u + 2], lat)
         _in_plane(rot[0], x[u + 3], x[u + 4], lat2)
-        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], u + 1, tlat)
-        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], u + 3, tlat2)
-        for d in range(nd):
-            t_axial = 0.0
-            t_torsion = 0.0
-            for c in range(3):
-                t_axial += taxis[c, d] * n[k, c] + axis[c] * tn[k, c, d]
-                t_torsion += trot[k, c, 2, d] * m[k, c] + rot[k, c, 2] * tm[k, c, d]
+        _in_plane_tangent(rot[0], trot[0], x[u + 1], x[u + 2], column + 1, tlat, live)
+        _in_plane_tangent(rot[0], trot[0], x[u + 3], x[u + 4], column + 3, tlat2, live)
+        # (loops that write few rows each, so that they are vectorized)
+        n0, n1, n2 = n[k, 0], n[k, 1], n[k, 2]
+        m0, m1, m2 = m[k, 0], m[k, 1], m[k, 2]
+        z0, z1, z2 = rot[k, 0, 2], rot[k, 1, 2], rot[k, 2, 2]
+        for d in range(live):
+            t_axial = (taxis[0, d] * n0 + axis[0] * tn[k, 0, d]
+                       + (taxis[1, d] * n1 + axis[1] * tn[k, 1, d])
+                       + (taxis[2, d] * n2 + axis[2] * tn[k, 2, d]))
+            t_torsion = (trot[k, 0, 2, d] * m0 + z0 * tm[k, 0, d]
+                         + (trot[k, 1, 2, d] * m1 + z1 * tm[k, 1, d])
+                         + (trot[k, 2, 2, d] * m2 + z2 * tm[k, 2, d]))
             t_inside = -tube_length * inv_kse[2] * t_axial / denominator ** 2
             tused[i, d] += t_inside
             t_twist = inv_kbt[2] * (t_torsion * inside + torsion * t_inside)
-            t_cos = -sin_t * t_twist
-            t_sin = cos_t * t_twist
-            for c in range(3):  # R <- R Rz(twist)
-                r0 = rot[k, c, 0]
-                r1 = rot[k, c, 1]
+            tscalar[0, d] = t_axial
+            tscalar[1, d] = t_torsion
+            tscalar[2, d] = -sin_t * t_twist  # of cos(twist)
+            tscalar[3, d] = cos_t * t_twist  # of sin(twist)
+        for c in range(3):  # R <- R Rz(twist)
+            r0 = rot[k, c, 0]
+            r1 = rot[k, c, 1]
+            for d in range(live):
+                t_cos = tscalar[2, d]
+                t_sin = tscalar[3, d]
                 s0 = trot[k, c, 0, d]
                 s1 = trot[k, c, 1, d]
                 trot[k, c, 0, d] = t_cos * r0 + cos_t * s0 + t_sin * r1 + sin_t * s1
                 trot[k, c, 1, d] = -t_sin * r0 - sin_t * s0 + t_cos * r1 + cos_t * s1
                 tp[k, c, d] += tube_length * taxis[c, d]
-                tn[k, c, d] = t_axial * axis[c] + axial_force * taxis[c, d] + tlat[c, d]
-                tm[k, c, d] = t_torsion * axis[c] + torsion * taxis[c, d] + tlat2[c, d]
+            for d in range(live):
+                tn[k, c, d] = tscalar[0, d] * axis[c] + axial_force * taxis[c, d] + tlat[c, d]
+                tm[k, c, d] = tscalar[1, d] * axis[c] + torsion * taxis[c, d] + tlat2[c, d]
                 tarm[c, d] = tp[k, c, d] - tproximal[c, d]
                 tchange_force[c, d] += tn[k, c, d]
                 tchange_moment[c, d] += tm[k, c, d]
@@ -544,61 +625,92 @@ def _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp, tr
             lat[c] = -arm[c]
         _cross_sub(lat, nk, change_moment)
         for c in range(3):
-            for d in range(nd):
+            for d in range(live):
                 tlat[c, d] = -tarm[c, d]
-        _cross_tangent_sub(lat, tlat, nk, tn[k], tchange_moment)
+        _cross_tangent_sub(lat, tlat, nk, tn[k], tchange_moment, live)
     for c in range(3):
         nk[c] = n[0, c] - change_force[c]
         arm[c] = tube_length * axis[c]
-        for d in range(nd):
+        for d in range(live):
             tn[0, c, d] -= tchange_force[c, d]
             tm[0, c, d] -= tchange_moment[c, d]
             tarm[c, d] = tube_length * taxis[c, d]
             tp[0, c, d] = tproximal[c, d] + tarm[c, d]
-    _cross_tangent_sub(arm, tarm, nk, tn[0], tm[0])
+    _cross_tangent_sub(arm, tarm, nk, tn[0], tm[0], live)
+
+
+@jit_inline
+def _relative_rotation_tangent(rot, trot, k, a, b, d):
+    """Tangent (column d) of entry (a, b) of R_0^T R_k."""
+    return (trot[0, 0, a, d] * rot[k, 0, b] + rot[0, 0, a] * trot[k, 0, b, d]
+            + (trot[0, 1, a, d] * rot[k, 1, b] + rot[0, 1, a] * trot[k, 1, b, d])
+            + (trot[0, 2, a, d] * rot[k, 2, b] + rot[0, 2, a] * trot[k, 2, b, d]))
 
 
 @jit
-def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row):
+def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row, live):
     """Tangents of ``_end_disk`` (the wrench enters linearly and has no x-tangent)."""
-    nd = tp.shape[2]
     arm = np.empty(3)
-    tarm = np.empty((3, nd))
-    tmoment = np.zeros((3, nd))
-    tq = np.empty((3, 3))
+    tarm = np.empty((3, live))
+    tmoment = np.zeros((3, live))
     for c in range(3):
-        for d in range(nd):
+        for d in range(live):
             jac[row + 24 + c, d] = 0.0
     for k in range(N_RODS):
         for c in range(3):
             arm[c] = p[k, c] - p[0, c]
-            for d in range(nd):
+            for d in range(live):
                 tarm[c, d] = tp[k, c, d] - tp[0, c, d]
                 jac[row + 24 + c, d] -= tn[k, c, d]
                 tmoment[c, d] -= tm[k, c, d]
-        _cross_tangent_sub(arm, tarm, n[k], tn[k], tmoment)
+        _cross_tangent_sub(arm, tarm, n[k], tn[k], tmoment, live)
         if k == 0:
             continue
         r = row + 6 * (k - 1)
         for c in range(3):
-            for d in range(nd):
-                acc = 0.0
-                for a in range(3):
-                    acc += trot[0, a, c, d] * arm[a] + rot[0, a, c] * tarm[a, d]
-                jac[r + c, d] = acc
-        for d in range(nd):
-            for a in range(3):
-                for b in range(3):
-                    acc = 0.0
-                    for c in range(3):
-                        acc += trot[0, c, a, d] * rot[k, c, b] + rot[0, c, a] * trot[k, c, b, d]
-                    tq[a, b] = acc
-            jac[r + 3, d] = 0.5 * (tq[2, 1] - tq[1, 2])
-            jac[r + 4, d] = 0.5 * (tq[0, 2] - tq[2, 0])
-            jac[r + 5, d] = 0.5 * (tq[1, 0] - tq[0, 1])
+            r0 = rot[0, 0, c]
+            r1 = rot[0, 1, c]
+            r2 = rot[0, 2, c]
+            for d in range(live):
+                jac[r + c, d] = (trot[0, 0, c, d] * arm[0] + r0 * tarm[0, d]
+                                 + (trot[0, 1, c, d] * arm[1] + r1 * tarm[1, d])
+                                 + (trot[0, 2, c, d] * arm[2] + r2 * tarm[2, d]))
+        # the skew part of R_0^T R_k (see _end_disk)
+        for c in range(3):
+            a = (c + 2) % 3  # the entries (a, b) - (b, a) of R_0^T R_k give component c
+            b = (c + 1) % 3
+            for d in range(live):
+                jac[r + 3 + c, d] = 0.5 * (_relative_rotation_tangent(rot, trot, k, a, b, d)
+                                           - _relative_rotation_tangent(rot, trot, k, b, a, d))
     for c in range(3):
-        for d in range(nd):
+        for d in range(live):
             jac[row + 27 + c, d] = tmoment[c, d]
+
+
+@jit
+def _unknowns_order(jac, nst):
+    """
+    Put the Jacobian's columns (tangent-column order) in the unknowns' order, in place.
+
+    The rows of station t were written only for the columns before station t + 1's (the
+    rest are zero by construction), so nothing else need be cleared beforehand.
+    """
+    size = jac.shape[1]
+    row = np.empty(size)
+    for r in range(jac.shape[0]):
+        live = size
+        if r < 4 * STATION_WIDTH * nst:
+            live = _station_column(r // STATION_WIDTH % nst + 1, 0)
+        for q in range(live):
+            row[q] = jac[r, q]
+        for q in range(live, size):
+            row[q] = 0.0
+        for t in range(nst):
+            for i in range(4):
+                source = _station_column(t, i)
+                target = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
+                for c in range(STATION_WIDTH):
+                    jac[r, target + c] = row[source + c]
 
 
 @jit
@@ -612,6 +724,7 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     """
     size = x.shape[0]
     nst = 2 * spacers + 1
+    order = _internal_columns(size, nst)
     hole, p, rot, n, m = _base_state(x, pitch_radius)
     tp = np.zeros((N_RODS, 3, size))
     trot = np.zeros((N_RODS, 3, 3, size))
@@ -621,10 +734,7 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     tl = np.zeros(size)
     stack = np.empty((LOCAL_DIRECTIONS, size))
     active = np.zeros(LOCAL_DIRECTIONS, dtype=np.bool_)
-    columns = np.empty(size, dtype=np.int64)
-    lp = np.empty((3, LOCAL_DIRECTIONS))
-    lrot = np.empty((3, 3, LOCAL_DIRECTIONS))
-    lm = np.empty((3, LOCAL_DIRECTIONS))
+    local = np.empty((LOCAL_OUTPUTS, LOCAL_DIRECTIONS))
     for k in range(N_RODS):
         for c in range(3):
             tn[k, c, 6 * k + c] = 1.0
@@ -632,45 +742,39 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     _store_frame(rot[0], p[0], frames[0])
     secondary_length = 2.0 * (spacers + 1) * spacing + tube_length
     used = np.zeros(4)
-    for r in range(jac.shape[0]):
-        for d in range(size):
-            jac[r, d] = 0.0
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
-            tl[:] = 0.0
-            count = _segment_inputs(0, tl, tp, trot, tn, tm, stack, active, columns)
-            integrate_segment_tangent(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse,
-                                      inv_kbt, lp, lrot, lm, active)
-            _chain_segment(0, lp, lrot, lm, tp, trot, tm, stack, active, columns, count)
             is_end = joint == 1 and station == spacers
+            # columns that can be nonzero up to this station's disk
+            live = size if is_end else _station_column(t + 1, 0)
+            _segment_tangent(0, spacing, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp, trot,
+                             tn, tm, stack, active, local, live)
             for i in range(4):
-                tl[:] = 0.0
                 if is_end:
                     length = secondary_length - used[i]
-                    for d in range(size):
+                    for d in range(live):
                         tl[d] = -tused[i, d]
                 else:
-                    u = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
-                    length = x[u]
-                    tl[u] = 1.0
+                    length = x[N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)]
+                    tl[_station_column(t, i)] = 1.0
                 used[i] += length
-                for d in range(size):
+                for d in range(live):
                     tused[i, d] += tl[d]
-                count = _segment_inputs(i + 1, tl, tp, trot, tn, tm, stack, active, columns)
-                integrate_segment_tangent(p[i + 1], rot[i + 1], n[i + 1], m[i + 1], length,
-                                          steps, inv_kse, inv_kbt, lp, lrot, lm, active)
-                _chain_segment(i + 1, lp, lrot, lm, tp, trot, tm, stack, active, columns,
-                               count)
+                _segment_tangent(i + 1, length, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp,
+                                 trot, tn, tm, stack, active, local, live)
+                for d in range(live):
+                    tl[d] = 0.0
             if is_end:
                 _store_frame(rot[0], p[0], frames[3])
                 for c in range(3):
                     for d in range(size):
-                        pose_jac[c, d] = tp[0, c, d]
+                        pose_jac[c, order[d]] = tp[0, c, d]
                     for b in range(3):
                         for d in range(size):
-                            pose_jac[3 + 3 * c + b, d] = trot[0, c, b, d]
-                _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, 4 * STATION_WIDTH * nst)
+                            pose_jac[3 + 3 * c + b, order[d]] = trot[0, c, b, d]
+                _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, 4 * STATION_WIDTH * nst,
+                                  live)
                 _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
                 continue
             col = _gather_station(x, t, nst)
@@ -678,13 +782,14 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             if joint == 0 and station == spacers:
                 _store_frame(rot[0], p[0], frames[1])
                 _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp,
-                              trot, tn, tm, tused, jac)
+                              trot, tn, tm, tused, jac, live)
                 _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
                       used)
                 _store_frame(rot[0], p[0], frames[2])
             else:
-                _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac)
+                _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac, live)
                 _spacer_disk(p, rot, n, m, col, 0, res, 0, hole)
             for i in range(4):
                 for c in range(STATION_WIDTH):
                     out[STATION_WIDTH * (i * nst + t) + c] = res[STATION_WIDTH * i + c]
+    _unknowns_order(jac, nst)

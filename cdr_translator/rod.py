@@ -12,7 +12,7 @@ Inverse stiffnesses are passed as 3-vectors ``inv_kse`` and ``inv_kbt``. SI unit
 
 import numpy as np
 
-from ._jit import jit
+from ._jit import jit, jit_inline
 
 
 @jit
@@ -133,68 +133,152 @@ LOCAL_N = 9
 LOCAL_M = 12
 LOCAL_LENGTH = 15
 LOCAL_DIRECTIONS = 16
+#: Rows of a tangent state: p, R (row-major), n, m(0); row 3 + j holds local direction j's
+#: input. A tangent rate has the first TANGENT_POSE rows (p', R').
+TANGENT_P = 0
+TANGENT_ROT = 3
+TANGENT_N = 12
+TANGENT_M = 15
+TANGENT_ROWS = 18
+TANGENT_POSE = 12
+#: Rows of the local derivative that ``integrate_segment_tangent`` returns: p and R at
+#: their tangent-state rows, then m at LOCAL_OUT_M.
+LOCAL_OUT_M = 12
+LOCAL_OUTPUTS = 15
 
 
-@jit
-def pose_derivative_tangent(p, rot, tp, trot, n, m_start, p_start, tn, tm_start, inv_kse,
-                            inv_kbt, dp, drot, tdp, tdrot):
+@jit_inline
+def _moment_tangent(tstate, d, n0, n1, n2, dx, dy, dz):
     """
-    Eq. (6) and its tangent-linear map: dp, drot as ``pose_derivative``; tdp, tdrot.
+    Tangent (column d of ``tstate``) of m = m(0) - (p - p(0)) x n, (dx, dy, dz) = p - p(0).
 
-    ``tp`` (3, nd), ``trot`` (3, 3, nd), ``tn`` and ``tm_start`` (3, nd) are the tangents of
-    the pose and of the segment's constant n and initial m along nd directions (p_start's
-    tangent is zero in the local directions). Differentiating the constitutive law gives
-    dm = dm_start - dp x n - (p - p_start) x dn, dv = Kse^-1 (dR^T n + R^T dn),
-    du = Kbt^-1 (dR^T m + R^T dm), d(p') = dR v + R dv, d(R') = dR [u]x + R [du]x.
+    dm = dm(0) - dp x n - (p - p(0)) x dn, as in ``carry_moment``.
+    """
+    tpx = tstate[TANGENT_P, d]
+    tpy = tstate[TANGENT_P + 1, d]
+    tpz = tstate[TANGENT_P + 2, d]
+    tnx = tstate[TANGENT_N, d]
+    tny = tstate[TANGENT_N + 1, d]
+    tnz = tstate[TANGENT_N + 2, d]
+    return (tstate[TANGENT_M, d] - (tpy * n2 - tpz * n1) - (dy * tnz - dz * tny),
+            tstate[TANGENT_M + 1, d] - (tpz * n0 - tpx * n2) - (dz * tnx - dx * tnz),
+            tstate[TANGENT_M + 2, d] - (tpx * n1 - tpy * n0) - (dx * tny - dy * tnx))
+
+
+@jit_inline
+def _transposed_tangent(t, r, a, ta, scale):
+    """
+    Tangent scale * (T^T a + R^T ta) of scale * R^T a, as three values.
+
+    ``t`` and ``r`` hold T and R column by column (9-tuples), ``a``, ``ta`` and ``scale``
+    are 3-tuples (the scale is elementwise).
+    """
+    return ((t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + r[0] * ta[0] + r[1] * ta[1]
+             + r[2] * ta[2]) * scale[0],
+            (t[3] * a[0] + t[4] * a[1] + t[5] * a[2] + r[3] * ta[0] + r[4] * ta[1]
+             + r[5] * ta[2]) * scale[1],
+            (t[6] * a[0] + t[7] * a[1] + t[8] * a[2] + r[6] * ta[0] + r[7] * ta[1]
+             + r[8] * ta[2]) * scale[2])
+
+
+@jit_inline
+def _rate_row_tangent(rot, tstate, strains, tstrains, row, trate):
+    """
+    Tangents of row ``row`` of p' = R v and R' = R [u]x into ``trate``, all directions.
+
+    ``strains`` = (v, u), ``tstrains`` (6, nd) their tangents. A loop of its own, with four
+    rows written, so that the compiler can vectorize it (with more it gives up).
+    """
+    r0 = rot[row, 0]
+    r1 = rot[row, 1]
+    r2 = rot[row, 2]
+    v0, v1, v2 = strains[0], strains[1], strains[2]
+    u0, u1, u2 = strains[3], strains[4], strains[5]
+    for d in range(tstate.shape[1]):
+        t0 = tstate[TANGENT_ROT + 3 * row, d]
+        t1 = tstate[TANGENT_ROT + 3 * row + 1, d]
+        t2 = tstate[TANGENT_ROT + 3 * row + 2, d]
+        tv0 = tstrains[0, d]
+        tv1 = tstrains[1, d]
+        tv2 = tstrains[2, d]
+        tu0 = tstrains[3, d]
+        tu1 = tstrains[4, d]
+        tu2 = tstrains[5, d]
+        trate[TANGENT_P + row, d] = t0 * v0 + t1 * v1 + t2 * v2 + r0 * tv0 + r1 * tv1 + r2 * tv2
+        trate[TANGENT_ROT + 3 * row, d] = t1 * u2 - t2 * u1 + r1 * tu2 - r2 * tu1
+        trate[TANGENT_ROT + 3 * row + 1, d] = t2 * u0 - t0 * u2 + r2 * tu0 - r0 * tu2
+        trate[TANGENT_ROT + 3 * row + 2, d] = t0 * u1 - t1 * u0 + r0 * tu1 - r1 * tu0
+
+
+@jit_inline
+def pose_derivative_tangent(p, rot, n, m_start, p_start, inv_kse, inv_kbt, tstate, dp, drot,
+                            trate, strains, tstrains):
+    """
+    Eq. (6) and its tangent-linear map: dp, drot as ``pose_derivative``; ``trate``.
+
+    ``tstate`` (TANGENT_ROWS, nd) holds the tangents of p, R, the segment's constant n and
+    initial m along nd directions (p_start's tangent is zero in the local directions);
+    ``trate`` (TANGENT_POSE, nd) receives those of p' and R'. Differentiating the
+    constitutive law gives dm = dm_start - dp x n - (p - p_start) x dn,
+    dv = Kse^-1 (dR^T n + R^T dn), du = Kbt^-1 (dR^T m + R^T dm), d(p') = dR v + R dv,
+    d(R') = dR [u]x + R [du]x. ``strains`` (6) and ``tstrains`` (6, nd) are scratch: (v, u)
+    and their tangents. The loops over the directions have bodies of scalars, so the
+    compiler turns them into vector instructions.
     """
     dx, dy, dz, mx, my, mz, v0, v1, v2, u0, u1, u2 = local_strains(p, rot, n, m_start,
                                                                    p_start, inv_kse, inv_kbt)
     pose_rates(rot, v0, v1, v2, u0, u1, u2, dp, drot)
-    tv = np.empty(3)
-    tu = np.empty(3)
-    for d in range(tp.shape[1]):
-        tnx = tn[0, d]
-        tny = tn[1, d]
-        tnz = tn[2, d]
-        tpx = tp[0, d]
-        tpy = tp[1, d]
-        tpz = tp[2, d]
-        tmx = tm_start[0, d] - (tpy * n[2] - tpz * n[1]) - (dy * tnz - dz * tny)
-        tmy = tm_start[1, d] - (tpz * n[0] - tpx * n[2]) - (dz * tnx - dx * tnz)
-        tmz = tm_start[2, d] - (tpx * n[1] - tpy * n[0]) - (dx * tny - dy * tnx)
-        for c in range(3):
-            tv[c] = (trot[0, c, d] * n[0] + trot[1, c, d] * n[1] + trot[2, c, d] * n[2]
-                     + rot[0, c] * tnx + rot[1, c] * tny + rot[2, c] * tnz) * inv_kse[c]
-            tu[c] = (trot[0, c, d] * mx + trot[1, c, d] * my + trot[2, c, d] * mz
-                     + rot[0, c] * tmx + rot[1, c] * tmy + rot[2, c] * tmz) * inv_kbt[c]
-        for i in range(3):
-            r0 = rot[i, 0]
-            r1 = rot[i, 1]
-            r2 = rot[i, 2]
-            t0 = trot[i, 0, d]
-            t1 = trot[i, 1, d]
-            t2 = trot[i, 2, d]
-            tdp[i, d] = t0 * v0 + t1 * v1 + t2 * v2 + r0 * tv[0] + r1 * tv[1] + r2 * tv[2]
-            tdrot[i, 0, d] = t1 * u2 - t2 * u1 + r1 * tu[2] - r2 * tu[1]
-            tdrot[i, 1, d] = t2 * u0 - t0 * u2 + r2 * tu[0] - r0 * tu[2]
-            tdrot[i, 2, d] = t0 * u1 - t1 * u0 + r0 * tu[1] - r1 * tu[0]
+    n0, n1, n2 = n[0], n[1], n[2]
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    se0, se1, se2 = inv_kse[0], inv_kse[1], inv_kse[2]
+    bt0, bt1, bt2 = inv_kbt[0], inv_kbt[1], inv_kbt[2]
+    r_columns = (r00, r10, r20, r01, r11, r21, r02, r12, r22)
+    for d in range(tstate.shape[1]):
+        tmx, tmy, tmz = _moment_tangent(tstate, d, n0, n1, n2, dx, dy, dz)
+        t00 = tstate[TANGENT_ROT, d]
+        t01 = tstate[TANGENT_ROT + 1, d]
+        t02 = tstate[TANGENT_ROT + 2, d]
+        t10 = tstate[TANGENT_ROT + 3, d]
+        t11 = tstate[TANGENT_ROT + 4, d]
+        t12 = tstate[TANGENT_ROT + 5, d]
+        t20 = tstate[TANGENT_ROT + 6, d]
+        t21 = tstate[TANGENT_ROT + 7, d]
+        t22 = tstate[TANGENT_ROT + 8, d]
+        tnx = tstate[TANGENT_N, d]
+        tny = tstate[TANGENT_N + 1, d]
+        tnz = tstate[TANGENT_N + 2, d]
+        # v = e3 + Kse^-1 R^T n, u = Kbt^-1 R^T m
+        t_columns = (t00, t10, t20, t01, t11, t21, t02, t12, t22)
+        (tstrains[0, d], tstrains[1, d], tstrains[2, d]) = _transposed_tangent(
+            t_columns, r_columns, (n0, n1, n2), (tnx, tny, tnz), (se0, se1, se2))
+        (tstrains[3, d], tstrains[4, d], tstrains[5, d]) = _transposed_tangent(
+            t_columns, r_columns, (mx, my, mz), (tmx, tmy, tmz), (bt0, bt1, bt2))
+    strains[0] = v0
+    strains[1] = v1
+    strains[2] = v2
+    strains[3] = u0
+    strains[4] = u1
+    strains[5] = u2
+    for row in range(3):
+        _rate_row_tangent(rot, tstate, strains, tstrains, row, trate)
 
 
 @jit
-def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp, trot, tm,
-                              active):
+def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, active, local):
     """
     ``integrate_segment`` (no points) plus the exact derivative of the discrete map.
 
-    On exit (p, rot, m) hold the end state as in ``integrate_segment`` and ``tp`` (3, 16),
-    ``trot`` (3, 3, 16), ``tm`` (3, 16) its derivatives along the LOCAL_DIRECTIONS inputs:
-    the 9 entries of R(0), n, m(0) and the segment length. (The derivative with respect to
-    p(0) is the identity on p and zero on R and m: the map is translation invariant.) Only
-    the directions flagged in ``active`` (bool, 16) are computed; the others are left
-    zero (e.g. R(0) at a rod's first segment, where it is fixed). It is
-    the tangent-linear (forward-mode) form of the very RK4 steps taken, so it equals the
-    derivative of the discretized map to rounding, not that of the continuous one
-    (variational equations of Eq. 6 discretized by the same Runge-Kutta scheme, whose
+    On exit (p, rot, m) hold the end state as in ``integrate_segment`` and ``local``
+    (LOCAL_OUTPUTS, LOCAL_DIRECTIONS) its derivatives (rows: p, R row-major, m) along the
+    local directions: the 9 entries of R(0), n, m(0) and the segment length. (The
+    derivative with respect to p(0) is the identity on p and zero on R and m: the map is
+    translation invariant.) Only the directions flagged in ``active`` (bool, 16) are
+    computed; the others are left zero (e.g. R(0) at a rod's first segment, where it is
+    fixed). It is the tangent-linear (forward-mode) form of the very RK4 steps taken, so it
+    equals the derivative of the discretized map to rounding, not that of the continuous
+    one (variational equations of Eq. 6 discretized by the same Runge-Kutta scheme, whose
     derivative they are: Hairer, Norsett & Wanner, Solving ODEs I, Sec. II.6 / I.14).
     """
     directions = np.empty(LOCAL_DIRECTIONS, dtype=np.int64)
@@ -203,89 +287,74 @@ def integrate_segment_tangent(p, rot, n, m, length, steps, inv_kse, inv_kbt, tp,
         if active[j]:
             directions[nd] = j
             nd += 1
-    length_slot = -1
     h = length / steps
     dh = 1.0 / steps  # d h / d length
     p_start = p.copy()
     m_start = m.copy()
     # compact tangents: slot s holds local direction directions[s]
-    tn = np.zeros((3, nd))
-    tm_start = np.zeros((3, nd))
-    cp = np.zeros((3, nd))
-    crot = np.zeros((3, 3, nd))
+    state = np.zeros((TANGENT_ROWS, nd))
+    length_slot = -1
     for slot in range(nd):
         j = directions[slot]
         if j == LOCAL_LENGTH:
             length_slot = slot
-        elif j >= LOCAL_M:
-            tm_start[j - LOCAL_M, slot] = 1.0
-        elif j >= LOCAL_N:
-            tn[j - LOCAL_N, slot] = 1.0
         else:
-            crot[(j - LOCAL_ROT) // 3, (j - LOCAL_ROT) % 3, slot] = 1.0
+            state[TANGENT_ROT + j, slot] = 1.0
+    stage_state = state.copy()  # its n and m(0) rows stay those of state
     k_p = np.empty((4, 3))
     k_rot = np.empty((4, 3, 3))
-    tk_p = np.empty((4, 3, nd))
-    tk_rot = np.empty((4, 3, 3, nd))
+    rates = np.empty((4, TANGENT_POSE, nd))
     p_stage = np.empty(3)
     rot_stage = np.empty((3, 3))
-    tp_stage = np.empty((3, nd))
-    trot_stage = np.empty((3, 3, nd))
+    strains = np.empty(6)
+    tstrains = np.empty((6, nd))
+    # the pose rows (p, R) of the tangents as one run each: one loop, not twelve
+    pose_size = TANGENT_POSE * nd
+    state_flat = state.reshape(TANGENT_ROWS * nd)
+    stage_flat = stage_state.reshape(TANGENT_ROWS * nd)
+    rates_flat = rates.reshape((4, pose_size))
     for step in range(steps):
-        pose_derivative_tangent(p, rot, cp, crot, n, m_start, p_start, tn, tm_start, inv_kse,
-                                inv_kbt, k_p[0], k_rot[0], tk_p[0], tk_rot[0])
+        pose_derivative_tangent(p, rot, n, m_start, p_start, inv_kse, inv_kbt, state, k_p[0],
+                                k_rot[0], rates[0], strains, tstrains)
         for stage, weight in ((1, 0.5), (2, 0.5), (3, 1.0)):
             rk4_stage_pose(p, rot, k_p[stage - 1], k_rot[stage - 1], weight * h, p_stage,
                            rot_stage)
-            for i in range(3):
-                for d in range(nd):
-                    tp_stage[i, d] = cp[i, d] + weight * h * tk_p[stage - 1, i, d]
-                if length_slot >= 0:
-                    tp_stage[i, length_slot] += weight * dh * k_p[stage - 1, i]
-                for j in range(3):
-                    for d in range(nd):
-                        trot_stage[i, j, d] = (crot[i, j, d]
-                                               + weight * h * tk_rot[stage - 1, i, j, d])
-                    if length_slot >= 0:
-                        trot_stage[i, j, length_slot] += weight * dh * k_rot[stage - 1, i, j]
-            pose_derivative_tangent(p_stage, rot_stage, tp_stage, trot_stage, n, m_start,
-                                    p_start, tn, tm_start, inv_kse, inv_kbt, k_p[stage],
-                                    k_rot[stage], tk_p[stage], tk_rot[stage])
-        for i in range(3):
-            for d in range(nd):
-                cp[i, d] += h / 6.0 * (tk_p[0, i, d] + 2.0 * tk_p[1, i, d]
-                                       + 2.0 * tk_p[2, i, d] + tk_p[3, i, d])
+            dt = weight * h
+            for e in range(pose_size):
+                stage_flat[e] = state_flat[e] + dt * rates_flat[stage - 1, e]
             if length_slot >= 0:
-                cp[i, length_slot] += dh / 6.0 * (k_p[0, i] + 2.0 * k_p[1, i]
-                                                  + 2.0 * k_p[2, i] + k_p[3, i])
-            for j in range(3):
-                for d in range(nd):
-                    crot[i, j, d] += h / 6.0 * (tk_rot[0, i, j, d] + 2.0 * tk_rot[1, i, j, d]
-                                                + 2.0 * tk_rot[2, i, j, d]
-                                                + tk_rot[3, i, j, d])
-                if length_slot >= 0:
-                    crot[i, j, length_slot] += dh / 6.0 * (
+                dt = weight * dh
+                for i in range(3):
+                    stage_state[TANGENT_P + i, length_slot] += dt * k_p[stage - 1, i]
+                    for j in range(3):
+                        stage_state[TANGENT_ROT + 3 * i + j, length_slot] += (
+                            dt * k_rot[stage - 1, i, j])
+            pose_derivative_tangent(p_stage, rot_stage, n, m_start, p_start, inv_kse, inv_kbt,
+                                    stage_state, k_p[stage], k_rot[stage], rates[stage],
+                                    strains, tstrains)
+        for e in range(pose_size):
+            state_flat[e] += h / 6.0 * (rates_flat[0, e] + 2.0 * rates_flat[1, e]
+                                        + 2.0 * rates_flat[2, e] + rates_flat[3, e])
+        if length_slot >= 0:
+            for i in range(3):
+                state[TANGENT_P + i, length_slot] += dh / 6.0 * (
+                    k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
+                for j in range(3):
+                    state[TANGENT_ROT + 3 * i + j, length_slot] += dh / 6.0 * (
                         k_rot[0, i, j] + 2.0 * k_rot[1, i, j] + 2.0 * k_rot[2, i, j]
                         + k_rot[3, i, j])
         rk4_advance_pose(p, rot, k_p, k_rot, h)
-    tp[:, :] = 0.0
-    trot[:, :, :] = 0.0
-    tm[:, :] = 0.0
+    dx, dy, dz = carry_moment(p, p_start, n, m_start, m)
+    for r in range(LOCAL_OUTPUTS):
+        for j in range(LOCAL_DIRECTIONS):
+            local[r, j] = 0.0
     for slot in range(nd):
         j = directions[slot]
-        for i in range(3):
-            tp[i, j] = cp[i, slot]
-            for b in range(3):
-                trot[i, b, j] = crot[i, b, slot]
-    dx, dy, dz = carry_moment(p, p_start, n, m_start, m)
-    for slot in range(nd):
-        d = directions[slot]
-        tm[0, d] = (tm_start[0, slot] - (cp[1, slot] * n[2] - cp[2, slot] * n[1])
-                    - (dy * tn[2, slot] - dz * tn[1, slot]))
-        tm[1, d] = (tm_start[1, slot] - (cp[2, slot] * n[0] - cp[0, slot] * n[2])
-                    - (dz * tn[0, slot] - dx * tn[2, slot]))
-        tm[2, d] = (tm_start[2, slot] - (cp[0, slot] * n[1] - cp[1, slot] * n[0])
-                    - (dx * tn[1, slot] - dy * tn[0, slot]))
+        for r in range(TANGENT_POSE):
+            local[r, j] = state[r, slot]
+        (local[LOCAL_OUT_M, j], local[LOCAL_OUT_M + 1, j],
+         local[LOCAL_OUT_M + 2, j]) = _moment_tangent(state, slot, n[0], n[1], n[2], dx, dy,
+                                                      dz)
 
 
 def inverse_stiffness(youngs_modulus: float, shear_modulus: float, diameter: float):

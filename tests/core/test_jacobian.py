@@ -2,7 +2,8 @@
 
 from dataclasses import replace
 
-from cdr_translator import TranslatorSolver
+from cdr_translator import rod, TranslatorSolver
+from cdr_translator._jit import interpreted_kernels
 from cdr_translator.problem import Problem
 import numpy as np
 import pytest
@@ -87,3 +88,73 @@ def test_fd_jacobian_stays_selectable(params):
         exact.pose_jacobian).max()
     with pytest.raises(ValueError, match='jacobian'):
         Problem(params, jacobian='central')
+
+
+#: A segment state off the rotation group (R(0) is not orthogonal, as RK4 leaves it): the
+#: local derivative is along all 9 entries of R(0), not along rotations only.
+SEGMENT_ROT = np.array([[0.96, -0.2, 0.15], [0.22, 0.97, -0.05], [-0.14, 0.08, 0.99]])
+SEGMENT_N = np.array([30.0, -12.0, 8.0])
+SEGMENT_M = np.array([0.2, -0.35, 0.05])
+SEGMENT_LENGTH = 0.03
+
+
+def _segment_end(rot, n, m, length):
+    """(p_end - p_start, R_end row-major, m_end) of one integrate_segment call, 15 values."""
+    inv_kse, inv_kbt = rod.inverse_stiffness(88.4e9, 33.2e9, 1.2e-3)
+    p, rot, m = np.array([0.01, -0.02, 0.005]), rot.copy(), m.copy()
+    start = p.copy()
+    rod.integrate_segment(p, rot, n.copy(), m, length, 8, inv_kse, inv_kbt, np.empty((0, 3)), 0)
+    return np.concatenate([p - start, rot.ravel(), m])
+
+
+def _segment_tangent(kernels, active):
+    """End state (15 values) and local derivative of integrate_segment_tangent in ``kernels``."""
+    inv_kse, inv_kbt = rod.inverse_stiffness(88.4e9, 33.2e9, 1.2e-3)
+    p, rot, m = np.array([0.01, -0.02, 0.005]), SEGMENT_ROT.copy(), SEGMENT_M.copy()
+    start = p.copy()
+    local = np.full((kernels.LOCAL_OUTPUTS, kernels.LOCAL_DIRECTIONS), np.nan)
+    kernels.integrate_segment_tangent(p, rot, SEGMENT_N.copy(), m, SEGMENT_LENGTH, 8, inv_kse,
+                                      inv_kbt, active, local)
+    return np.concatenate([p - start, rot.ravel(), m]), local
+
+
+def test_segment_tangent_equals_central_differences():
+    """
+    rod.integrate_segment_tangent gives integrate_segment's end state and its derivative.
+
+    Per direction, against central differences (Richardson-extrapolated), to 1e-9 of the
+    column; a subset of active directions gives the same columns and zeros elsewhere; the
+    interpreted source (method='paper' imports it) gives the same numbers.
+    """
+    every = np.ones(rod.LOCAL_DIRECTIONS, dtype=np.bool_)
+    end, local = _segment_tangent(rod, every)
+    inputs = (SEGMENT_ROT, SEGMENT_N, SEGMENT_M, SEGMENT_LENGTH)
+    np.testing.assert_allclose(end, _segment_end(*inputs), rtol=0, atol=1e-13)
+    scales = [1e-3] * 9 + [1e-2] * 3 + [1e-4] * 3 + [1e-5]
+
+    def moved(j, step):
+        rot, n, m, length = (np.array(value, dtype=float) for value in inputs)
+        if j < rod.LOCAL_N:
+            rot[(j - rod.LOCAL_ROT) // 3, (j - rod.LOCAL_ROT) % 3] += step
+        elif j < rod.LOCAL_M:
+            n[j - rod.LOCAL_N] += step
+        elif j < rod.LOCAL_LENGTH:
+            m[j - rod.LOCAL_M] += step
+        else:
+            length = length + step
+        return _segment_end(rot, n, m, float(length))
+
+    for j, scale in enumerate(scales):
+        central = [(moved(j, h) - moved(j, -h)) / (2.0 * h) for h in (2.0 * scale, scale)]
+        reference = (4.0 * central[1] - central[0]) / 3.0
+        assert np.abs(local[:, j] - reference).max() <= 1e-9 * np.abs(reference).max(), j
+    some = np.zeros(rod.LOCAL_DIRECTIONS, dtype=np.bool_)
+    some[[rod.LOCAL_ROT + 4, rod.LOCAL_N + 1, rod.LOCAL_M, rod.LOCAL_LENGTH]] = True
+    partial_end, partial = _segment_tangent(rod, some)
+    np.testing.assert_allclose(partial_end, end, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(partial[:, some], local[:, some], rtol=1e-12,
+                               atol=1e-12 * np.abs(local).max())
+    assert not partial[:, ~some].any()
+    interpreted_end, interpreted = _segment_tangent(interpreted_kernels()['rod'], every)
+    np.testing.assert_allclose(interpreted_end, end, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(interpreted, local, rtol=1e-12, atol=1e-12 * np.abs(local).max())
