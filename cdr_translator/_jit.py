@@ -131,9 +131,7 @@ def jit(func: Callable) -> Callable:
     """Compile ``func`` with numba (cached on disk), or leave it as Python while copying."""
     if _interpreting:
         return func
-    options: Dict[str, Any] = {name: set(value) if isinstance(value, frozenset) else value
-                               for name, value in JIT_OPTIONS.items()}
-    kernel = numba.njit(**options)(func)
+    kernel = numba.njit(**_numba_options())(func)
     if kernel.stats.cache_path:
         _clear_if_compiled_otherwise(Path(kernel.stats.cache_path))
     KERNELS.append(kernel)
@@ -151,8 +149,13 @@ def jit_inline(func: Callable) -> Callable:
     """
     if _interpreting:
         return func
-    return numba.njit(cache=True, error_model='numpy', fastmath=set(FASTMATH),
-                      inline='always')(func)
+    return numba.njit(**_numba_options(), inline='always')(func)
+
+
+def _numba_options() -> Dict[str, Any]:
+    """Return JIT_OPTIONS as numba.njit takes them (sets, not frozensets)."""
+    return {name: set(value) if isinstance(value, frozenset) else value
+            for name, value in JIT_OPTIONS.items()}
 
 
 def _index_files(kernel: Any) -> List[Path]:
