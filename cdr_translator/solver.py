@@ -221,12 +221,14 @@ class TranslatorSolver:
         self._lu = None
         self._pose = None
 
-    def start_from(self, result: SolveResult) -> None:
+    def start_from(self, result: SolveResult, keep_factorization: bool = False) -> None:
         """
         Warm-start the next solve from ``result``, e.g. one of a coarser discretization.
 
         The unknowns mean the same at any ``steps_per_segment``; only the number of spacer
-        disks (and so their count) must match.
+        disks (and so their count) must match. With ``keep_factorization`` the solver's own
+        factorization from its previous solve stays for the chord steps (refinement does
+        this: its solver, reused solve after solve, then rarely rebuilds a Jacobian).
         """
         unknowns = np.asarray(result.unknowns, dtype=float)
         if unknowns.shape != (self.problem.size,) or not np.all(np.isfinite(unknowns)):
@@ -234,8 +236,9 @@ class TranslatorSolver:
                              f'(finite ones, {self.problem.size} expected)')
         self._previous = (unknowns / self.problem.x_scale,
                           np.concatenate([result.force, result.moment]))
-        self._lu = None
-        self._pose = None
+        if not keep_factorization:
+            self._lu = None
+            self._pose = None
 
     def start_at(self, xs: np.ndarray, wrench: np.ndarray,
                  factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None) -> None:
@@ -380,7 +383,7 @@ class TranslatorSolver:
                                           follow_stable_branch=self.follow_stable_branch)
                 self._refined[steps] = solver
             solver.time_limit_s = remaining
-            solver.start_from(current)
+            solver.start_from(current, keep_factorization=True)
             attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance,
                                    verify=verify, **compliance_options)
             if not attempt.converged:
