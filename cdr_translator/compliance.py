@@ -94,7 +94,8 @@ class ComplianceAnalysis:
 
 # implicit differentiation -------------------------------------------------------------------
 def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
-                        factorization: Optional[Tuple[tuple, np.ndarray]] = None
+                        factorization: Optional[Tuple[tuple, np.ndarray]] = None,
+                        rotation: Optional[np.ndarray] = None
                         ) -> Tuple[np.ndarray, tuple, float]:
     """
     Return (C, lu, estimated relative error of C) at the converged unknowns ``xs``.
@@ -103,6 +104,7 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
     and C = dT/dx dx/dw, T the end-disk twist (Rucker & Webster, ICRA 2011). J and dT/dx
     come from one tangent-linear shot (problem.exact_jacobian) unless ``factorization``
     = (lu, pose Jacobian) already holds them at ``xs``; then C is one 6-column LU solve.
+    ``rotation``: the end disk's rotation matrix at ``xs`` if known (else one more shot).
     No refinement sweeps: C is exact to rounding, so the error estimate is cond(J) times
     the machine epsilon, bounded by the 1-norm condition estimate of the factorization.
     ArithmeticError if J is singular or not finite at ``xs``.
@@ -112,7 +114,8 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
         lu = _factorization(jacobian)
     else:
         lu, pose = factorization
-    rotation = problem.residual_and_end_frame(xs, wrench)[1][:3, :3]
+    if rotation is None:  # the end disk's orientation at xs, unless the caller has it
+        rotation = problem.residual_and_end_frame(xs, wrench)[1][:3, :3]
     compliance = stability.compliance_from_factorization(lu, pose, rotation,
                                                          problem.wrench_sensitivity)
     if not np.all(np.isfinite(compliance)):
@@ -207,6 +210,7 @@ def _smallest_stiffness_eigenvalue(compliance: np.ndarray) -> float:
 
 def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
                         factorization: Optional[Tuple[tuple, np.ndarray]] = None,
+                        rotation: Optional[np.ndarray] = None,
                         **options: Any) -> Tuple[ComplianceAnalysis, tuple, np.ndarray]:
     """
     Implicit C at a converged solution and its analysis, plus the factorization used.
@@ -219,7 +223,7 @@ def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
     if factorization is None:
         _, jacobian, pose = problem.exact_jacobian(xs, wrench)
         factorization = (_factorization(jacobian), pose.copy())
-    compliance, lu, error = implicit_compliance(problem, xs, wrench, factorization)
+    compliance, lu, error = implicit_compliance(problem, xs, wrench, factorization, rotation)
     elapsed = time.perf_counter() - started
     analysis = analyse(compliance, problem.params.stack_height, time_s=elapsed,
                        estimated_error=error, **options)

@@ -333,7 +333,8 @@ class TranslatorSolver:
                              and self._lu is not None and stored is not None else None)
             try:
                 result.compliance, self._lu, pose = compliance_analysis(
-                    self.problem, outcome.xs, wrench, factorization, **compliance_options)
+                    self.problem, outcome.xs, wrench, factorization,
+                    result.frames['de'][:3, :3], **compliance_options)
                 self._pose = (pose, wrench.copy())
                 self._exact_at = outcome.xs
             except ArithmeticError as error:
