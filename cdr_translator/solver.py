@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor
 
-from . import chord, path_following, stability
+from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
@@ -67,6 +67,11 @@ BRANCH_ATTEMPTS = 3
 #: Size of the critical-mode imperfection that steers past a bifurcation, relative to the
 #: wrench (stability margin < 0): large enough to leave the unstable branch's basin.
 IMPERFECTION = 0.02
+
+#: Cold continuations of translators with at least this many spacer disks per joint correct
+#: by the lifted Newton method (multiple shooting, lifted.py) instead of single shooting;
+#: None: never.
+LIFT_FROM_SPACERS: Optional[int] = 2
 
 #: Largest nondimensional residual at which a corrector out of iterations gets another
 #: round on the same step instead of a halved step (it is converging, only slowly).
@@ -204,6 +209,8 @@ class TranslatorSolver:
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         self._lu: Optional[tuple] = None
         self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+        #: (unknowns, their node states) of the last converged lifted correction
+        self._nodes: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._unloaded_lu: Optional[tuple] = None
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
@@ -539,6 +546,8 @@ class TranslatorSolver:
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
             self._pose = self._unloaded_pose
+        if corrector == self._newton and not warm_start and self._lifting():
+            corrector = self._lifted_newton
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
@@ -552,8 +561,8 @@ class TranslatorSolver:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            if lu is None:
-                guess = xs
+            if lu is None or corrector == self._lifted_newton:
+                guess = xs  # the lifted corrector's first step is the tangent predictor
             elif whole is not None and target == 1.0 and done == 0.0:
                 guess = xs - whole
             else:
@@ -660,6 +669,37 @@ class TranslatorSolver:
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
     # correctors ------------------------------------------------------------------------------
+    def _lifting(self) -> bool:
+        """Say whether cold continuations correct by the lifted Newton method (multiple shooting)."""
+        return (LIFT_FROM_SPACERS is not None and self.method == 'fast'
+                and self.jacobian == 'exact'
+                and self.params.spacers_per_joint >= LIFT_FROM_SPACERS)
+
+    def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
+                       lu: Optional[tuple], max_iterations: int,
+                       pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+                       ) -> _Outcome:
+        """
+        Multiple shooting by lifted Newton (lifted.py) from ``xs`` and its nodes.
+
+        The nodes are those the last converged lifted correction ended with when ``xs`` is
+        its solution, else the states single shooting carries at ``xs``. ``lu`` and
+        ``pose_in`` are returned when no iteration was needed.
+        """
+        if self._nodes is not None and self._nodes[0] is xs:
+            nodes = self._nodes[1]
+        else:
+            nodes = self.problem.node_states(xs, wrench)
+        done = lifted.newton(self.problem, xs, nodes, wrench, self.tolerance, max_iterations,
+                             deadline)
+        if done.converged:
+            self._nodes = (done.xs, done.nodes)
+        if done.lu is None:
+            return _Outcome(done.xs, done.rs, done.iterations, done.converged, done.message,
+                            lu, pose_in)
+        return _Outcome(done.xs, done.rs, done.iterations, done.converged, done.message,
+                        done.lu, (done.pose, wrench.copy()))
+
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
                 pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
