@@ -16,11 +16,16 @@ at the cost of a single-shooting one. Condensing the node equations, dz_t = a_t 
 with a_t = L_{t-1} a_{t-1} + d_t (L the interval's local derivative) and Z_t the tangent of
 the carried state that the exact Jacobian chains anyway; a is one more tangent column
 (model.LIFT_COLUMN). The step solves J dx = -(r + R_z a), J the condensed Jacobian (at
-zero defects the single-shooting one), then z_t += a_t + Z_t dx, the rotations projected
-back onto SO(3). A backtracking line search on |r|^2 + |d|^2 (defects in natural units,
-Problem.node_scale) globalizes it. Converged means the single-shooting residual at x is
-within the tolerance: the answer is the single-shooting solution, the nodes only steer the
-iteration.
+zero defects the single-shooting one), then z_t += a_t + Z_t dx; a rotation that this
+linear update leaves far from orthogonal is projected back onto SO(3)
+(model.ORTHOGONALITY_SLACK). The steps are full Newton steps: a merit function
+|r|^2 + |d|^2 rejected good ones (the first step from a consistent start raises the
+defects from zero by design, and a line search then crept along at 1/128 steps), so the
+iteration only ends, as not contracting, when that norm grows PATIENCE times in a row, and
+the caller's continuation then shortens its load step. Converged means the lifted
+equations and the single-shooting residual at x are within the tolerance (or the latter
+at the shot's rounding floor, path_following.rounding_floor): the answer is the
+single-shooting solution, the nodes only steer the iteration.
 """
 
 from dataclasses import dataclass
@@ -67,14 +72,14 @@ def _merit(rs: np.ndarray, ds: np.ndarray) -> float:
 
 
 def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarray,
-           tolerance: float, max_iterations: int, deadline: float, trace=False) -> Lifted:
+           tolerance: float, max_iterations: int, deadline: float) -> Lifted:
     """
     Lifted Newton iterations from unknowns ``xs`` (nondimensional) and ``nodes`` (SI).
 
     Each iteration is one tangent shot with nodes (Problem.lifted_jacobian), one LU of the
-    condensed Jacobian and a line search of shots with nodes. Stops when the single-shooting
-    residual at the iterate is within ``tolerance`` (checked once the lifted equations
-    are), after ``max_iterations``, at the deadline, or when the line search fails.
+    condensed Jacobian and one shot with nodes at the new iterate. Stops when converged
+    (module docstring), after ``max_iterations``, at the deadline, or when the iteration
+    does not contract.
     """
     xs = np.array(xs, dtype=float)
     nodes = np.array(nodes, dtype=float)
@@ -120,6 +125,5 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
         rs, ds = problem.lifted_residual(xs, nodes, wrench)
         previous, merit = merit, _merit(rs, ds)
         rises = rises + 1 if done > 1 and merit >= previous and merit > tolerance ** 2 else 0
-        if trace: print('  it', done, 'r', np.abs(rs).max(), 'd', np.abs(ds).max())
         if rises >= PATIENCE:
             return ended(False, 'the lifted Newton iteration does not contract')

@@ -543,11 +543,12 @@ class TranslatorSolver:
         usually one step. If it stalls, the outcome is the best state found, its residual
         taken at the requested wrench.
         """
-        if not (warm_start and self._previous is not None):
+        cold = not (warm_start and self._previous is not None)
+        if cold:
             self._previous, self._lu = self._unloaded()
             self._pose = self._unloaded_pose
-        if corrector == self._newton and not warm_start and self._lifting():
-            corrector = self._lifted_newton
+            if corrector == self._newton and self._lifting():
+                corrector = self._lifted_newton
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
