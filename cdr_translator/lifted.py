@@ -74,7 +74,7 @@ def _merit(rs: np.ndarray, ds: np.ndarray) -> float:
 def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarray,
            tolerance: float, max_iterations: int, deadline: float) -> Lifted:
     """
-    Lifted Newton iterations from unknowns ``xs`` (nondimensional) and ``nodes`` (SI).
+    Iterate lifted Newton from unknowns ``xs`` (nondimensional) and ``nodes`` (SI).
 
     Each iteration is one tangent shot with nodes (Problem.lifted_jacobian), one LU of the
     condensed Jacobian and one shot with nodes at the new iterate. Stops when converged

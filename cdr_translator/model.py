@@ -260,7 +260,7 @@ def _enter(mode, node, defect, index, value):
 @jit
 def _enter_node(mode, node, defect, p, rot, n, m, used):
     """
-    The start of a disk interval with a node (mode LIFT_NODES or RECORD_NODES).
+    Apply a node at the start of a disk interval (mode LIFT_NODES or RECORD_NODES).
 
     LIFT_NODES replaces the carried state (p, rot, n, m, used) by ``node`` and writes
     ``defect`` = carried - node; RECORD_NODES writes the carried state into ``node`` (defect
@@ -987,7 +987,7 @@ ORTHOGONALITY_SLACK = 1e-3
 @jit
 def advance_nodes(nodes, node_tangents, dx, scale, spacers, slack):
     """
-    The lifted Newton update of the nodes: z_t += scale (a_t + Z_t dx), rotations projected.
+    Update the nodes as lifted Newton does: z_t += scale (a_t + Z_t dx), rotations projected.
 
     ``node_tangents`` as ``lifted_jacobian`` wrote them, ``dx`` the step of the unknowns
     (SI, unknowns' order). The update is linear in the 9 entries of each rotation; one that

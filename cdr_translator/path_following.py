@@ -85,7 +85,7 @@ def _norm(values: np.ndarray) -> float:
 
 
 def rounding_floor(jac: np.ndarray, xs: np.ndarray) -> float:
-    """The residual that rounding the unknowns ``xs`` alone produces: see NOISE_FACTOR."""
+    """Return the residual that rounding the unknowns ``xs`` alone produces (NOISE_FACTOR)."""
     return NOISE_FACTOR * np.finfo(float).eps * float((np.abs(jac) @ np.abs(xs)).max())
 
 

@@ -170,7 +170,7 @@ class Problem:
                 self.pose_jacobian)
 
     def node_states(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
-        """Node states (node_count, model.STATE_SIZE; SI) that single shooting at ``xs`` carries."""
+        """Return the node states (node_count, model.STATE_SIZE; SI) single shooting carries."""
         nodes = np.empty((self.node_count, model.STATE_SIZE))
         out = np.empty(self.size)
         self.kernel.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,

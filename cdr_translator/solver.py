@@ -1,9 +1,10 @@
 """
 TranslatorSolver: Newton on the shooting residual, warm starts, continuation, baseline.
 
-``method='fast'`` (default): compiled kernel; Newton with a forward-difference Jacobian,
+``method='fast'`` (default): compiled kernel; Newton with the exact Jacobian (or 'fd'),
 backtracking line search, and for warm starts a first-order predictor plus chord steps
-that reuse the previous LU factorization, refreshed only when convergence slows.
+that reuse the previous LU factorization, refreshed only when convergence slows. Cold
+solves of translators with spacer disks correct by multiple shooting instead (lifted.py).
 ``method='paper'``: the paper's numerics as published (Section III.D) — the same model
 source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
 of one residual per column, stopping at the paper's tolerances. It is the baseline that
@@ -180,6 +181,9 @@ class TranslatorSolver:
         ``path='tracking'`` skips the default continuation and follows the load path with
         the fallback's alone (from the previous solution, else from the unloaded state):
         fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
+        With spacer disks (``lift_from_spacers`` or more per joint, LIFT_FROM_SPACERS) and
+        the exact Jacobian, a cold continuation corrects by the lifted Newton method
+        (multiple shooting, lifted.py); warm solves stay single shooting (chord steps).
         """
         if path not in PATHS:
             raise ValueError(f'path must be one of {PATHS}, got {path!r}')
@@ -221,6 +225,9 @@ class TranslatorSolver:
         self.follow_stable_branch = follow_stable_branch
         self.fallback = fallback
         self.path = path
+        #: cold continuations correct by lifted Newton from this many spacer disks per joint
+        #: on (None: never); LIFT_FROM_SPACERS unless changed (benchmarks compare both)
+        self.lift_from_spacers = LIFT_FROM_SPACERS
         self._refined: Dict[int, 'TranslatorSolver'] = {}
         self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
@@ -671,10 +678,10 @@ class TranslatorSolver:
 
     # correctors ------------------------------------------------------------------------------
     def _lifting(self) -> bool:
-        """Say whether cold continuations correct by the lifted Newton method (multiple shooting)."""
-        return (LIFT_FROM_SPACERS is not None and self.method == 'fast'
+        """Say whether cold continuations correct by lifted Newton (multiple shooting)."""
+        return (self.lift_from_spacers is not None and self.method == 'fast'
                 and self.jacobian == 'exact'
-                and self.params.spacers_per_joint >= LIFT_FROM_SPACERS)
+                and self.params.spacers_per_joint >= self.lift_from_spacers)
 
     def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                        lu: Optional[tuple], max_iterations: int,

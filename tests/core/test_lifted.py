@@ -8,7 +8,7 @@ import pytest
 
 @pytest.fixture(scope='module')
 def spaced(params):
-    """A solver with 3 spacer disks per joint and its solution at 10 N lateral."""
+    """Return a solver with 3 spacer disks per joint and its solution at 10 N lateral."""
     solver = TranslatorSolver(params.with_changes(spacers_per_joint=3))
     result = solver.solve([10.0, 0.0, 0.0])
     assert result.converged
@@ -106,21 +106,18 @@ def test_nine_spacer_disks_cold_solve_converges_and_verifies(params):
     assert result.iterations <= 20
 
 
-def test_lifting_applies_to_cold_solves_with_spacer_disks(params, monkeypatch):
+def test_lifting_applies_to_cold_solves_with_spacer_disks(params):
     """Cold continuations lift from LIFT_FROM_SPACERS spacer disks on; both paths agree."""
     chosen = params.with_changes(spacers_per_joint=2)
     lifted_solver = TranslatorSolver(chosen)
-    assert lifted_solver._lifting()
-    monkeypatch.setattr(solver_module, 'LIFT_FROM_SPACERS', None)
+    assert solver_module.LIFT_FROM_SPACERS == 2 and lifted_solver._lifting()
     single_solver = TranslatorSolver(chosen)
+    single_solver.lift_from_spacers = None
     assert not single_solver._lifting()
-    monkeypatch.undo()
     assert not TranslatorSolver(chosen, jacobian='fd')._lifting()
     assert not TranslatorSolver(params.with_changes(spacers_per_joint=1))._lifting()
-    results = []
-    for solver in (lifted_solver, single_solver):
-        if solver is single_solver:
-            monkeypatch.setattr(solver_module, 'LIFT_FROM_SPACERS', None)
-        results.append(solver.solve([15.0, -5.0, 0.0], [0.0, 0.0, 0.2], warm_start=False))
+    results = [solver.solve([15.0, -5.0, 0.0], [0.0, 0.0, 0.2], warm_start=False)
+               for solver in (lifted_solver, single_solver)]
     assert all(result.converged for result in results)
+    assert results[0].iterations < results[1].iterations
     np.testing.assert_allclose(results[0].frames['de'], results[1].frames['de'], atol=1e-9)
