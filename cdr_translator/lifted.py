@@ -51,7 +51,8 @@ class Lifted:
     End of a lifted Newton iteration: unknowns, nodes (SI), single-shooting residual, why.
 
     ``lu`` factorizes the last condensed Jacobian, ``pose`` its end-disk pose Jacobian
-    (Problem.pose_jacobian), both None if none was made.
+    (Problem.pose_jacobian), ``tangents`` its node tangents (Problem.node_tangents), all
+    None if none was made.
     """
 
     xs: np.ndarray
@@ -62,6 +63,7 @@ class Lifted:
     message: str
     lu: Optional[tuple] = None
     pose: Optional[np.ndarray] = None
+    tangents: Optional[np.ndarray] = None
 
 
 def _merit(rs: np.ndarray, ds: np.ndarray) -> float:
@@ -85,6 +87,7 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
     nodes = np.array(nodes, dtype=float)
     lu: Optional[tuple] = None
     pose: Optional[np.ndarray] = None
+    tangents: Optional[np.ndarray] = None
     rs, ds = problem.lifted_residual(xs, nodes, wrench)
     merit = _merit(rs, ds)
     done, rises, floor = 0, 0, 0.0
@@ -92,7 +95,7 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
     def ended(converged: bool, message: str, single: Optional[np.ndarray] = None) -> Lifted:
         if single is None:
             single = problem.residual(xs, wrench)
-        return Lifted(xs, nodes, single, done, converged, message, lu, pose)
+        return Lifted(xs, nodes, single, done, converged, message, lu, pose, tangents)
 
     while True:
         if not math.isfinite(merit):
@@ -111,7 +114,7 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
         if time.perf_counter() > deadline:
             return ended(False, 'time limit reached')
         rs, ds, jac, lifted = problem.lifted_jacobian(xs, nodes, wrench)
-        pose = problem.pose_jacobian
+        pose, tangents = problem.pose_jacobian, problem.node_tangents
         floor = rounding_floor(jac, xs)
         with warnings.catch_warnings():  # a singular J shows as a non-finite step
             warnings.simplefilter('ignore', LinAlgWarning)
@@ -120,7 +123,7 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
         done += 1
         if not np.all(np.isfinite(step)):
             return ended(False, 'Newton step is not finite (singular or non-finite Jacobian)')
-        nodes = problem.advance_nodes(nodes, step, 1.0)
+        nodes = problem.advance_nodes(nodes, step)
         xs = xs + step
         rs, ds = problem.lifted_residual(xs, nodes, wrench)
         previous, merit = merit, _merit(rs, ds)

@@ -985,27 +985,28 @@ ORTHOGONALITY_SLACK = 1e-3
 
 
 @jit
-def advance_nodes(nodes, node_tangents, dx, scale, spacers, slack):
+def advance_nodes(nodes, node_tangents, step, spacers, slack):
     """
-    Update the nodes as lifted Newton does: z_t += scale (a_t + Z_t dx), rotations projected.
+    Update the nodes as lifted Newton does: z_t += w a_t + Z_t dx, rotations projected.
 
-    ``node_tangents`` as ``lifted_jacobian`` wrote them, ``dx`` the step of the unknowns
-    (SI, unknowns' order). The update is linear in the 9 entries of each rotation; one that
+    ``node_tangents`` as ``lifted_jacobian`` wrote them; ``step`` (size + 1) holds dx, the
+    step of the unknowns (SI, unknowns' order), then the weight w of the lifted column. The
+    update is linear in the 9 entries of each rotation; one that
     leaves it further than ``slack`` (max |R^T R - I|, e.g. ORTHOGONALITY_SLACK) from
     orthogonal is put back onto SO(3) by its polar factor (``_orthonormalize``).
     """
-    size = dx.shape[0]
+    size = step.shape[0] - 1
     order = _internal_columns(size, 2 * spacers + 1)
-    step = np.empty(size + 1)
+    internal = np.empty(size + 1)
     for d in range(size + 1):
-        step[d] = scale * (1.0 if order[d] == size else dx[order[d]])
+        internal[d] = step[order[d]]
     rot = np.empty((3, 3))
     for j in range(nodes.shape[0]):
         live = _station_column(j + 1, 0)
         for r in range(STATE_SIZE):
             acc = 0.0
             for d in range(live):
-                acc += node_tangents[j, r, d] * step[d]
+                acc += node_tangents[j, r, d] * internal[d]
             nodes[j, r] += acc
         for k in range(N_RODS):
             for a in range(3):

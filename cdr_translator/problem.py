@@ -96,7 +96,9 @@ class Problem:
         self.node_scale = node_scale
         #: departure from orthogonality beyond which a node rotation is projected
         self.orthogonality_slack = model.ORTHOGONALITY_SLACK
-        self._node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
+        #: node tangents (Z_t and a_t, see model.lifted_jacobian) of the last lifted_jacobian:
+        #: a new array each call, so that a caller may keep one with its factorization
+        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
         self._lifted = np.empty(self.size)
         self._no_points = np.empty((model.N_RODS, 0, 3))
         self._frames = np.empty((4, 4, 4))
@@ -196,29 +198,34 @@ class Problem:
         All nondimensional (defects in ``node_scale`` units). The Jacobian is that of the
         residual with the nodes following the unknowns (dz_t = Z_t dx), the single-shooting
         one when the defects are zero; the lifted column is R_z a (model.LIFT_COLUMN). The
-        node tangents are kept for ``advance_nodes``; ``pose_jacobian`` is set.
+        node tangents go to ``node_tangents`` (for ``advance_nodes``); ``pose_jacobian`` is
+        set.
         """
+        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
         out = np.empty(self.size)
         defects = np.empty_like(nodes)
         self.kernel.lifted_jacobian(xs * self.x_scale, wrench, *self._args, out,
                                     self._jacobian, self._pose_jacobian, self._frames,
                                     model.LIFT_NODES, nodes, defects, self._lifted,
-                                    self._node_tangents)
+                                    self.node_tangents)
         self.pose_jacobian = self._pose_jacobian * self.x_scale
         return (out / self.residual_scale, defects / self.node_scale,
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
                 self._lifted / self.residual_scale)
 
-    def advance_nodes(self, nodes: np.ndarray, dxs: np.ndarray, scale: float) -> np.ndarray:
+    def advance_nodes(self, nodes: np.ndarray, dxs: np.ndarray, defects: float = 1.0,
+                      tangents: Optional[np.ndarray] = None) -> np.ndarray:
         """
-        Return nodes + scale (a + Z dxs) (rotations projected): the lifted Newton update.
+        Return nodes + defects a + Z dxs (rotations projected): the lifted Newton update.
 
-        ``dxs`` is the nondimensional step of the unknowns; a and Z are from the last
-        ``lifted_jacobian``.
+        ``dxs`` is the nondimensional step of the unknowns; a and Z are the ``tangents``
+        (default: the last ``lifted_jacobian``'s, ``node_tangents``). With ``defects`` 0 it
+        is the first-order prediction of the nodes alone.
         """
         advanced = nodes.copy()
-        self.kernel.advance_nodes(advanced, self._node_tangents, dxs * self.x_scale, scale,
-                                  self.params.spacers_per_joint, self.orthogonality_slack)
+        step = np.append(dxs * self.x_scale, defects)
+        self.kernel.advance_nodes(advanced, self.node_tangents if tangents is None else tangents,
+                                  step, self.params.spacers_per_joint, self.orthogonality_slack)
         return advanced
 
     def residual_and_shape(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:

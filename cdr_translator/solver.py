@@ -98,6 +98,11 @@ class _Outcome:
     shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
 
 
+#: A lifted Newton state: unknowns, their nodes (SI), a factorization made on the way (or
+#: None) and the node tangents of the same lifted shot (or None).
+_LiftedState = Tuple[np.ndarray, np.ndarray, Optional[tuple], Optional[np.ndarray]]
+
+
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
     """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
@@ -214,7 +219,11 @@ class TranslatorSolver:
         self._lu: Optional[tuple] = None
         self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         #: (unknowns, their node states) of the last converged lifted correction
-        self._nodes: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        #: lifted states (unknowns, their nodes, a factorization, its node tangents or None):
+        #: of the last converged lifted correction and of the last one at all
+        self._nodes: Optional[_LiftedState] = None
+        self._lifted_last: Optional[_LiftedState] = None
+        self._unloaded_nodes: Optional[_LiftedState] = None
         self._unloaded_lu: Optional[tuple] = None
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
@@ -556,6 +565,7 @@ class TranslatorSolver:
             self._pose = self._unloaded_pose
             if corrector == self._newton and self._lifting():
                 corrector = self._lifted_newton
+                self._nodes = self._unloaded_lifted(self._previous[0])
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
@@ -569,8 +579,8 @@ class TranslatorSolver:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (wrench - start)
-            if lu is None or corrector == self._lifted_newton:
-                guess = xs  # the lifted corrector's first step is the tangent predictor
+            if lu is None:
+                guess = xs
             elif whole is not None and target == 1.0 and done == 0.0:
                 guess = xs - whole
             else:
@@ -683,25 +693,52 @@ class TranslatorSolver:
                 and self.jacobian == 'exact'
                 and self.params.spacers_per_joint >= self.lift_from_spacers)
 
+    def _unloaded_lifted(self, xs: np.ndarray) -> '_LiftedState':
+        """
+        Return the lifted state of the unloaded solution ``xs`` (its nodes made once).
+
+        Its factorization is the unloaded one (at zero defects the lifted Jacobian is the
+        single-shooting one), with the node tangents of a lifted shot there.
+        """
+        if self._unloaded_nodes is None:
+            zero = np.zeros(6)
+            nodes = self.problem.node_states(xs, zero)
+            self.problem.lifted_jacobian(xs, nodes, zero)
+            self._unloaded_nodes = (xs, nodes, self._unloaded()[1], self.problem.node_tangents)
+        return (xs,) + self._unloaded_nodes[1:]
+
     def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                        lu: Optional[tuple], max_iterations: int,
                        pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
                        ) -> _Outcome:
         """
-        Multiple shooting by lifted Newton (lifted.py) from ``xs`` and its nodes.
+        Multiple shooting by lifted Newton (lifted.py) from ``xs`` and nodes to go with it.
 
-        The nodes are those the last converged lifted correction ended with when ``xs`` is
-        its solution, else the states single shooting carries at ``xs``. ``lu`` and
+        The nodes are those of a lifted correction that ended at ``xs``; else, if ``xs`` is
+        a prediction made with the factorization ``lu`` of the last converged correction,
+        that correction's nodes moved by the same first-order prediction (its node
+        tangents); else the states single shooting carries at ``xs``. ``lu`` and
         ``pose_in`` are returned when no iteration was needed.
         """
-        if self._nodes is not None and self._nodes[0] is xs:
-            nodes = self._nodes[1]
+        tangents = None  # those of ``lu``, when known
+        for state in (self._lifted_last, self._nodes):
+            if state is not None and state[0] is xs:
+                nodes = state[1]
+                break
         else:
-            nodes = self.problem.node_states(xs, wrench)
+            state = self._nodes
+            if state is not None and lu is not None and state[2] is lu and state[3] is not None:
+                nodes = self.problem.advance_nodes(state[1], xs - state[0], 0.0, state[3])
+            else:
+                nodes = self.problem.node_states(xs, wrench)
+        if state is not None and lu is not None and state[2] is lu:
+            tangents = state[3]
         done = lifted.newton(self.problem, xs, nodes, wrench, self.tolerance, max_iterations,
                              deadline)
+        self._lifted_last = ((done.xs, done.nodes, done.lu, done.tangents) if done.lu is not None
+                             else (done.xs, done.nodes, lu, tangents))
         if done.converged:
-            self._nodes = (done.xs, done.nodes)
+            self._nodes = self._lifted_last
         if done.lu is None:
             return _Outcome(done.xs, done.rs, done.iterations, done.converged, done.message,
                             lu, pose_in)

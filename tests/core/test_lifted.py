@@ -67,7 +67,7 @@ def test_lifted_step_solves_the_linearized_multiple_shooting_system(spaced):
     rs, ds, jac, column = problem.lifted_jacobian(xs, nodes, wrench)
     assert np.abs(ds).max() > 1e-5 and np.abs(column).max() > 1e-5
     dx = np.linalg.solve(jac, -(rs + column))
-    dz = problem.advance_nodes(nodes, dx, 1.0) - nodes  # small: no rotation is projected
+    dz = problem.advance_nodes(nodes, dx) - nodes  # small: no rotation is projected
     equations = _lifted_equations(problem, xs, nodes, wrench)
     h = 1e-3
     derivative = (_lifted_equations(problem, xs + h * dx, nodes + h * dz, wrench)
