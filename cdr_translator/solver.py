@@ -559,13 +559,13 @@ class TranslatorSolver:
         usually one step. If it stalls, the outcome is the best state found, its residual
         taken at the requested wrench.
         """
-        cold = not (warm_start and self._previous is not None)
-        if cold:
+        if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
             self._pose = self._unloaded_pose
             if corrector == self._newton and self._lifting():
                 corrector = self._lifted_newton
                 self._nodes = self._unloaded_lifted(self._previous[0])
+        assert self._previous is not None
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
@@ -705,7 +705,8 @@ class TranslatorSolver:
             nodes = self.problem.node_states(xs, zero)
             self.problem.lifted_jacobian(xs, nodes, zero)
             self._unloaded_nodes = (xs, nodes, self._unloaded()[1], self.problem.node_tangents)
-        return (xs,) + self._unloaded_nodes[1:]
+        _, nodes, lu, tangents = self._unloaded_nodes
+        return xs, nodes, lu, tangents
 
     def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                        lu: Optional[tuple], max_iterations: int,
