@@ -24,9 +24,9 @@ Jacobian and end-disk pose derivative; implicit differentiation). Two iterations
 * coupled (warm solves): the legs' own shooting unknowns join the platform's; an iterate
   costs one residual shot per leg, the Newton system is reduced to the platform's 24 by
   eliminating each leg with its LU (see ``_step``), and chord steps reuse that
-  factorization across iterations and solves until they contract too slowly. Once
-  converged, each leg solver confirms its leg (TranslatorSolver.start_at), which gives the
-  legs' SolveResults (shape, stability, error estimate).
+  factorization across iterations and solves until they contract too slowly. The legs'
+  SolveResults (shape, stability, error estimate) are built from the solved leg unknowns
+  when first asked for (DeltaResult.leg_results, TranslatorSolver.result_at).
 * nested (cold solves from home, where the legs' shooting is far from linear, and the
   fallback of a stalled coupled solve): every iterate solves each leg in full under its
   wrench, warm-started.
@@ -37,10 +37,11 @@ predictor-corrector continuation, as the leg solver does for one translator.
 """
 
 from dataclasses import dataclass, field, fields
+import functools
 import math
 from pathlib import Path
 import time
-from typing import Any, List, Optional, Tuple, Union
+from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -48,7 +49,7 @@ from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
 from .params import cdr_values, check_sliders, DeltaParams, Leg
-from .result import DeltaResult, rotation_vector
+from .result import DeltaResult, LegResults, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, one_blas_thread, TranslatorSolver
@@ -646,26 +647,26 @@ class DeltaRobot:
         return solver.solve(wrench[:3], wrench[3:])
 
     def _leg_results(self, state: _State,
-                     factorization: Optional[_Factorization]) -> List[SolveResult]:
+                     factorization: Optional[_Factorization]) -> Sequence[SolveResult]:
         """
         Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
 
-        A coupled iterate has none yet: each leg solver is started at the state's leg
-        unknowns with the leg's factorization (TranslatorSolver.start_at), so its solve
-        only confirms the residual and adds its verdicts.
+        A coupled iterate has none yet: a LegResults builds each on first access from the
+        state's leg unknowns and the leg's factorization (TranslatorSolver.result_at: one
+        shot and the verdicts, what a leg solve started there gives). Each leg solver is
+        warm-started there (TranslatorSolver.start_at) for the nested iteration's next solve.
         """
         if state.legs is not None:
-            return state.legs
-        legs = []
+            return tuple(state.legs)
+        builders = []
         for k, solver in enumerate(self.leg_solvers):
             leg = factorization.legs[k] if factorization is not None else None
-            solver.start_at(state.unknowns[k], state.wrenches[k],
-                            None if leg is None else (leg.lu, leg.pose, leg.wrench))
-            solver.time_limit_s = max(self._deadline - time.perf_counter(), 0.0)
-            legs.append(solver.solve(state.wrenches[k, :3], state.wrenches[k, 3:]))
-        self._counts['leg_solves'] += 3
-        state.legs = legs
-        return legs
+            linearization = None if leg is None else (leg.lu, leg.pose, leg.wrench)
+            unknowns, wrench = state.unknowns[k].copy(), state.wrenches[k].copy()
+            solver.start_at(unknowns, wrench, linearization)
+            builders.append(functools.partial(solver.result_at, unknowns, wrench,
+                                              linearization))
+        return LegResults(builders)
 
     def _factorize(self, state: _State, inputs: np.ndarray) -> _Factorization:
         """
@@ -786,7 +787,7 @@ class DeltaRobot:
         result.leg_shots = self._counts['leg_shots']
         result.leg_jacobians = self._counts['leg_jacobians']
 
-    def _result(self, outcome: _Outcome, legs: List[SolveResult], inputs: np.ndarray,
+    def _result(self, outcome: _Outcome, legs: Sequence[SolveResult], inputs: np.ndarray,
                 elapsed: float) -> DeltaResult:
         state = outcome.state
         residual = outcome.residual
@@ -798,7 +799,7 @@ class DeltaRobot:
             payload_force=inputs[3:6].copy(), payload_moment=inputs[6:9].copy(),
             payload_offset=inputs[9:].copy(), platform_position=state.position.copy(),
             platform_rotation=state.rotation.copy(), home_position=self.home_position.copy(),
-            leg_results=tuple(legs), leg_tip_wrenches=state.wrenches.copy(),
+            leg_results=legs, leg_tip_wrenches=state.wrenches.copy(),
             equilibrium_residual=residual[18:].copy(),
             compatibility_residual=residual[:18].reshape(3, 6).copy(),
             solve_time_s=elapsed, leg_solves=0)
