@@ -6,6 +6,7 @@ from typing import Any, Callable, Iterable, List, Optional, overload, Sequence, 
 
 import numpy as np
 
+from .kernels import small_rotation_vector
 from .. import geometry
 from ..result import SolveResult
 
@@ -20,20 +21,16 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     """
     Rotation vector (axis times angle, rad) of a rotation matrix.
 
-    From the skew part, sin(angle) times the axis, and the trace, 1 + 2 cos(angle); beyond
-    90 deg (where the skew part loses the axis near 180 deg) from geometry.quaternion_xyzw.
-    A few us, where scipy's Rotation.from_matrix took 0.3 ms: the CDR residual takes three.
+    Below 90 deg from the skew part and the trace (kernels.small_rotation_vector); beyond
+    (where the skew part loses the axis near 180 deg) from geometry.quaternion_xyzw.
+    A few us, where scipy's Rotation.from_matrix took 0.3 ms.
     """
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = rotation.tolist()
-    cosine = 0.5 * (m00 + m11 + m22 - 1.0)
-    if cosine > 0.0:
-        x, y, z = 0.5 * (m21 - m12), 0.5 * (m02 - m20), 0.5 * (m10 - m01)
-        sine = math.sqrt(x * x + y * y + z * z)
-        factor = math.atan2(sine, cosine) / sine if sine > 1e-8 else 1.0 / cosine
-    else:
-        x, y, z, w = geometry.quaternion_xyzw(rotation).tolist()
-        sine = math.sqrt(x * x + y * y + z * z)
-        factor = 2.0 * math.atan2(sine, w) / sine
+    out = np.empty(3)
+    if small_rotation_vector(np.asarray(rotation, dtype=float), out):
+        return out
+    x, y, z, w = geometry.quaternion_xyzw(rotation).tolist()
+    sine = math.sqrt(x * x + y * y + z * z)
+    factor = 2.0 * math.atan2(sine, w) / sine
     return np.array([factor * x, factor * y, factor * z])
 
 
