@@ -24,7 +24,8 @@ Jacobian and end-disk pose derivative; implicit differentiation). Two iterations
 * coupled (warm solves): the legs' own shooting unknowns join the platform's; an iterate
   costs one residual shot per leg, the Newton system is reduced to the platform's 24 by
   eliminating each leg with its LU (see ``_correction``), and chord steps reuse that
-  factorization across iterations and solves until they contract too slowly. The legs'
+  factorization across iterations and solves until they contract too slowly (Broyden
+  updates within a solve; a quadratic predictor along a steadily followed path). The legs'
   SolveResults (shape, stability, error estimate) are built from the solved leg unknowns
   when first asked for (DeltaResult.leg_results, TranslatorSolver.result_at).
 * nested (cold solves from home, where the legs' shooting is far from linear, and the
@@ -72,6 +73,12 @@ SLOW_CHORD = 0.5
 #: still not converged after these rebuilds (it converges, but too slowly to finish).
 CHORD_LIMIT = 8
 
+#: A slow chord step whose next correction is below this (flat scaled unknowns) rebuilds
+#: nothing: so close to the solution (converged at about 1e-8) the contractions are the
+#: shots' rounding more than the Jacobian's age (0.5 at 1e-7 along the slider circle), and
+#: a rebuild (about 15 iterations' worth) would buy one or two iterations.
+CHORD_FLOOR = 1e-6
+
 #: A factorization made within this distance of the solution (largest change of the scaled
 #: unknowns, platform and legs) serves the compliance and stability verdict there: it
 #: moves the compliance by about as much, relatively, below the 1e-8 to which implicit and
@@ -84,6 +91,10 @@ PREDICTOR_REACH = 3.0
 
 
 COUPLE_WITHIN = 0.1
+
+#: The quadratic predictor (_extrapolate) is used when the input change it does not
+#: extrapolate makes at most this fraction of the residual change of the whole.
+EXTRAPOLATE_WITHIN = 0.5
 
 #: Broyden updates gathered on one factorization at most (then H stays until a rebuild).
 MAX_SECANTS = 24
@@ -171,6 +182,17 @@ class _LegLinearization:
     gain: np.ndarray  # J^-1 dr/dw (n, 6): unknowns per SI wrench
     compliance: np.ndarray  # (6, 6) SI, cdr_translator/compliance.py's convention
     wrench: np.ndarray  # the wrench it was made at
+
+
+@dataclass
+class _PathStep:
+    """One converged coupled solve: from ``start`` to ``end`` for an input change."""
+
+    start: _State
+    end: _State
+    inputs_change: np.ndarray  # du (12)
+    step: np.ndarray  # end - start, flat and scaled (_difference)
+    change: np.ndarray  # dr/du du at the start (24): the residual change du made
 
 
 class _Secants:
@@ -321,9 +343,9 @@ class DeltaRobot:
         self._leg_scales = (problem.x_scale, problem.residual_scale, problem.model_args)
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
-        #: the last coupled solve's change of the unknowns (flat, scaled) and the residual
-        #: change its input change made, dr/du du (see _start_secants)
-        self._path: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        #: the last (up to two) coupled solves' steps, latest last (_start_secants,
+        #: _extrapolate); emptied by a solve that is not one
+        self._path: List[_PathStep] = []
         #: start_at arguments of each leg solver, applied before the next full leg solve
         self._legs_at: Optional[Tuple[tuple, ...]] = None
         self._factorization: Optional[_Factorization] = None
@@ -346,7 +368,7 @@ class DeltaRobot:
         """Forget the previous solution: the next solve starts from home."""
         self._previous = None
         self._factorization = None
-        self._path = None
+        self._path = []
         self._legs_at = None
         self._inverse.reset()
         for solver in self.leg_solvers:
@@ -475,8 +497,9 @@ class DeltaRobot:
         Walk from the previous solution to ``inputs`` (sliders, payload).
 
         Each step predicts the solution to first order with the stored factorization,
-        dx = -J^-1 (dr/du) du, and Newton corrects it (``coupled``: leg unknowns and
-        platform together; else every iterate's legs solved in full); a failed step is
+        dx = -J^-1 (dr/du) du (coupled, a whole step along a steadily followed path: to
+        second order, ``_extrapolate``), and Newton corrects it (``coupled``: leg unknowns
+        and platform together; else every iterate's legs solved in full); a failed step is
         halved, a good one doubled.
         """
         if self._previous is None:
@@ -484,7 +507,7 @@ class DeltaRobot:
         state, start = self._previous
         factorization = self._factorization
         if factorization is not None:
-            self._start_secants(factorization)
+            self._start_secants(factorization, state)
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome: Optional[_Outcome] = None
@@ -496,18 +519,21 @@ class DeltaRobot:
             if factorization is not None:
                 sensitivity = first if done == 0.0 else self._input_sensitivity(state, current)
                 change = sensitivity @ (goal - current)
-                platform, legs = self._unflat(self._correction(change, None, factorization,
-                                                               coupled))
-                reach = max(float(np.abs(platform / self._x_scale).max()),
-                            float(np.abs(legs).max()))
+                predicted = None
+                if coupled and target == 1.0 and done == 0.0:
+                    predicted = self._extrapolate(state, inputs - start, first, factorization)
+                if predicted is None:
+                    predicted = self._correction(change, None, factorization, coupled)
+                reach = float(np.abs(predicted).max())
                 if coupled and reach > PREDICTOR_REACH:
                     # beyond the linear regime of the legs' shooting: a shorter step
                     fraction = max(PREDICTOR_REACH / reach,
                                    MIN_CONTINUATION_STEP / (target - done))
                     target = done + fraction * (target - done)
                     goal = start + target * (inputs - start)
-                    platform, legs = fraction * platform, fraction * legs
-                guess = state.moved(platform, legs)
+                    predicted = fraction * self._correction(change, None, factorization,
+                                                            coupled)
+                guess = state.moved(*self._unflat(predicted))
             outcome = self._newton(guess, goal, factorization, coupled)
             iterations += outcome.iterations
             if outcome.converged:
@@ -528,16 +554,19 @@ class DeltaRobot:
         self._factorization = factorization
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
-        self._path = None
-        if coupled and outcome.converged:  # this solve's path secant, for the next one
-            self._path = (_difference(outcome.state, self._previous[0], self._x_scale),
-                          first @ (inputs - start))
+        if coupled and outcome.converged:  # this solve's path secant, for the next ones
+            record = _PathStep(self._previous[0], outcome.state, inputs - start,
+                               _difference(outcome.state, self._previous[0], self._x_scale),
+                               first @ (inputs - start))
+            self._path = [*self._path[-1:], record]
+        else:
+            self._path = []
         outcome.iterations = iterations
         return outcome
 
-    def _start_secants(self, factorization: _Factorization) -> None:
+    def _start_secants(self, factorization: _Factorization, state: _State) -> None:
         """
-        Start a solve's Broyden updates on ``factorization``: the last solve's path secant.
+        Start the Broyden updates of a solve from ``state``: the last solve's path secant.
 
         The updates of earlier solves are dropped; the last coupled solve's change of the
         unknowns s and of the inputs du give one: J s + dr/du du = 0 to first order (the
@@ -546,10 +575,35 @@ class DeltaRobot:
         """
         secants = factorization.secants
         secants.count = 0
-        if self._path is not None:
-            step, change = self._path
-            predicted = self._correction(change, None, factorization, False)  # -H_0 (dr/du du)
-            secants.add(step, predicted, predicted)
+        if self._path and self._path[-1].end is state:
+            last = self._path[-1]
+            predicted = self._correction(last.change, None, factorization, False)  # -H_0 r_u du
+            secants.add(last.step, predicted, predicted)
+
+    def _extrapolate(self, state: _State, inputs_change: np.ndarray, sensitivity: np.ndarray,
+                     factorization: _Factorization) -> Optional[np.ndarray]:
+        """
+        Second-order predictor (flat, scaled) along a path followed at a steady rate.
+
+        With the last two solves' steps s_k, s_(k-1) (consecutive, coupled) the solution
+        extrapolated quadratically is x_k + 2 s_k - s_(k-1), at inputs u_k + 2 du_k -
+        du_(k-1); the rest of the input change is predicted to first order. The first-order
+        predictor's error is the path's curvature (its Jacobian is exact along the last step,
+        ``_start_secants``); this one's is third order. None (the first-order predictor is
+        used) when there are no such two steps, or the inputs do not follow them: the rest's
+        residual change is more than EXTRAPOLATE_WITHIN of the whole input change's.
+        """
+        if len(self._path) < 2 or self._path[-1].end is not state \
+                or self._path[-2].end is not self._path[-1].start:
+            return None
+        before, last = self._path
+        rest = sensitivity @ (inputs_change - 2.0 * last.inputs_change + before.inputs_change)
+        whole = sensitivity @ inputs_change
+        if np.linalg.norm(rest / self._r_scale) > \
+                EXTRAPOLATE_WITHIN * np.linalg.norm(whole / self._r_scale):
+            return None
+        return (2.0 * last.step - before.step
+                + self._correction(rest, None, factorization, True))
 
     # Newton ----------------------------------------------------------------------------------
     def _newton(self, state: _State, inputs: np.ndarray,
@@ -615,7 +669,9 @@ class DeltaRobot:
                 # geometric mean, and only a single step that barely contracts on its own
                 chord_steps += 1
                 chord_log += math.log(max(contraction, 1e-300))
-                if contraction > SLOW_CHORD or chord_log > chord_steps * math.log(CHORD_RATE) \
+                slow = contraction > SLOW_CHORD or \
+                    chord_log > chord_steps * math.log(CHORD_RATE)
+                if (slow and contraction * step_size > CHORD_FLOOR) \
                         or chord_steps >= CHORD_LIMIT:
                     factorization, step = None, None  # chord steps converge too slowly
             fresh = False

@@ -172,7 +172,9 @@ def test_warm_circle_converges_with_few_rebuilds():
     Along a slider circle every warm solve converges coupled, on few Jacobian rebuilds.
 
     The counts are the algorithm's, not the machine's: no full leg solve, fewer than one
-    rebuild (three exact leg Jacobians) every other solve, fewer than 9 iterations a solve.
+    rebuild (three exact leg Jacobians) every third solve, at most 9 iterations a solve.
+    A jump off the path (the quadratic predictor does not apply) converges to the cold
+    solution.
     """
     robot = DeltaRobot()
     phases = np.arange(3) * 2.0 * math.pi / 3.0
@@ -180,5 +182,11 @@ def test_warm_circle_converges_with_few_rebuilds():
                for k in range(40)][1:]
     assert all(result.converged for result in results)
     assert sum(result.leg_solves for result in results) == 0
-    assert np.mean([result.leg_jacobians for result in results]) / 3 < 0.5
+    assert np.mean([result.leg_jacobians for result in results]) / 3 < 0.34
     assert max(result.iterations for result in results) <= 9
+    jump = robot.solve((0.002, 0.01, -0.012), (1.0, -2.0, -9.81))
+    robot.reset()
+    cold = robot.solve((0.002, 0.01, -0.012), (1.0, -2.0, -9.81))
+    assert jump.converged and cold.converged
+    assert np.allclose(jump.platform_position, cold.platform_position, atol=1e-10)
+    assert np.allclose(jump.leg_tip_wrenches, cold.leg_tip_wrenches, atol=1e-6)
