@@ -192,7 +192,6 @@ class _PathStep:
     end: _State
     inputs_change: np.ndarray  # du (12)
     step: np.ndarray  # end - start, flat and scaled (_difference)
-    change: np.ndarray  # dr/du du at the start (24): the residual change du made
 
 
 class _Secants:
@@ -343,8 +342,8 @@ class DeltaRobot:
         self._leg_scales = (problem.x_scale, problem.residual_scale, problem.model_args)
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
-        #: the last (up to two) coupled solves' steps, latest last (_start_secants,
-        #: _extrapolate); emptied by a solve that is not one
+        #: the last (up to two) coupled solves' steps, latest last (_extrapolate); emptied
+        #: by a solve that is not one
         self._path: List[_PathStep] = []
         #: start_at arguments of each leg solver, applied before the next full leg solve
         self._legs_at: Optional[Tuple[tuple, ...]] = None
@@ -507,11 +506,11 @@ class DeltaRobot:
         state, start = self._previous
         factorization = self._factorization
         if factorization is not None:
-            self._start_secants(factorization, state)
+            factorization.secants.count = 0  # a solve's Broyden updates are its own
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome: Optional[_Outcome] = None
-        first = self._input_sensitivity(state, start)  # at the start; and the path's secant
+        first = self._input_sensitivity(state, start)
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
@@ -554,31 +553,14 @@ class DeltaRobot:
         self._factorization = factorization
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
-        if coupled and outcome.converged:  # this solve's path secant, for the next ones
+        if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
             record = _PathStep(self._previous[0], outcome.state, inputs - start,
-                               _difference(outcome.state, self._previous[0], self._x_scale),
-                               first @ (inputs - start))
+                               _difference(outcome.state, self._previous[0], self._x_scale))
             self._path = [*self._path[-1:], record]
         else:
             self._path = []
         outcome.iterations = iterations
         return outcome
-
-    def _start_secants(self, factorization: _Factorization, state: _State) -> None:
-        """
-        Start the Broyden updates of a solve from ``state``: the last solve's path secant.
-
-        The updates of earlier solves are dropped; the last coupled solve's change of the
-        unknowns s and of the inputs du give one: J s + dr/du du = 0 to first order (the
-        residual is linear in the sliders and payload), so the predictor reproduces the last
-        step exactly and a next step like it (a path followed at a steady rate) nearly so.
-        """
-        secants = factorization.secants
-        secants.count = 0
-        if self._path and self._path[-1].end is state:
-            last = self._path[-1]
-            predicted = self._correction(last.change, None, factorization, False)  # -H_0 r_u du
-            secants.add(last.step, predicted, predicted)
 
     def _extrapolate(self, state: _State, inputs_change: np.ndarray, sensitivity: np.ndarray,
                      factorization: _Factorization) -> Optional[np.ndarray]:
@@ -588,8 +570,8 @@ class DeltaRobot:
         With the last two solves' steps s_k, s_(k-1) (consecutive, coupled) the solution
         extrapolated quadratically is x_k + 2 s_k - s_(k-1), at inputs u_k + 2 du_k -
         du_(k-1); the rest of the input change is predicted to first order. The first-order
-        predictor's error is the path's curvature (its Jacobian is exact along the last step,
-        ``_start_secants``); this one's is third order. None (the first-order predictor is
+        predictor's error is the path's curvature and the stored Jacobian's age; this one's
+        is third order along the path. None (the first-order predictor is
         used) when there are no such two steps, or the inputs do not follow them: the rest's
         residual change is more than EXTRAPOLATE_WITHIN of the whole input change's.
         """
@@ -853,17 +835,6 @@ class DeltaRobot:
         return _Factorization(platform, tuple(legs), state)
 
     # residual and derivatives ----------------------------------------------------------------
-    def _targets(self, state: _State, sliders: np.ndarray) -> List[Tuple[np.ndarray,
-                                                                         np.ndarray]]:
-        """Pose (rotation, position) of each platform attachment in its leg base frame."""
-        targets = []
-        for leg, slider in zip(self.legs, sliders):
-            position = leg.rotation.T @ (state.position + state.rotation @ leg.attachment
-                                         - leg.base(slider))
-            rotation = leg.rotation.T @ state.rotation @ leg.rotation
-            targets.append((rotation, position))
-        return targets
-
     def _reactions(self, state: _State) -> Tuple[np.ndarray, np.ndarray]:
         """
         Return the leg forces on the platform in {w} (3, 3) and their lever arms (3, 3).
