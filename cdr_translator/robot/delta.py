@@ -249,11 +249,12 @@ class _Factorization:
 
     def __post_init__(self) -> None:
         """Stack the legs' matrices, invert the platform Jacobian, start the secants."""
-        self.factors = np.stack([leg.lu[0] for leg in self.legs])
+        # C order: the substitutions run along rows (LAPACK's factors are column-major)
+        self.factors = np.ascontiguousarray(np.stack([leg.lu[0] for leg in self.legs]))
         self.pivots = np.stack([leg.lu[1] for leg in self.legs])
-        self.twists = np.stack([leg.twist for leg in self.legs])
-        self.gains = np.stack([leg.gain for leg in self.legs])
-        self.platform_inverse = solve_lu(self.platform, np.eye(SIZE))
+        self.twists = np.ascontiguousarray(np.stack([leg.twist for leg in self.legs]))
+        self.gains = np.ascontiguousarray(np.stack([leg.gain for leg in self.legs]))
+        self.platform_inverse = np.ascontiguousarray(solve_lu(self.platform, np.eye(SIZE)))
         self.secants = _Secants(SIZE + self.gains.shape[0] * self.gains.shape[1])
 
 
