@@ -147,7 +147,7 @@ class TranslatorSolver:
                  time_limit_s: float = 10.0, jacobian: str = 'exact',
                  accuracy: Optional[Accuracy] = None,
                  follow_stable_branch: bool = True, fallback: bool = True,
-                 path: str = 'default') -> None:
+                 path: str = 'default', judge: bool = True) -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -175,6 +175,10 @@ class TranslatorSolver:
         ``path='tracking'`` skips the default continuation and follows the load path with
         the fallback's alone (from the previous solution, else from the unloaded state):
         fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
+        ``judge=False`` skips the stability verdict, the error estimate and so refinement:
+        ``stable`` stays None and the estimates NaN (for a caller that iterates on leg
+        solutions and judges only the one it keeps, with ``result_at``: robot/delta.py's
+        nested iteration).
         """
         if path not in PATHS:
             raise ValueError(f'path must be one of {PATHS}, got {path!r}')
@@ -212,6 +216,7 @@ class TranslatorSolver:
         self._verdict_lu: Optional[tuple] = None
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
         self.follow_stable_branch = follow_stable_branch
+        self.judge = judge
         self.fallback = fallback
         self.path = path
         self._refined: Dict[int, 'TranslatorSolver'] = {}
@@ -275,9 +280,10 @@ class TranslatorSolver:
         stability verdict and error estimate from the same arithmetic), without the
         continuation around it: one shot with the shape recorded, the verdict (from
         ``factorization``, as ``start_at`` takes it; an exact Jacobian at ``xs`` when
-        there is none or it is too far, as in a solve) and the error estimate. Unlike a
-        solve it iterates never: a residual above the tolerance gives ``converged`` False
-        and a message. The solver's warm start and stored factorization are unchanged.
+        there is none or it is too far, as in a solve) and the error estimate, whatever
+        ``judge`` says. Unlike a solve it iterates never: a residual above the tolerance
+        gives ``converged`` False and a message. The solver's warm start and stored
+        factorization are unchanged.
         """
         started = time.perf_counter()
         wrench = check_wrench(wrench[:3], wrench[3:])
@@ -343,7 +349,7 @@ class TranslatorSolver:
             self._previous = (outcome.xs, wrench)
         verdict = None
         result = self._result(outcome, wrench, 0.0)
-        if outcome.converged and self.method == 'fast':
+        if outcome.converged and self.method == 'fast' and self.judge:
             verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
             if (not verdict.stable and self.follow_stable_branch
                     and time.perf_counter() < deadline):
@@ -352,7 +358,7 @@ class TranslatorSolver:
                     outcome, result = branch, self._result(branch, wrench, 0.0)
         if verdict is not None:
             _apply_verdict(result, verdict)
-        if outcome.converged:
+        if outcome.converged and self.judge:
             self._estimate_error(result, outcome, wrench)
             if not result.accuracy_met and self.method == 'fast':
                 refined = self._refine(result, wrench, deadline, compliance, verify,

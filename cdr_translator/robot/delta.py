@@ -313,9 +313,11 @@ class DeltaRobot:
         # a leg is one link of the closed chain: its discretization stays fixed across the
         # robot's Newton iterations (no automatic refinement) and its equilibrium is not
         # judged alone (a leg's stability under a dead tip load is not the chain's)
+        # the leg solves of the nested iteration converge, nothing more (judge=False): only
+        # the legs of the result are judged, when read (_leg_results)
         self.leg_solvers = tuple(TranslatorSolver(self.params, time_limit_s=time_limit_s,
                                                   accuracy=Accuracy(0.0, 0.0),
-                                                  follow_stable_branch=False)
+                                                  follow_stable_branch=False, judge=False)
                                  for _ in range(3))
         self._leg_tolerance = min(solver.tolerance for solver in self.leg_solvers)
         # scales for a balanced Newton system: the stack height, and the force that bends
@@ -790,19 +792,21 @@ class DeltaRobot:
         """
         Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
 
-        A coupled iterate has none yet: a LegResults builds each on first access from the
-        state's leg unknowns and the leg's factorization (TranslatorSolver.result_at: one
-        shot and the verdicts, what a leg solve started there gives). The next full leg
-        solve (nested iteration) starts each leg there (TranslatorSolver.start_at).
+        A LegResults builds each on first access from the state's leg unknowns
+        (TranslatorSolver.result_at: one shot and the verdicts, what a leg solve started
+        there gives): with the leg's factorization after a coupled iteration, with an exact
+        Jacobian there after a nested one (whose leg solves are not judged). After a
+        coupled iteration the next full leg solve (nested iteration) starts each leg there
+        (TranslatorSolver.start_at).
         """
-        if state.legs is not None:
-            return tuple(state.legs)
+        coupled = state.legs is None
         starts = []
         for k in range(3):
-            leg = factorization.legs[k] if factorization is not None else None
+            leg = factorization.legs[k] if factorization is not None and coupled else None
             starts.append((state.unknowns[k].copy(), state.wrenches[k].copy(),
                            None if leg is None else (leg.lu, leg.pose, leg.wrench)))
-        self._legs_at = tuple(starts)
+        if coupled:
+            self._legs_at = tuple(starts)
         return LegResults(functools.partial(solver.result_at, *start)
                           for solver, start in zip(self.leg_solvers, starts))
 

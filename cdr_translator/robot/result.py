@@ -96,12 +96,11 @@ class DeltaResult:
     (position m, rotation vector rad). Failure to converge is a result (``converged``
     False, ``message`` says why) holding the best iterate found. ``leg_results``: each
     leg's SolveResult at that state (shape, bending, the leg's own stability verdict and
-    error estimate); after a coupled iteration a LegResults, each leg's result built from
-    the solved leg unknowns on first access (TranslatorSolver.result_at, about 0.3 ms a
-    leg, not in ``solve_time_s``). The work the solve took: ``leg_solves`` (full
-    TranslatorSolver solves of a leg), ``leg_shots`` (residual shots of one leg in the
-    coupled Newton) and ``leg_jacobians`` (exact leg Jacobians, one tangent-linear shot
-    each: the costly part).
+    error estimate), a LegResults: each built from the solved leg unknowns on first access
+    (TranslatorSolver.result_at, 0.3-1 ms a leg, not in ``solve_time_s``). The work the
+    solve took: ``leg_solves`` (full TranslatorSolver solves of a leg, not judged),
+    ``leg_shots`` (residual shots of one leg in the coupled Newton) and ``leg_jacobians``
+    (exact leg Jacobians, one tangent-linear shot each: the costly part).
 
     With ``solve(..., compliance=True)`` (a converged solve) the linearization of the
     assembled closed chain at the solution is added, from the Newton Jacobian J exact at

@@ -190,3 +190,31 @@ def test_warm_circle_converges_with_few_rebuilds():
     assert jump.converged and cold.converged
     assert np.allclose(jump.platform_position, cold.platform_position, atol=1e-10)
     assert np.allclose(jump.leg_tip_wrenches, cold.leg_tip_wrenches, atol=1e-6)
+
+
+def test_unjudged_leg_solves_and_judged_results():
+    """
+    judge=False: a solve converges and is not judged; result_at judges what is kept.
+
+    The CDR's nested (cold) iteration solves its legs so; the legs it returns are judged
+    when read, like a judged solve of the leg (an exact Jacobian at the solution).
+    """
+    params = TranslatorParams.from_yaml()
+    unjudged = TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0),
+                                follow_stable_branch=False, judge=False)
+    judged = TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0),
+                              follow_stable_branch=False)
+    wrench = np.array([2.0, 1.0, -4.0, 0.0, 0.03, 0.0])
+    plain = unjudged.solve(wrench[:3], wrench[3:])
+    full = judged.solve(wrench[:3], wrench[3:])
+    assert plain.converged and plain.stable is None
+    assert math.isnan(plain.stability_margin) and math.isnan(plain.error_estimate_m)
+    assert np.abs(plain.frames['de'] - full.frames['de']).max() <= 1e-9
+    kept = unjudged.result_at(plain.unknowns / unjudged.problem.x_scale, wrench)
+    assert kept.stable is full.stable is True
+    assert kept.stability_margin == pytest.approx(full.stability_margin, rel=1e-2)
+    assert kept.error_estimate_m == pytest.approx(full.error_estimate_m, rel=5e-2)
+    robot = DeltaRobot()
+    cold = robot.solve((0.01, -0.005, 0.002), GRAVITY_1KG)  # from home: nested legs
+    assert cold.converged and cold.leg_solves > 0
+    assert all(leg.stable is True and leg.error_estimate_m > 0.0 for leg in cold.leg_results)
