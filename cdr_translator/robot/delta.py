@@ -151,8 +151,8 @@ class _State:
 
     ``unknowns`` (3, n): each leg's nondimensional shooting unknowns (its Problem's);
     ``frames`` (3, 4, 4): each leg's end-disk frame in {pe_i} there; ``leg_error``: the
-    largest nondimensional leg residual; ``legs``: the legs' SolveResults when they were
-    solved (nested) or confirmed (coupled) at this state, else None.
+    largest nondimensional leg residual; ``legs``: the legs' (unjudged) SolveResults when
+    they were solved in full at this state (nested iteration), else None.
     """
 
     position: np.ndarray
