@@ -9,11 +9,13 @@ Prints, and writes to bench/results/targets.md:
 * warm solves along the 1000-sample sequence of bench.speed_vs_error (median);
 * cold solves of the paper's Table II cases (median of 5 each);
 * compliance on top of a solve (its own time, median along 200 warm samples);
-* 3 spacer disks per joint: cold (20 N) and warm (sequence, first 200 samples);
+* 3 spacer disks per joint: cold (20 N) and warm (sequence, first 200 samples); cold also
+  by single shooting (the lifted Newton of cdr_translator/lifted.py switched off);
 * the stability verdict and error estimate together, as a fraction of the warm solve;
 * CDR forward statics (bench.delta_statics): warm along its slider circle (median), cold
   from home over its COLD_CASES (median of 3 each; the worst is the row);
-* optionally (--spacers-slope) cold 2 N solves for 1..9 spacer disks per joint;
+* optionally (--spacers-slope) cold 2 N solves for 1..9 spacer disks per joint, as solved
+  and by single shooting;
 * the paper baseline (method='paper', cold 12 N) for the ratio, unless --skip-paper.
 
 Every solve here is a whole solve: stability verdict and error estimate included. The
@@ -143,11 +145,23 @@ def compliance_time(solver: TranslatorSolver, sequence: np.ndarray) -> float:
     return _median(samples)
 
 
+def _single_shooting(solver: TranslatorSolver) -> TranslatorSolver:
+    """Return ``solver`` with the lifted Newton (multiple shooting) switched off."""
+    solver.lift_from_spacers = None
+    return solver
+
+
 def spacers(params: TranslatorParams, count: int, sequence: np.ndarray) -> Dict[str, dict]:
-    """Cold 20 N and warm (first 200 sequence samples) with ``count`` spacer disks."""
+    """
+    Cold 20 N and warm (first 200 sequence samples) with ``count`` spacer disks.
+
+    Also 'single': the exact Jacobian without the lifted Newton (cold only; warm solves
+    never lift).
+    """
     changed = params.with_changes(spacers_per_joint=count, tube_length=0.1383 - 0.02 * (count - 1))
     solvers = {jacobian: TranslatorSolver(changed, jacobian=jacobian)
                for jacobian in ('exact', 'fd')}
+    solvers['single'] = _single_shooting(TranslatorSolver(changed))
     cold: Dict[str, List[float]] = {name: [] for name in solvers}
     for _ in range(3):
         for name, solver in solvers.items():
@@ -155,22 +169,28 @@ def spacers(params: TranslatorParams, count: int, sequence: np.ndarray) -> Dict[
             started = time.perf_counter()
             assert solver.solve((20.0, 0.0, 0.0)).converged
             cold[name].append(time.perf_counter() - started)
+    del solvers['single']
     warm = warm_sequences(solvers, sequence[:200])
-    return {name: {'cold_s': _median(cold[name]), 'warm_s': warm[name]['median_s']}
-            for name in solvers}
+    out = {name: {'cold_s': _median(cold[name]), 'warm_s': warm[name]['median_s']}
+           for name in solvers}
+    out['exact']['single_cold_s'] = _median(cold['single'])
+    return out
 
 
-def spacer_slope(params: TranslatorParams) -> Dict[int, float]:
-    """Cold 2 N solve time against spacer disks per joint."""
-    out = {}
+def spacer_slope(params: TranslatorParams) -> Dict[str, Dict[int, float]]:
+    """Cold 2 N solve time against spacer disks per joint: 'lifted' (default), 'single'."""
+    out: Dict[str, Dict[int, float]] = {'lifted': {}, 'single': {}}
     for count in range(1, 10):
         changed = params.with_changes(spacers_per_joint=count)
-        solver = TranslatorSolver(changed, time_limit_s=60.0)
+        for name in out:
+            solver = TranslatorSolver(changed, time_limit_s=60.0)
+            if name == 'single':
+                _single_shooting(solver)
 
-        def cold():
-            solver.reset()
-            assert solver.solve((2.0, 0.0, 0.0)).converged
-        out[count] = _time(cold, 2)
+            def cold():
+                solver.reset()
+                assert solver.solve((2.0, 0.0, 0.0)).converged
+            out[name][count] = _time(cold, 2)
     return out
 
 
@@ -285,6 +305,11 @@ def main() -> None:
         f"{100 * TARGETS['overhead']:.0f} %: "
         f"{'met' if exact['warm']['overhead_fraction'] <= TARGETS['overhead'] else 'missed'}).",
         '',
+        '3 spacer disks per joint, cold 20 N by single shooting (exact Jacobian, the lifted '
+        f"Newton switched off): {_ms(exact['spacers3']['single_cold_s'])} ms, "
+        f"{exact['spacers3']['single_cold_s'] / exact['spacers3']['cold_s']:.1f} times the "
+        'lifted solve above.',
+        '',
         'Cold Table II cases (median of 5, ms): ' + ', '.join(
             f'{force:g} N: exact {_ms(exact["cold"][force])}, fd {_ms(fd["cold"][force])}'
             for force in exact['cold']) + '.',
@@ -298,12 +323,14 @@ def main() -> None:
     if paper:
         lines += ['', f'Paper baseline (method=paper, cold 12 N): {paper:.2f} s.']
     if slope:
-        counts = np.array(list(slope))
-        values = np.array([slope[c] for c in counts])
-        fit = np.polyfit(counts, values, 1)
-        lines += ['', 'Cold 2 N solve against spacer disks per joint (ms): ' + ', '.join(
-            f'{c}: {_ms(slope[c])}' for c in slope)
-            + f'. Linear fit slope {_ms(fit[0])} ms per spacer disk.']
+        for name, label in (('lifted', 'as solved (lifted Newton from 2 spacer disks on)'),
+                            ('single', 'single shooting throughout')):
+            counts = np.array(list(slope[name]))
+            values = np.array([slope[name][c] for c in counts])
+            fit = np.polyfit(counts, values, 1)
+            lines += ['', f'Cold 2 N solve against spacer disks per joint, {label} (ms): '
+                      + ', '.join(f'{c}: {_ms(slope[name][c])}' for c in slope[name])
+                      + f'. Linear fit slope {_ms(fit[0])} ms per spacer disk.']
     lines += ['', f'Run time {time.perf_counter() - started:.0f} s.', '']
     text = '\n'.join(lines)
     print(text)

@@ -37,7 +37,7 @@ from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
 from .robot.result import DeltaResult
-from .solver import METHODS, TranslatorSolver
+from .solver import LIFT_FROM_SPACERS, METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2
@@ -282,6 +282,8 @@ def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
     """
     Solve once at every fidelity level, with each Jacobian, and the CDR (all kernels run).
 
+    A cold solve with spacer disks runs the multiple-shooting kernels (lifted.py).
+
     Then say what it compiled and where; a kernel that did not run is named as not cached.
     """
     def warm_up() -> None:
@@ -289,6 +291,8 @@ def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
             FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
         for jacobian in JACOBIANS:
             TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
+        spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
+        TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
         robot = DeltaRobot.from_yaml(params_path)
         for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
             robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()

@@ -45,6 +45,23 @@ N_RODS = 5
 N_BASE_UNKNOWNS = 6 * N_RODS
 STATION_WIDTH = 5
 
+#: Layout of a node state (multiple shooting, lifted.py): the rods' state where a disk
+#: interval starts, all SI in {pe}: p (5 x 3), R (5 x 3 x 3, row-major), n, m (5 x 3 each)
+#: and the material length of each secondary used so far (4).
+STATE_P = 0
+STATE_ROT = 3 * N_RODS
+STATE_N = 12 * N_RODS
+STATE_M = 15 * N_RODS
+STATE_USED = 18 * N_RODS
+STATE_SIZE = 18 * N_RODS + 4
+
+#: What a shot does at the start of each disk interval after the first (``nodes`` argument):
+#: nothing (single shooting), start from the given node state and write the defect (carried
+#: minus node state: multiple shooting), or record the carried state as the node.
+NO_NODES = 0
+LIFT_NODES = 1
+RECORD_NODES = 2
+
 
 def station_count(spacers_per_joint: int) -> int:
     """Stations per secondary: the spacer disks of both joints and the tube's proximal face."""
@@ -54,6 +71,11 @@ def station_count(spacers_per_joint: int) -> int:
 def unknown_count(spacers_per_joint: int) -> int:
     """Size of the unknown vector (and of the residual vector)."""
     return N_BASE_UNKNOWNS + 4 * STATION_WIDTH * station_count(spacers_per_joint)
+
+
+def interval_count(spacers_per_joint: int) -> int:
+    """Disk intervals of one shot (two joints of S + 1 each); nodes start all but the first."""
+    return 2 * (spacers_per_joint + 1)
 
 
 def grid_points_per_rod(spacers_per_joint: int, steps: int) -> int:
@@ -224,6 +246,38 @@ def _gather_station(x, t, nst):
     return col
 
 
+@jit_inline
+def _enter(mode, node, defect, index, value):
+    """One state value at a node: record it, or return the node's and write the defect."""
+    if mode == RECORD_NODES:
+        node[index] = value
+        defect[index] = 0.0
+        return value
+    defect[index] = value - node[index]
+    return node[index]
+
+
+@jit
+def _enter_node(mode, node, defect, p, rot, n, m, used):
+    """
+    Apply a node at the start of a disk interval (mode LIFT_NODES or RECORD_NODES).
+
+    LIFT_NODES replaces the carried state (p, rot, n, m, used) by ``node`` and writes
+    ``defect`` = carried - node; RECORD_NODES writes the carried state into ``node`` (defect
+    zero). Layout: the STATE_* offsets.
+    """
+    for k in range(N_RODS):
+        for c in range(3):
+            p[k, c] = _enter(mode, node, defect, STATE_P + 3 * k + c, p[k, c])
+            n[k, c] = _enter(mode, node, defect, STATE_N + 3 * k + c, n[k, c])
+            m[k, c] = _enter(mode, node, defect, STATE_M + 3 * k + c, m[k, c])
+            for b in range(3):
+                rot[k, c, b] = _enter(mode, node, defect, STATE_ROT + 9 * k + 3 * c + b,
+                                      rot[k, c, b])
+    for i in range(4):
+        used[i] = _enter(mode, node, defect, STATE_USED + i, used[i])
+
+
 @jit
 def _base_state(x, pitch_radius):
     """Return hole positions and the rods' state (p, R, n, m) at the base disk."""
@@ -255,6 +309,22 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
     centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
     """
+    none = np.empty((0, STATE_SIZE))
+    shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,
+                     inv_kbt, out, points, frames, NO_NODES, none, none)
+
+
+@jit
+def shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,
+                     inv_kbt, out, points, frames, mode, nodes, defects):
+    """
+    ``translator_residual`` with node states at the starts of the disk intervals 1, 2, ...
+
+    ``nodes`` and ``defects`` are (interval_count - 1, STATE_SIZE), node j at the start of
+    interval j + 1; ``mode`` one of NO_NODES, LIFT_NODES, RECORD_NODES (``_enter_node``).
+    With LIFT_NODES every interval starts from its node (multiple shooting) and ``defects``
+    receives the carried state minus the node's.
+    """
     nst = 2 * spacers + 1
     hole, p, rot, n, m = _base_state(x, pitch_radius)
     _store_frame(rot[0], p[0], frames[0])
@@ -265,6 +335,8 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
+            if mode != NO_NODES and t > 0:
+                _enter_node(mode, nodes[t - 1], defects[t - 1], p, rot, n, m, used)
             first_row = segment * (steps + 1) if record else 0
             integrate_segment(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse, inv_kbt,
                               points[0], first_row)
@@ -341,17 +413,32 @@ def residual_jacobian(x, step, wrench, pitch_radius, spacing, tube_length, space
 # which central differences confirm (tests/core/test_jacobian.py).
 #
 # The tangent columns are kept station by station (``_internal_columns``): the base
-# unknowns, then station 0's 20, station 1's, ... Upstream of station t's disk no tangent
-# depends on a later station's unknowns, so every loop runs over the prefix of ``live``
-# columns that can be nonzero, contiguous and innermost (compiled to vector instructions);
-# the Jacobian's columns are put back in the unknowns' order at the end.
+# unknowns, the lifted column (below), then station 0's 20, station 1's, ... Upstream of
+# station t's disk no tangent depends on a later station's unknowns, so every loop runs over
+# the prefix of ``live`` columns that can be nonzero, contiguous and innermost (compiled to
+# vector instructions); the Jacobian's columns are put back in the unknowns' order at the end.
+#
+# The lifted column (LIFT_COLUMN) is the condensing direction of the lifted Newton method
+# (Albersmeyer & Diehl, SIAM J. Optim. 20(3), 2010; lifted.py): zero at the base, it gains
+# each node's defect where the node replaces the carried state (a_t = L a_{t-1} + d_t), so
+# its Jacobian column is R_z a, the residual change that the defects' Newton corrections
+# cause. Without nodes it stays zero.
+
+#: Tangent column of the lifted direction (between the base unknowns and the stations').
+LIFT_COLUMN = N_BASE_UNKNOWNS
+
 
 @jit
 def _internal_columns(size, nst):
-    """Return the unknown of each tangent column: base unknowns, then station by station."""
-    order = np.empty(size, dtype=np.int64)
+    """
+    Return the unknown of each tangent column (size + 1 of them; the lifted one is ``size``).
+
+    Base unknowns, the lifted column, then station by station.
+    """
+    order = np.empty(size + 1, dtype=np.int64)
     for q in range(N_BASE_UNKNOWNS):
         order[q] = q
+    order[LIFT_COLUMN] = size
     for t in range(nst):
         for i in range(4):
             for c in range(STATION_WIDTH):
@@ -363,7 +450,7 @@ def _internal_columns(size, nst):
 @jit
 def _station_column(t, i):
     """Tangent column of secondary i's first unknown at station t (see _internal_columns)."""
-    return N_BASE_UNKNOWNS + STATION_WIDTH * (4 * t + i)
+    return LIFT_COLUMN + 1 + STATION_WIDTH * (4 * t + i)
 
 
 @jit
@@ -688,29 +775,63 @@ def _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, row, live):
 
 
 @jit
-def _unknowns_order(jac, nst):
+def _unknowns_order(internal, nst, jac, lifted):
     """
-    Put the Jacobian's columns (tangent-column order) in the unknowns' order, in place.
+    Put the Jacobian's columns (tangent-column order) in the unknowns' order.
 
-    The rows of station t were written only for the columns before station t + 1's (the
-    rest are zero by construction), so nothing else need be cleared beforehand.
+    ``internal`` (size, size + 1) in tangent-column order goes to ``jac`` (size, size), its
+    lifted column to ``lifted`` (size). The rows of station t were written only for the
+    columns before station t + 1's (the rest are zero by construction), so nothing else need
+    be cleared beforehand.
     """
     size = jac.shape[1]
-    row = np.empty(size)
     for r in range(jac.shape[0]):
-        live = size
+        live = size + 1
         if r < 4 * STATION_WIDTH * nst:
             live = _station_column(r // STATION_WIDTH % nst + 1, 0)
-        for q in range(live):
-            row[q] = jac[r, q]
-        for q in range(live, size):
-            row[q] = 0.0
+        for q in range(N_BASE_UNKNOWNS):
+            jac[r, q] = internal[r, q]
+        lifted[r] = internal[r, LIFT_COLUMN]
         for t in range(nst):
             for i in range(4):
                 source = _station_column(t, i)
                 target = N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)
                 for c in range(STATION_WIDTH):
-                    jac[r, target + c] = row[source + c]
+                    jac[r, target + c] = internal[r, source + c] if source + c < live else 0.0
+
+
+@jit
+def _record_node_tangents(tp, trot, tn, tm, tused, out, live):
+    """Copy the state's tangents (columns < live, tangent-column order) in STATE_* layout."""
+    for k in range(N_RODS):
+        for c in range(3):
+            for d in range(live):
+                out[STATE_P + 3 * k + c, d] = tp[k, c, d]
+            for d in range(live):
+                out[STATE_N + 3 * k + c, d] = tn[k, c, d]
+            for d in range(live):
+                out[STATE_M + 3 * k + c, d] = tm[k, c, d]
+            for b in range(3):
+                for d in range(live):
+                    out[STATE_ROT + 9 * k + 3 * c + b, d] = trot[k, c, b, d]
+    for i in range(4):
+        for d in range(live):
+            out[STATE_USED + i, d] = tused[i, d]
+
+
+@jit
+def _seed_defect(defect, tp, trot, tn, tm, tused):
+    """Add a node's defect to the lifted column of the state's tangents (a_t += d_t)."""
+    q = LIFT_COLUMN
+    for k in range(N_RODS):
+        for c in range(3):
+            tp[k, c, q] += defect[STATE_P + 3 * k + c]
+            tn[k, c, q] += defect[STATE_N + 3 * k + c]
+            tm[k, c, q] += defect[STATE_M + 3 * k + c]
+            for b in range(3):
+                trot[k, c, b, q] += defect[STATE_ROT + 9 * k + 3 * c + b]
+    for i in range(4):
+        tused[i, q] += defect[STATE_USED + i]
 
 
 @jit
@@ -722,17 +843,39 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     ``pose_jac`` (12, size) receives the derivative of the end-disk frame {de}: rows 0-2 its
     centre, rows 3-11 its rotation matrix (row-major); ``frames`` as in translator_residual.
     """
+    none = np.empty((0, STATE_SIZE))
+    lifted_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,
+                    inv_kbt, out, jac, pose_jac, frames, NO_NODES, none, none,
+                    np.empty(x.shape[0]), np.empty((0, STATE_SIZE, 0)))
+
+
+@jit
+def lifted_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,
+                    inv_kbt, out, jac, pose_jac, frames, mode, nodes, defects, lifted,
+                    node_tangents):
+    """
+    ``translator_jacobian`` of the shot with nodes (``shoot_with_nodes``: mode, nodes, defects).
+
+    The tangents are those of single shooting chained through the nodes (Z_t, the derivative
+    of the carried state with respect to x), evaluated at the node states; with LIFT_NODES
+    the lifted column carries the defects (see LIFT_COLUMN) and ``lifted`` (size) receives
+    its residual rows, R_z a. ``node_tangents`` (nodes, STATE_SIZE, size + 1), when it has
+    rows, receives at each node the state's tangents in tangent-column order (columns below
+    ``_station_column(t, 0)`` for node t - 1; the others are not written): Z_t and a_t.
+    """
     size = x.shape[0]
+    columns = size + 1
     nst = 2 * spacers + 1
     order = _internal_columns(size, nst)
     hole, p, rot, n, m = _base_state(x, pitch_radius)
-    tp = np.zeros((N_RODS, 3, size))
-    trot = np.zeros((N_RODS, 3, 3, size))
-    tn = np.zeros((N_RODS, 3, size))
-    tm = np.zeros((N_RODS, 3, size))
-    tused = np.zeros((4, size))
-    tl = np.zeros(size)
-    stack = np.empty((LOCAL_DIRECTIONS, size))
+    tp = np.zeros((N_RODS, 3, columns))
+    trot = np.zeros((N_RODS, 3, 3, columns))
+    tn = np.zeros((N_RODS, 3, columns))
+    tm = np.zeros((N_RODS, 3, columns))
+    tused = np.zeros((4, columns))
+    tl = np.zeros(columns)
+    stack = np.empty((LOCAL_DIRECTIONS, columns))
+    internal = np.empty((size, columns))
     active = np.zeros(LOCAL_DIRECTIONS, dtype=np.bool_)
     local = np.empty((LOCAL_OUTPUTS, LOCAL_DIRECTIONS))
     for k in range(N_RODS):
@@ -745,9 +888,16 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
+            if mode != NO_NODES and t > 0:
+                _enter_node(mode, nodes[t - 1], defects[t - 1], p, rot, n, m, used)
+                if mode == LIFT_NODES:
+                    _seed_defect(defects[t - 1], tp, trot, tn, tm, tused)
+                if node_tangents.shape[0] > 0:
+                    _record_node_tangents(tp, trot, tn, tm, tused, node_tangents[t - 1],
+                                          _station_column(t, 0))
             is_end = joint == 1 and station == spacers
             # columns that can be nonzero up to this station's disk
-            live = size if is_end else _station_column(t + 1, 0)
+            live = columns if is_end else _station_column(t + 1, 0)
             _segment_tangent(0, spacing, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp, trot,
                              tn, tm, stack, active, local, live)
             for i in range(4):
@@ -768,13 +918,15 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             if is_end:
                 _store_frame(rot[0], p[0], frames[3])
                 for c in range(3):
-                    for d in range(size):
-                        pose_jac[c, order[d]] = tp[0, c, d]
+                    for d in range(columns):
+                        if order[d] < size:
+                            pose_jac[c, order[d]] = tp[0, c, d]
                     for b in range(3):
-                        for d in range(size):
-                            pose_jac[3 + 3 * c + b, order[d]] = trot[0, c, b, d]
-                _end_disk_tangent(p, rot, n, tp, trot, tn, tm, jac, 4 * STATION_WIDTH * nst,
-                                  live)
+                        for d in range(columns):
+                            if order[d] < size:
+                                pose_jac[3 + 3 * c + b, order[d]] = trot[0, c, b, d]
+                _end_disk_tangent(p, rot, n, tp, trot, tn, tm, internal,
+                                  4 * STATION_WIDTH * nst, live)
                 _end_disk(p, rot, n, m, wrench, out, 4 * STATION_WIDTH * nst, hole)
                 continue
             col = _gather_station(x, t, nst)
@@ -782,14 +934,92 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
             if joint == 0 and station == spacers:
                 _store_frame(rot[0], p[0], frames[1])
                 _tube_tangent(p, rot, n, m, x, t, nst, tube_length, inv_kse, inv_kbt, tp,
-                              trot, tn, tm, tused, jac, live)
+                              trot, tn, tm, tused, internal, live)
                 _tube(p, rot, n, m, col, 0, res, 0, hole, tube_length, inv_kse, inv_kbt,
                       used)
                 _store_frame(rot[0], p[0], frames[2])
             else:
-                _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, jac, live)
+                _spacer_disk_tangent(p, rot, n, m, x, t, nst, tp, trot, tn, tm, internal,
+                                     live)
                 _spacer_disk(p, rot, n, m, col, 0, res, 0, hole)
             for i in range(4):
                 for c in range(STATION_WIDTH):
                     out[STATION_WIDTH * (i * nst + t) + c] = res[STATION_WIDTH * i + c]
-    _unknowns_order(jac, nst)
+    _unknowns_order(internal, nst, jac, lifted)
+
+
+@jit
+def _orthonormalize(rot):
+    """
+    Replace the 3x3 ``rot`` by its orthogonal polar factor, in place (Newton's iteration).
+
+    X <- (X + X^-T) / 2 converges quadratically to the nearest rotation from a near one
+    (Higham, Functions of Matrices, SIAM 2008, Sec. 8.3); cof(X) / det(X) is X^-T.
+    """
+    cof = np.empty((3, 3))
+    for _ in range(8):
+        for a in range(3):
+            a1 = (a + 1) % 3
+            a2 = (a + 2) % 3
+            for b in range(3):
+                b1 = (b + 1) % 3
+                b2 = (b + 2) % 3
+                cof[a, b] = rot[a1, b1] * rot[a2, b2] - rot[a1, b2] * rot[a2, b1]
+        det = rot[0, 0] * cof[0, 0] + rot[0, 1] * cof[0, 1] + rot[0, 2] * cof[0, 2]
+        change = 0.0
+        for a in range(3):
+            for b in range(3):
+                new = 0.5 * (rot[a, b] + cof[a, b] / det)
+                change = max(change, abs(new - rot[a, b]))
+                rot[a, b] = new
+        if change <= 1e-15:
+            return
+
+
+#: A node rotation R with max |R^T R - I| above this is projected onto SO(3) after an update
+#: (a long Newton step far from the solution). Smaller departures are left as Newton made
+#: them: the carried rotations themselves are orthogonal only to the RK4 error (above 1e-7
+#: at nine spacer disks and 13 N), and projecting those left defects of that size that
+#: Newton could never remove (the iteration stalled at residuals of 1.8e-7).
+ORTHOGONALITY_SLACK = 1e-3
+
+
+@jit
+def advance_nodes(nodes, node_tangents, step, spacers, slack):
+    """
+    Update the nodes as lifted Newton does: z_t += w a_t + Z_t dx, rotations projected.
+
+    ``node_tangents`` as ``lifted_jacobian`` wrote them; ``step`` (size + 1) holds dx, the
+    step of the unknowns (SI, unknowns' order), then the weight w of the lifted column. The
+    update is linear in the 9 entries of each rotation; one that
+    leaves it further than ``slack`` (max |R^T R - I|, e.g. ORTHOGONALITY_SLACK) from
+    orthogonal is put back onto SO(3) by its polar factor (``_orthonormalize``).
+    """
+    size = step.shape[0] - 1
+    order = _internal_columns(size, 2 * spacers + 1)
+    internal = np.empty(size + 1)
+    for d in range(size + 1):
+        internal[d] = step[order[d]]
+    rot = np.empty((3, 3))
+    for j in range(nodes.shape[0]):
+        live = _station_column(j + 1, 0)
+        for r in range(STATE_SIZE):
+            acc = 0.0
+            for d in range(live):
+                acc += node_tangents[j, r, d] * internal[d]
+            nodes[j, r] += acc
+        for k in range(N_RODS):
+            for a in range(3):
+                for b in range(3):
+                    rot[a, b] = nodes[j, STATE_ROT + 9 * k + 3 * a + b]
+            departure = 0.0
+            for a in range(3):
+                for b in range(3):
+                    gram = rot[0, a] * rot[0, b] + rot[1, a] * rot[1, b] + rot[2, a] * rot[2, b]
+                    departure = max(departure, abs(gram - (1.0 if a == b else 0.0)))
+            if departure <= slack:
+                continue
+            _orthonormalize(rot)
+            for a in range(3):
+                for b in range(3):
+                    nodes[j, STATE_ROT + 9 * k + 3 * a + b] = rot[a, b]

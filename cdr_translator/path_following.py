@@ -84,6 +84,11 @@ def _norm(values: np.ndarray) -> float:
         return float(np.sqrt(values @ values))
 
 
+def rounding_floor(jac: np.ndarray, xs: np.ndarray) -> float:
+    """Return the residual that rounding the unknowns ``xs`` alone produces (NOISE_FACTOR)."""
+    return NOISE_FACTOR * np.finfo(float).eps * float((np.abs(jac) @ np.abs(xs)).max())
+
+
 def correct(problem: Problem, xs: np.ndarray, wrench: np.ndarray, tolerance: float,
             deadline: float, shift: Optional[np.ndarray] = None,
             max_iterations: int = MAX_ITERATIONS) -> _Corrected:
@@ -102,7 +107,7 @@ def correct(problem: Problem, xs: np.ndarray, wrench: np.ndarray, tolerance: flo
         rs = rs - shift if shift is not None else rs.copy()
         if not (np.isfinite(rs).all() and np.isfinite(jac).all()):
             return _Corrected(xs, rs, iteration, False, 'residual became non-finite')
-        floor = NOISE_FACTOR * np.finfo(float).eps * float((np.abs(jac) @ np.abs(xs)).max())
+        floor = rounding_floor(jac, xs)
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', LinAlgWarning)
             lu = lu_factor(jac, check_finite=False)

@@ -84,6 +84,22 @@ class Problem:
         self.wrench_sensitivity = np.zeros((self.size, 6))
         self.wrench_sensitivity[self.wrench_rows, np.arange(6)] = \
             1.0 / self.residual_scale[self.wrench_rows]
+        #: node states of multiple shooting (lifted.py): one per disk interval after the first
+        self.node_count = model.interval_count(spacers) - 1
+        node_scale = np.empty(model.STATE_SIZE)
+        node_scale[model.STATE_P:model.STATE_ROT] = length
+        node_scale[model.STATE_ROT:model.STATE_N] = 1.0
+        node_scale[model.STATE_N:model.STATE_M] = force
+        node_scale[model.STATE_M:model.STATE_USED] = moment
+        node_scale[model.STATE_USED:] = length
+        #: natural scale of each node-state value (SI per nondimensional unit)
+        self.node_scale = node_scale
+        #: departure from orthogonality beyond which a node rotation is projected
+        self.orthogonality_slack = model.ORTHOGONALITY_SLACK
+        #: node tangents (Z_t and a_t, see model.lifted_jacobian) of the last lifted_jacobian:
+        #: a new array each call, so that a caller may keep one with its factorization
+        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
+        self._lifted = np.empty(self.size)
         self._no_points = np.empty((model.N_RODS, 0, 3))
         self._frames = np.empty((4, 4, 4))
         self._jacobian = np.empty((self.size, self.size))
@@ -154,6 +170,63 @@ class Problem:
         return (out / self.residual_scale,
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
                 self.pose_jacobian)
+
+    def node_states(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+        """Return the node states (node_count, model.STATE_SIZE; SI) single shooting carries."""
+        nodes = np.empty((self.node_count, model.STATE_SIZE))
+        out = np.empty(self.size)
+        self.kernel.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
+                                     self._no_points, self._frames, model.RECORD_NODES, nodes,
+                                     np.empty_like(nodes))
+        return nodes
+
+    def lifted_residual(self, xs: np.ndarray, nodes: np.ndarray,
+                        wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Nondimensional residual and node defects of multiple shooting from ``nodes`` (SI)."""
+        out = np.empty(self.size)
+        defects = np.empty_like(nodes)
+        self.kernel.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
+                                     self._no_points, self._frames, model.LIFT_NODES, nodes,
+                                     defects)
+        return out / self.residual_scale, defects / self.node_scale
+
+    def lifted_jacobian(self, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarray
+                        ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Multiple shooting from ``nodes``: residual, defects, condensed Jacobian, lifted column.
+
+        All nondimensional (defects in ``node_scale`` units). The Jacobian is that of the
+        residual with the nodes following the unknowns (dz_t = Z_t dx), the single-shooting
+        one when the defects are zero; the lifted column is R_z a (model.LIFT_COLUMN). The
+        node tangents go to ``node_tangents`` (for ``advance_nodes``); ``pose_jacobian`` is
+        set.
+        """
+        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
+        out = np.empty(self.size)
+        defects = np.empty_like(nodes)
+        self.kernel.lifted_jacobian(xs * self.x_scale, wrench, *self._args, out,
+                                    self._jacobian, self._pose_jacobian, self._frames,
+                                    model.LIFT_NODES, nodes, defects, self._lifted,
+                                    self.node_tangents)
+        self.pose_jacobian = self._pose_jacobian * self.x_scale
+        return (out / self.residual_scale, defects / self.node_scale,
+                self._jacobian * (self.x_scale / self.residual_scale[:, None]),
+                self._lifted / self.residual_scale)
+
+    def advance_nodes(self, nodes: np.ndarray, dxs: np.ndarray, defects: float = 1.0,
+                      tangents: Optional[np.ndarray] = None) -> np.ndarray:
+        """
+        Return nodes + defects a + Z dxs (rotations projected): the lifted Newton update.
+
+        ``dxs`` is the nondimensional step of the unknowns; a and Z are the ``tangents``
+        (default: the last ``lifted_jacobian``'s, ``node_tangents``). With ``defects`` 0 it
+        is the first-order prediction of the nodes alone.
+        """
+        advanced = nodes.copy()
+        step = np.append(dxs * self.x_scale, defects)
+        self.kernel.advance_nodes(advanced, self.node_tangents if tangents is None else tangents,
+                                  step, self.params.spacers_per_joint, self.orthogonality_slack)
+        return advanced
 
     def residual_and_shape(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at ``xs``; its shape goes to slot 0 (``recorded_shape``)."""

@@ -1,9 +1,10 @@
 """
 TranslatorSolver: Newton on the shooting residual, warm starts, continuation, baseline.
 
-``method='fast'`` (default): compiled kernel; Newton with a forward-difference Jacobian,
+``method='fast'`` (default): compiled kernel; Newton with the exact Jacobian (or 'fd'),
 backtracking line search, and for warm starts a first-order predictor plus chord steps
-that reuse the previous LU factorization, refreshed only when convergence slows.
+that reuse the previous LU factorization, refreshed only when convergence slows. Cold
+solves of translators with spacer disks correct by multiple shooting instead (lifted.py).
 ``method='paper'``: the paper's numerics as published (Section III.D) — the same model
 source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
 of one residual per column, stopping at the paper's tolerances. It is the baseline that
@@ -21,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import LinAlgWarning, lu_factor
 
-from . import chord, path_following, stability
+from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
 from .checks import check_vector
@@ -68,6 +69,11 @@ BRANCH_ATTEMPTS = 3
 #: wrench (stability margin < 0): large enough to leave the unstable branch's basin.
 IMPERFECTION = 0.02
 
+#: Cold continuations of translators with at least this many spacer disks per joint correct
+#: by the lifted Newton method (multiple shooting, lifted.py) instead of single shooting;
+#: None: never.
+LIFT_FROM_SPACERS: Optional[int] = 2
+
 #: Largest nondimensional residual at which a corrector out of iterations gets another
 #: round on the same step instead of a halved step (it is converging, only slowly).
 NEARLY_CONVERGED = 1e-6
@@ -90,6 +96,11 @@ class _Outcome:
     reached: Optional[Tuple[np.ndarray, np.ndarray]] = None
     #: (the unknowns it belongs to, centre lines, frames) recorded by the last shot, if any
     shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+
+
+#: A lifted Newton state: unknowns, their nodes (SI), a factorization made on the way (or
+#: None) and the node tangents of the same lifted shot (or None).
+_LiftedState = Tuple[np.ndarray, np.ndarray, Optional[tuple], Optional[np.ndarray]]
 
 
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
@@ -175,6 +186,9 @@ class TranslatorSolver:
         ``path='tracking'`` skips the default continuation and follows the load path with
         the fallback's alone (from the previous solution, else from the unloaded state):
         fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
+        With spacer disks (``lift_from_spacers`` or more per joint, LIFT_FROM_SPACERS) and
+        the exact Jacobian, a cold continuation corrects by the lifted Newton method
+        (multiple shooting, lifted.py); warm solves stay single shooting (chord steps).
         ``judge=False`` skips the stability verdict, the error estimate and so refinement:
         ``stable`` stays None and the estimates NaN (for a caller that iterates on leg
         solutions and judges only the one it keeps, with ``result_at``: robot/delta.py's
@@ -208,6 +222,12 @@ class TranslatorSolver:
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         self._lu: Optional[tuple] = None
         self._pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+        #: lifted states (unknowns, their nodes, a factorization, its node tangents or None):
+        #: of the last converged lifted correction, of the last one at all, of the unloaded
+        #: solution (a few MB each at 9 spacer disks: the node tangents)
+        self._nodes: Optional[_LiftedState] = None
+        self._lifted_last: Optional[_LiftedState] = None
+        self._unloaded_nodes: Optional[_LiftedState] = None
         self._unloaded_lu: Optional[tuple] = None
         self._unloaded_pose: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
         self._stability_origin: Optional[stability.Reference] = None
@@ -219,6 +239,9 @@ class TranslatorSolver:
         self.judge = judge
         self.fallback = fallback
         self.path = path
+        #: cold continuations correct by lifted Newton from this many spacer disks per joint
+        #: on (None: never); LIFT_FROM_SPACERS unless changed (benchmarks compare both)
+        self.lift_from_spacers = LIFT_FROM_SPACERS
         self._refined: Dict[int, 'TranslatorSolver'] = {}
         self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
@@ -584,6 +607,10 @@ class TranslatorSolver:
         if not (warm_start and self._previous is not None):
             self._previous, self._lu = self._unloaded()
             self._pose = self._unloaded_pose
+            if corrector == self._newton and self._lifting():
+                corrector = self._lifted_newton
+                self._nodes = self._unloaded_lifted(self._previous[0])
+        assert self._previous is not None
         xs, start = self._previous
         lu, pose = self._lu, self._pose
         sensitivity = self.problem.wrench_sensitivity
@@ -705,6 +732,65 @@ class TranslatorSolver:
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
 
     # correctors ------------------------------------------------------------------------------
+    def _lifting(self) -> bool:
+        """Say whether cold continuations correct by lifted Newton (multiple shooting)."""
+        return (self.lift_from_spacers is not None and self.method == 'fast'
+                and self.jacobian == 'exact'
+                and self.params.spacers_per_joint >= self.lift_from_spacers)
+
+    def _unloaded_lifted(self, xs: np.ndarray) -> '_LiftedState':
+        """
+        Return the lifted state of the unloaded solution ``xs`` (its nodes made once).
+
+        Its factorization is the unloaded one (at zero defects the lifted Jacobian is the
+        single-shooting one), with the node tangents of a lifted shot there.
+        """
+        if self._unloaded_nodes is None:
+            zero = np.zeros(6)
+            nodes = self.problem.node_states(xs, zero)
+            self.problem.lifted_jacobian(xs, nodes, zero)
+            self._unloaded_nodes = (xs, nodes, self._unloaded()[1], self.problem.node_tangents)
+        _, nodes, lu, tangents = self._unloaded_nodes
+        return xs, nodes, lu, tangents
+
+    def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
+                       lu: Optional[tuple], max_iterations: int,
+                       pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
+                       ) -> _Outcome:
+        """
+        Multiple shooting by lifted Newton (lifted.py) from ``xs`` and nodes to go with it.
+
+        The nodes are those of a lifted correction that ended at ``xs``; else, if ``xs`` is
+        a prediction made with the factorization ``lu`` of the last converged correction,
+        that correction's nodes moved by the same first-order prediction (its node
+        tangents); else the states single shooting carries at ``xs``. ``lu`` and
+        ``pose_in`` are returned when no iteration was needed.
+        """
+        tangents = None  # those of ``lu``, when known
+        for state in (self._lifted_last, self._nodes):
+            if state is not None and state[0] is xs:
+                nodes = state[1]
+                break
+        else:
+            state = self._nodes
+            if state is not None and lu is not None and state[2] is lu and state[3] is not None:
+                nodes = self.problem.advance_nodes(state[1], xs - state[0], 0.0, state[3])
+            else:
+                nodes = self.problem.node_states(xs, wrench)
+        if state is not None and lu is not None and state[2] is lu:
+            tangents = state[3]
+        done = lifted.newton(self.problem, xs, nodes, wrench, self.tolerance, max_iterations,
+                             deadline)
+        self._lifted_last = ((done.xs, done.nodes, done.lu, done.tangents) if done.lu is not None
+                             else (done.xs, done.nodes, lu, tangents))
+        if done.converged:
+            self._nodes = self._lifted_last
+        if done.lu is None:
+            return _Outcome(done.xs, done.rs, done.iterations, done.converged, done.message,
+                            lu, pose_in)
+        return _Outcome(done.xs, done.rs, done.iterations, done.converged, done.message,
+                        done.lu, (done.pose, wrench.copy()))
+
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
                 pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
