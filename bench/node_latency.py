@@ -66,13 +66,22 @@ def cpu_seconds(pid: int) -> float:
     except OSError:
         return 0.0
     total = (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-    for task in Path(f'/proc/{pid}/task').iterdir():
+    return total + sum(cpu_seconds(child) for child in child_pids(pid))
+
+
+def child_pids(pid: int) -> List[int]:
+    """Return the running child processes of ``pid`` (a scan of /proc/*/stat)."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
         try:
-            total += sum(cpu_seconds(int(child))
-                         for child in (task / 'children').read_text().split())
+            fields = (entry / 'stat').read_text().rsplit(')', 1)[1].split()
         except OSError:
             continue
-    return total
+        if int(fields[1]) == pid:
+            found.append(int(entry.name))
+    return found
 
 
 def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) -> dict:

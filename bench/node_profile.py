@@ -22,6 +22,7 @@ import threading
 import time
 from typing import Any, Callable, Dict, List
 
+from bench.node_latency import child_pids
 from cdr_translator.interface import messages
 from cdr_translator.ros import cdr, runtime, translator_node
 from rclpy.publisher import Publisher
@@ -58,17 +59,6 @@ def wrap(owner: Any, name: str, stage: str) -> None:
         setattr(owner, name, timed(stage, getattr(owner, name)))
 
 
-def children(pid: int) -> List[int]:
-    """Return the child processes of ``pid`` (Linux /proc)."""
-    found: List[int] = []
-    for task in Path(f'/proc/{pid}/task').iterdir():
-        try:
-            found += [int(child) for child in (task / 'children').read_text().split()]
-        except OSError:
-            continue
-    return found
-
-
 def process_cpu(pid: int) -> float:
     """Return the CPU time (user + system, s) of process ``pid`` so far (0 once gone)."""
     try:
@@ -97,7 +87,7 @@ def start(node: Any) -> None:
     """Clear the stage account and note every thread's CPU time (at the START_AT-th wrench)."""
     STAGES.clear()
     START.update(thread_cpu())
-    START.update({-pid: ('', process_cpu(pid)) for pid in children(os.getpid())})
+    START.update({-pid: ('', process_cpu(pid)) for pid in child_pids(os.getpid())})
     START[0] = ('counts', node.received, node._mailbox.skipped)
 
 
@@ -117,7 +107,7 @@ def report(out: Path, node: Any, threads: Dict[int, tuple]) -> None:
               '|---|---|---|---|']
     used = {tid: (name, cpu - START.get(tid, (name, 0.0))[1])
             for tid, (name, cpu) in threads.items()}
-    for pid in children(os.getpid()):  # the MCAP log process
+    for pid in child_pids(os.getpid()):  # the MCAP log process
         used[-pid] = (f'child process {pid}', process_cpu(pid) - START.get(-pid, ('', 0.0))[1])
     total = sum(cpu for _, cpu in used.values())
     used[0] = ('all threads and the log process', total)
