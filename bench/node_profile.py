@@ -92,7 +92,11 @@ def start(node: Any) -> None:
 
 
 def report(out: Path, node: Any, threads: Dict[int, tuple]) -> None:
-    """Write the stage and thread tables to ``out`` (``threads``: thread_cpu() at the end)."""
+    """
+    Write the stage and thread tables to ``out``.
+
+    ``threads``: thread_cpu() at the end, and the child processes as -PID: (name, CPU s).
+    """
     received = max(node.received - START[0][1], 1)
     answered = max(STAGES['solve'][0], 1)
     lines = [f'from the {START_AT}th wrench on: received {received}, solved {answered}, '
@@ -107,8 +111,6 @@ def report(out: Path, node: Any, threads: Dict[int, tuple]) -> None:
               '|---|---|---|---|']
     used = {tid: (name, cpu - START.get(tid, (name, 0.0))[1])
             for tid, (name, cpu) in threads.items()}
-    for pid in child_pids(os.getpid()):  # the MCAP log process
-        used[-pid] = (f'child process {pid}', process_cpu(pid) - START.get(-pid, ('', 0.0))[1])
     total = sum(cpu for _, cpu in used.values())
     used[0] = ('all threads and the log process', total)
     for tid, (name, cpu) in sorted(used.items(), key=lambda item: -item[1][1]):
@@ -156,6 +158,8 @@ def install(out: Path) -> None:
 
     def close_and_report(self: Any) -> None:
         threads = thread_cpu()
+        threads.update({-pid: (f'child process {pid} (MCAP log)', process_cpu(pid))
+                        for pid in child_pids(os.getpid())})
         close(self)
         report(out, self, threads)
     node_class.close = close_and_report
