@@ -58,7 +58,8 @@ def plan(message_class: type) -> Plan:
         kind = type(slot).__name__
         default = getattr(defaults, name)
         if kind == 'BasicType':
-            fields.append((name, _PRIMITIVE, PRIMITIVES[slot.typename], default))
+            code, size = PRIMITIVES[slot.typename]
+            fields.append((name, _PRIMITIVE, (struct.Struct('<' + code), size), default))
         elif kind in ('UnboundedString', 'BoundedString'):
             fields.append((name, _STRING, None, default))
         elif kind == 'NamespacedType':
@@ -96,7 +97,9 @@ def _align(buffer: bytearray, size: int) -> None:
 
 def _write_string(buffer: bytearray, text: str) -> None:
     """Append a CDR string: uint32 length with the NUL, the UTF-8 bytes, the NUL."""
-    _align(buffer, 4)
+    remainder = (len(buffer) - 4) % 4
+    if remainder:
+        buffer += _ZEROS[4 - remainder]
     data = text.encode()
     buffer += _UINT32.pack(len(data) + 1)
     buffer += data
@@ -108,9 +111,10 @@ def _write(buffer: bytearray, fields: Plan, values: Mapping[str, Any]) -> None:
     for name, kind, argument, default in fields:
         value = values.get(name, default)
         if kind == _PRIMITIVE:
-            code, size = argument
-            _align(buffer, size)
-            buffer += struct.pack('<' + code, value[0] if isinstance(value, bytes) else value)
+            packer, size = argument
+            if size > 1:
+                _align(buffer, size)
+            buffer += packer.pack(value[0] if isinstance(value, bytes) else value)
         elif kind == _STRING:
             _write_string(buffer, value)
         elif kind == _MESSAGE:
@@ -198,7 +202,8 @@ def _read(reader: _Reader, fields: Plan) -> Dict[str, Any]:
     values: Dict[str, Any] = {}
     for name, kind, argument, _ in fields:
         if kind == _PRIMITIVE:
-            values[name] = reader.take(*argument)[0]
+            packer, size = argument
+            values[name] = reader.take(packer.format[1:], size)[0]
         elif kind == _STRING:
             values[name] = reader.string()
         elif kind == _MESSAGE:
