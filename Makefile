@@ -7,8 +7,9 @@ VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 # numba kernels compiled into numba's cache (cdr_translator/**/__pycache__/*.nbi|*.nbc)
 KERNELS := $(VENV)/.kernels-stamp
-KERNEL_SOURCES := cdr_translator/_jit.py cdr_translator/rod.py cdr_translator/model.py cdr_translator/chord.py \
-	$(wildcard cdr_translator/fidelity/*.py)
+# every module with a compiled kernel (a decorator from _jit), found rather than listed
+KERNEL_SOURCES := cdr_translator/_jit.py \
+	$(shell grep -rlE --include='*.py' '^@jit' cdr_translator)
 
 .PHONY: setup test demo clean clean-kernels bags hard-cases bench atlas-scale
 

@@ -93,6 +93,12 @@ def broyden_apply(lu, pivots, updates, steps, count, rhs, out):
     H_{i+1} r = H_i r + u_i (s_i . H_i r), with u_i = updates[i] and s_i = steps[i].
     """
     lu_solve(lu, pivots, rhs, out)
+    apply_updates(updates, steps, count, out)
+
+
+@jit
+def apply_updates(updates, steps, count, out):
+    """Set out <- H out, H after ``count`` good-Broyden updates: out += u_i (s_i . out)."""
     for i in range(count):
         dot = 0.0
         for j in range(out.shape[0]):

@@ -147,7 +147,7 @@ class TranslatorSolver:
                  time_limit_s: float = 10.0, jacobian: str = 'exact',
                  accuracy: Optional[Accuracy] = None,
                  follow_stable_branch: bool = True, fallback: bool = True,
-                 path: str = 'default') -> None:
+                 path: str = 'default', judge: bool = True) -> None:
         """
         Set up for ``params`` (default: config/translator.yaml).
 
@@ -175,6 +175,10 @@ class TranslatorSolver:
         ``path='tracking'`` skips the default continuation and follows the load path with
         the fallback's alone (from the previous solution, else from the unloaded state):
         fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
+        ``judge=False`` skips the stability verdict, the error estimate and so refinement:
+        ``stable`` stays None and the estimates NaN (for a caller that iterates on leg
+        solutions and judges only the one it keeps, with ``result_at``: robot/delta.py's
+        nested iteration).
         """
         if path not in PATHS:
             raise ValueError(f'path must be one of {PATHS}, got {path!r}')
@@ -212,6 +216,7 @@ class TranslatorSolver:
         self._verdict_lu: Optional[tuple] = None
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
         self.follow_stable_branch = follow_stable_branch
+        self.judge = judge
         self.fallback = fallback
         self.path = path
         self._refined: Dict[int, 'TranslatorSolver'] = {}
@@ -263,6 +268,49 @@ class TranslatorSolver:
             self._lu, self._pose = lu, (pose, np.array(made_at, dtype=float))
 
     @one_blas_thread
+    def result_at(self, xs: np.ndarray, wrench: np.ndarray,
+                  factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None
+                  ) -> SolveResult:
+        """
+        Return the SolveResult at nondimensional unknowns ``xs`` under ``wrench`` (SI).
+
+        For a caller that converged the shooting residual itself (robot/delta.py's coupled
+        Newton): what ``start_at(xs, wrench, factorization)`` and a solve give when the
+        residual at ``xs`` is within the tolerance (zero iterations, the same shape,
+        stability verdict and error estimate from the same arithmetic), without the
+        continuation around it: one shot with the shape recorded, the verdict (from
+        ``factorization``, as ``start_at`` takes it; an exact Jacobian at ``xs`` when
+        there is none or it is too far, as in a solve) and the error estimate, whatever
+        ``judge`` says. Unlike a solve it iterates never: a residual above the tolerance
+        gives ``converged`` False and a message. The solver's warm start and stored
+        factorization are unchanged.
+        """
+        started = time.perf_counter()
+        wrench = check_wrench(wrench[:3], wrench[3:])
+        xs = np.array(xs, dtype=float)
+        saved = (self._lu, self._pose, self._exact_at)
+        rs = self.problem.residual_and_shape(xs, wrench)
+        largest = float(np.abs(rs).max())
+        converged = largest <= self.tolerance
+        lu, pose = (None, None) if factorization is None else (
+            factorization[0], (factorization[1], np.array(factorization[2], dtype=float)))
+        outcome = _Outcome(xs, rs, 0, converged, 'converged' if converged else
+                           f'residual {largest:.2g} above the tolerance {self.tolerance:.2g} '
+                           'at the given unknowns', lu, pose)
+        outcome.shape = (xs, *self.problem.recorded_shape(0))
+        result = self._result(outcome, wrench, 0.0)
+        if converged:
+            try:
+                if self.method == 'fast':
+                    _apply_verdict(result, self._stability(outcome, wrench,
+                                                           result.frames['de'][:3, :3]))
+                self._estimate_error(result, outcome, wrench)
+            finally:
+                self._lu, self._pose, self._exact_at = saved
+        result.solve_time_s = time.perf_counter() - started
+        return result
+
+    @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
@@ -301,7 +349,7 @@ class TranslatorSolver:
             self._previous = (outcome.xs, wrench)
         verdict = None
         result = self._result(outcome, wrench, 0.0)
-        if outcome.converged and self.method == 'fast':
+        if outcome.converged and self.method == 'fast' and self.judge:
             verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
             if (not verdict.stable and self.follow_stable_branch
                     and time.perf_counter() < deadline):
@@ -309,11 +357,8 @@ class TranslatorSolver:
                 if branch is not outcome:
                     outcome, result = branch, self._result(branch, wrench, 0.0)
         if verdict is not None:
-            result.stable = verdict.stable
-            result.stability_margin = verdict.margin
-            if not verdict.stable:
-                result.message += f'; {verdict.message}'
-        if outcome.converged:
+            _apply_verdict(result, verdict)
+        if outcome.converged and self.judge:
             self._estimate_error(result, outcome, wrench)
             if not result.accuracy_met and self.method == 'fast':
                 refined = self._refine(result, wrench, deadline, compliance, verify,
@@ -763,6 +808,14 @@ class TranslatorSolver:
             backbones=points, solve_time_s=elapsed, method=self.method,
             unknowns=outcome.xs * problem.x_scale,
             steps_per_segment=self.params.steps_per_segment)
+
+
+def _apply_verdict(result: SolveResult, verdict: stability.Stability) -> None:
+    """Set the result's stability verdict and margin; an unstable one joins the message."""
+    result.stable = verdict.stable
+    result.stability_margin = verdict.margin
+    if not verdict.stable:
+        result.message += f'; {verdict.message}'
 
 
 def _first_step(predicted: Optional[np.ndarray]) -> float:

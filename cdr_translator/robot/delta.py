@@ -23,10 +23,11 @@ Jacobian and end-disk pose derivative; implicit differentiation). Two iterations
 
 * coupled (warm solves): the legs' own shooting unknowns join the platform's; an iterate
   costs one residual shot per leg, the Newton system is reduced to the platform's 24 by
-  eliminating each leg with its LU (see ``_step``), and chord steps reuse that
-  factorization across iterations and solves until they contract too slowly. Once
-  converged, each leg solver confirms its leg (TranslatorSolver.start_at), which gives the
-  legs' SolveResults (shape, stability, error estimate).
+  eliminating each leg with its LU (see ``_correction``), and chord steps reuse that
+  factorization across iterations and solves until they contract too slowly (Broyden
+  updates within a solve; a quadratic predictor along a steadily followed path). The legs'
+  SolveResults (shape, stability, error estimate) are built from the solved leg unknowns
+  when first asked for (DeltaResult.leg_results, TranslatorSolver.result_at).
 * nested (cold solves from home, where the legs' shooting is far from linear, and the
   fallback of a stalled coupled solve): every iterate solves each leg in full under its
   wrench, warm-started.
@@ -37,18 +38,20 @@ predictor-corrector continuation, as the leg solver does for one translator.
 """
 
 from dataclasses import dataclass, field, fields
+import functools
 import math
 from pathlib import Path
 import time
-from typing import Any, List, Optional, Tuple, Union
+from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
+from .kernels import coupled_step, platform_residual, shoot_legs, within
 from .params import cdr_values, check_sliders, DeltaParams, Leg
-from .result import DeltaResult, rotation_vector
+from .result import DeltaResult, LegResults, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, one_blas_thread, TranslatorSolver
@@ -66,6 +69,16 @@ MIN_CONTINUATION_STEP = 1e-3
 CHORD_RATE = 0.25
 SLOW_CHORD = 0.5
 
+#: Chord steps on one factorization within one Newton correction at most: a correction
+#: still not converged after these rebuilds (it converges, but too slowly to finish).
+CHORD_LIMIT = 8
+
+#: A slow chord step whose next correction is below this (flat scaled unknowns) rebuilds
+#: nothing: so close to the solution (converged at about 1e-8) the contractions are the
+#: shots' rounding more than the Jacobian's age (0.5 at 1e-7 along the slider circle), and
+#: a rebuild (about 15 iterations' worth) would buy one or two iterations.
+CHORD_FLOOR = 1e-6
+
 #: A factorization made within this distance of the solution (largest change of the scaled
 #: unknowns, platform and legs) serves the compliance and stability verdict there: it
 #: moves the compliance by about as much, relatively, below the 1e-8 to which implicit and
@@ -79,6 +92,13 @@ PREDICTOR_REACH = 3.0
 
 COUPLE_WITHIN = 0.1
 
+#: The quadratic predictor (_extrapolate) is used when the input change it does not
+#: extrapolate makes at most this fraction of the residual change of the whole.
+EXTRAPOLATE_WITHIN = 0.5
+
+#: Broyden updates gathered on one factorization at most (then H stays until a rebuild).
+MAX_SECANTS = 24
+
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
 
@@ -89,24 +109,22 @@ def _skew(vector: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def _cross_sum(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Sum of the cross products of the rows of two (k, 3) arrays (a few us, np.cross 50)."""
-    sx = sy = sz = 0.0
-    for (x1, y1, z1), (x2, y2, z2) in zip(first.tolist(), second.tolist()):
-        sx += y1 * z2 - z1 * y2
-        sy += z1 * x2 - x1 * z2
-        sz += x1 * y2 - y1 * x2
-    return np.array([sx, sy, sz])
-
-
 def _rotation_matrix(vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad): Rodrigues' formula."""
-    angle = math.sqrt(float(vector @ vector))
-    cross = _skew(vector)
-    if angle < 1e-6:  # the series, error below angle^3 / 6
-        return np.eye(3) + cross + 0.5 * cross @ cross
-    return (np.eye(3) + math.sin(angle) / angle * cross
-            + (1.0 - math.cos(angle)) / angle ** 2 * cross @ cross)
+    """Rotation matrix of a rotation vector (rad): Rodrigues' formula, in plain floats."""
+    x, y, z = vector.tolist()
+    square = x * x + y * y + z * z
+    if square < 1e-12:  # the series, error below angle^3 / 6
+        first, second = 1.0, 0.5
+    else:
+        angle = math.sqrt(square)
+        first, second = math.sin(angle) / angle, (1.0 - math.cos(angle)) / square
+    # I + first [v]x + second [v]x^2, with [v]x^2 = v v^T - |v|^2 I
+    return np.array([[1.0 + second * (x * x - square), second * x * y - first * z,
+                      second * x * z + first * y],
+                     [second * x * y + first * z, 1.0 + second * (y * y - square),
+                      second * y * z - first * x],
+                     [second * x * z - first * y, second * y * z + first * x,
+                      1.0 + second * (z * z - square)]])
 
 
 def _inverse_left_jacobian(vector: np.ndarray) -> np.ndarray:
@@ -133,8 +151,8 @@ class _State:
 
     ``unknowns`` (3, n): each leg's nondimensional shooting unknowns (its Problem's);
     ``frames`` (3, 4, 4): each leg's end-disk frame in {pe_i} there; ``leg_error``: the
-    largest nondimensional leg residual; ``legs``: the legs' SolveResults when they were
-    solved (nested) or confirmed (coupled) at this state, else None.
+    largest nondimensional leg residual; ``legs``: the legs' (unjudged) SolveResults when
+    they were solved in full at this state (nested iteration), else None.
     """
 
     position: np.ndarray
@@ -167,28 +185,77 @@ class _LegLinearization:
 
 
 @dataclass
+class _PathStep:
+    """One converged coupled solve: from ``start`` to ``end`` for an input change."""
+
+    start: _State
+    end: _State
+    inputs_change: np.ndarray  # du (12)
+    step: np.ndarray  # end - start, flat and scaled (_difference)
+
+
+class _Secants:
+    """
+    Good-Broyden updates of the coupled Newton's inverse Jacobian, on one factorization.
+
+    The unknowns' steps are flat and scaled (platform / x_scale, then the legs' (3, n)
+    nondimensional unknowns), as ``_norm`` measures them. Update i maps H_i to
+    H_{i+1} = H_i + (s - H_i y) s^T H_i / (s^T H_i y), s the step taken and y the change
+    of the residuals (Kelley, "Solving Nonlinear Equations with Newton's Method", SIAM
+    2003, Sec. 1.11, as chord.py holds them for one leg): kept as u = (s - H_i y) /
+    (s^T H_i y) and s, H_{i+1} r = H_i r + u (s . H_i r) (chord.apply_updates).
+    """
+
+    def __init__(self, size: int) -> None:
+        """Room for MAX_SECANTS updates of flat steps of ``size``; none yet."""
+        self.updates = np.empty((MAX_SECANTS, size))
+        self.steps = np.empty((MAX_SECANTS, size))
+        self.count = 0
+
+    def add(self, step: np.ndarray, change: np.ndarray, correction: np.ndarray) -> np.ndarray:
+        """
+        Add the update of step s (flat, scaled) whose residual change y has H y = ``change``.
+
+        Return ``correction`` (H r for some r, before the update) after it: H_{i+1} r. Once
+        MAX_SECANTS are gathered H stays as it is (a rebuild starts afresh).
+        """
+        denominator = float(step @ change)
+        if self.count >= MAX_SECANTS or denominator == 0.0 or not math.isfinite(denominator):
+            return correction
+        update = (step - change) / denominator
+        self.updates[self.count] = update
+        self.steps[self.count] = step
+        self.count += 1
+        return correction + update * float(step @ correction)
+
+
+@dataclass
 class _Factorization:
     """The platform Jacobian's LU (scaled) and the leg linearizations it was built from."""
 
     platform: tuple
     legs: Tuple[_LegLinearization, ...]
     state: _State  # where it was made
-    # for the chord steps, stacked over the legs: J_k^-1 (3, n, n), T_k (3, 6, n) and
-    # J_k^-1 dr/dw (3, n, 6), and the scaled platform Jacobian's inverse (24, 24): a chord
-    # step is then a few matrix products, where LU solves cost ten times as much (their
-    # LAPACK call's overhead on these small systems)
-    inverses: np.ndarray = field(init=False)
+    #: Broyden updates gathered on it, by this and later solves until it is rebuilt
+    secants: _Secants = field(init=False)
+    # for the chord steps (kernels.coupled_step), stacked over the legs: the LU factors
+    # (3, n, n) and pivots (3, n), T_k (3, 6, n) and J_k^-1 dr/dw (3, n, 6); and the scaled
+    # platform Jacobian's inverse (24, 24)
+    factors: np.ndarray = field(init=False)
+    pivots: np.ndarray = field(init=False)
     twists: np.ndarray = field(init=False)
     gains: np.ndarray = field(init=False)
     platform_inverse: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        """Stack the legs' matrices and invert the Jacobians for the chord steps."""
-        size = self.legs[0].gain.shape[0]
-        self.inverses = np.stack([solve_lu(leg.lu, np.eye(size)) for leg in self.legs])
-        self.twists = np.stack([leg.twist for leg in self.legs])
-        self.gains = np.stack([leg.gain for leg in self.legs])
-        self.platform_inverse = solve_lu(self.platform, np.eye(SIZE))
+        """Stack the legs' matrices, invert the platform Jacobian, start the secants."""
+        # C order: the substitutions run along rows (LAPACK's factors are column-major)
+        self.factors = np.ascontiguousarray(np.stack([leg.lu[0] for leg in self.legs]))
+        self.pivots = np.stack([leg.lu[1] for leg in self.legs])
+        self.twists = np.ascontiguousarray(np.stack([leg.twist for leg in self.legs]))
+        self.gains = np.ascontiguousarray(np.stack([leg.gain for leg in self.legs]))
+        self.platform_inverse = np.ascontiguousarray(solve_lu(self.platform, np.eye(SIZE)))
+        self.secants = _Secants(SIZE + self.gains.shape[0] * self.gains.shape[1])
 
 
 @dataclass
@@ -246,9 +313,11 @@ class DeltaRobot:
         # a leg is one link of the closed chain: its discretization stays fixed across the
         # robot's Newton iterations (no automatic refinement) and its equilibrium is not
         # judged alone (a leg's stability under a dead tip load is not the chain's)
+        # the leg solves of the nested iteration converge, nothing more (judge=False): only
+        # the legs of the result are judged, when read (_leg_results)
         self.leg_solvers = tuple(TranslatorSolver(self.params, time_limit_s=time_limit_s,
                                                   accuracy=Accuracy(0.0, 0.0),
-                                                  follow_stable_branch=False)
+                                                  follow_stable_branch=False, judge=False)
                                  for _ in range(3))
         self._leg_tolerance = min(solver.tolerance for solver in self.leg_solvers)
         # scales for a balanced Newton system: the stack height, and the force that bends
@@ -260,13 +329,27 @@ class DeltaRobot:
         self._r_scale = np.concatenate(
             [np.tile(np.repeat([length, 1.0], 3), 3), np.repeat([force, force * length], 3)])
         rotations = np.stack([leg.rotation for leg in self.legs])
-        self._leg_rotations = (rotations, rotations.transpose(0, 2, 1).copy())
+        self._leg_rotations = rotations
         self._attachments = np.stack([leg.attachment for leg in self.legs])
         self._home_bases = np.stack([leg.home_base for leg in self.legs])
         self._slider_axes = np.stack([leg.slider_axis for leg in self.legs])
+        # the input sensitivity's blocks that depend on neither state nor inputs
+        self._constant_sensitivity = np.zeros((SIZE, 12))
+        for k, leg in enumerate(self.legs):
+            self._constant_sensitivity[6 * k:6 * k + 3, k] = leg.rotation.T @ leg.slider_axis
+        self._constant_sensitivity[18:21, 3:6] = np.eye(3)
+        self._constant_sensitivity[21:24, 6:9] = np.eye(3)
         self._counts = dict.fromkeys(COUNTS, 0)
+        self._no_legs = np.zeros((3, self.leg_solvers[0].problem.size))
+        problem = self.leg_solvers[0].problem
+        self._leg_scales = (problem.x_scale, problem.residual_scale, problem.model_args)
         self._deadline = math.inf
         self._previous: Optional[Tuple[_State, np.ndarray]] = None  # (state, inputs)
+        #: the last (up to two) coupled solves' steps, latest last (_extrapolate); emptied
+        #: by a solve that is not one
+        self._path: List[_PathStep] = []
+        #: start_at arguments of each leg solver, applied before the next full leg solve
+        self._legs_at: Optional[Tuple[tuple, ...]] = None
         self._factorization: Optional[_Factorization] = None
         self._inverse = InverseSolver(self)
         home = self._home_state()
@@ -287,6 +370,8 @@ class DeltaRobot:
         """Forget the previous solution: the next solve starts from home."""
         self._previous = None
         self._factorization = None
+        self._path = []
+        self._legs_at = None
         self._inverse.reset()
         for solver in self.leg_solvers:
             solver.reset()
@@ -414,34 +499,43 @@ class DeltaRobot:
         Walk from the previous solution to ``inputs`` (sliders, payload).
 
         Each step predicts the solution to first order with the stored factorization,
-        dx = -J^-1 (dr/du) du, and Newton corrects it (``coupled``: leg unknowns and
-        platform together; else every iterate's legs solved in full); a failed step is
+        dx = -J^-1 (dr/du) du (coupled, a whole step along a steadily followed path: to
+        second order, ``_extrapolate``), and Newton corrects it (``coupled``: leg unknowns
+        and platform together; else every iterate's legs solved in full); a failed step is
         halved, a good one doubled.
         """
         if self._previous is None:
             raise RuntimeError('continuation needs a previous solution')
         state, start = self._previous
         factorization = self._factorization
+        if factorization is not None:
+            factorization.secants.count = 0  # a solve's Broyden updates are its own
         done, step, iterations = 0.0, 1.0, 0
         current = start
         outcome: Optional[_Outcome] = None
+        first = self._input_sensitivity(state, start)
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
             guess = state
             if factorization is not None:
-                change = self._input_sensitivity(state, current) @ (goal - current)
-                platform, legs = self._step(state, change, None, factorization)
-                reach = max(float(np.abs(platform / self._x_scale).max()),
-                            float(np.abs(legs).max()))
+                sensitivity = first if done == 0.0 else self._input_sensitivity(state, current)
+                change = sensitivity @ (goal - current)
+                predicted = None
+                if coupled and target == 1.0 and done == 0.0:
+                    predicted = self._extrapolate(state, inputs - start, first, factorization)
+                if predicted is None:
+                    predicted = self._correction(change, None, factorization, coupled)
+                reach = float(np.abs(predicted).max())
                 if coupled and reach > PREDICTOR_REACH:
                     # beyond the linear regime of the legs' shooting: a shorter step
                     fraction = max(PREDICTOR_REACH / reach,
                                    MIN_CONTINUATION_STEP / (target - done))
                     target = done + fraction * (target - done)
                     goal = start + target * (inputs - start)
-                    platform, legs = fraction * platform, fraction * legs
-                guess = state.moved(platform, legs)
+                    predicted = fraction * self._correction(change, None, factorization,
+                                                            coupled)
+                guess = state.moved(*self._unflat(predicted))
             outcome = self._newton(guess, goal, factorization, coupled)
             iterations += outcome.iterations
             if outcome.converged:
@@ -462,8 +556,39 @@ class DeltaRobot:
         self._factorization = factorization
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
+        if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
+            record = _PathStep(self._previous[0], outcome.state, inputs - start,
+                               _difference(outcome.state, self._previous[0], self._x_scale))
+            self._path = [*self._path[-1:], record]
+        else:
+            self._path = []
         outcome.iterations = iterations
         return outcome
+
+    def _extrapolate(self, state: _State, inputs_change: np.ndarray, sensitivity: np.ndarray,
+                     factorization: _Factorization) -> Optional[np.ndarray]:
+        """
+        Second-order predictor (flat, scaled) along a path followed at a steady rate.
+
+        With the last two solves' steps s_k, s_(k-1) (consecutive, coupled) the solution
+        extrapolated quadratically is x_k + 2 s_k - s_(k-1), at inputs u_k + 2 du_k -
+        du_(k-1); the rest of the input change is predicted to first order. The first-order
+        predictor's error is the path's curvature and the stored Jacobian's age; this one's
+        is third order along the path. None (the first-order predictor is
+        used) when there are no such two steps, or the inputs do not follow them: the rest's
+        residual change is more than EXTRAPOLATE_WITHIN of the whole input change's.
+        """
+        if len(self._path) < 2 or self._path[-1].end is not state \
+                or self._path[-2].end is not self._path[-1].start:
+            return None
+        before, last = self._path
+        rest = sensitivity @ (inputs_change - 2.0 * last.inputs_change + before.inputs_change)
+        whole = sensitivity @ inputs_change
+        if np.linalg.norm(rest / self._r_scale) > \
+                EXTRAPOLATE_WITHIN * np.linalg.norm(whole / self._r_scale):
+            return None
+        return (2.0 * last.step - before.step
+                + self._correction(rest, None, factorization, True))
 
     # Newton ----------------------------------------------------------------------------------
     def _newton(self, state: _State, inputs: np.ndarray,
@@ -475,13 +600,16 @@ class DeltaRobot:
         together, each iterate one residual shot per leg; the Newton system is reduced to
         the platform's 24 by eliminating each leg's unknowns with its LU (the legs enter
         through their compliances, as in the nested form, plus the twist each leg's own
-        Newton correction makes). Else every iterate solves the legs in full.
+        Newton correction makes), and every accepted step updates the inverse Jacobian by
+        Broyden's good formula (``_Secants``, kept with the factorization). Else every
+        iterate solves the legs in full.
         A step is judged in the unknowns, not in the residual: the trial point must shrink
         the simplified Newton correction J^-1 r (same factorization) relative to the step
         (Deuflhard's restricted monotonicity test). That needs no weighting of metres
         against newtons, and it accepts the full step of the force-stiff leg axes that a
-        residual-norm test rejects far from the solution. A chord step contracting by less
-        than CHORD_RATE, or failing, rebuilds the factorization.
+        residual-norm test rejects far from the solution. The simplified correction of an
+        accepted trial is the next step (after its Broyden update). A chord step
+        contracting by less than CHORD_RATE, or failing, rebuilds the factorization.
         """
         try:
             evaluated = self._evaluate(state, coupled)
@@ -492,6 +620,7 @@ class DeltaRobot:
                             'a leg did not converge at the predicted wrenches', factorization)
         residual = self._residual(state, inputs)
         fresh, chord_steps, chord_log = False, 0, 0.0
+        step: Optional[np.ndarray] = None  # the next correction, once an iteration made it
         for iteration in range(1, self.max_iterations + 1):
             if self._converged(residual, state):
                 return _Outcome(state, residual, iteration - 1, True, 'converged',
@@ -502,20 +631,21 @@ class DeltaRobot:
             try:
                 if factorization is None:
                     factorization = self._factorize(state, inputs)
-                    fresh = True
-                step = self._step(state, residual, state.leg_residuals if coupled else None,
-                                  factorization)
+                    fresh, step = True, None
+                if step is None:
+                    step = self._correction(residual, state.leg_residuals if coupled else None,
+                                            factorization, coupled)
+                step_size = self._norm(step, coupled)
                 trial = self._line_search(state, step, inputs, factorization, coupled)
-                step_size = self._step_norm(step, coupled)
             except (_Deadline, ArithmeticError) as error:
                 return _Outcome(state, residual, iteration, False, str(error), factorization)
             if trial is None:
                 if fresh:
                     return _Outcome(state, residual, iteration, False,
                                     'damping found no contracting Newton step', factorization)
-                factorization = None  # a stale Jacobian pointed the wrong way; rebuild it
+                factorization, step = None, None  # a stale Jacobian pointed the wrong way
                 continue
-            state, residual, contraction = trial
+            state, residual, contraction, step = trial
             if fresh:
                 chord_steps, chord_log = 0, 0.0
             else:
@@ -524,8 +654,11 @@ class DeltaRobot:
                 # geometric mean, and only a single step that barely contracts on its own
                 chord_steps += 1
                 chord_log += math.log(max(contraction, 1e-300))
-                if contraction > SLOW_CHORD or chord_log > chord_steps * math.log(CHORD_RATE):
-                    factorization = None  # chord steps converge too slowly; rebuild
+                slow = contraction > SLOW_CHORD or \
+                    chord_log > chord_steps * math.log(CHORD_RATE)
+                if (slow and contraction * step_size > CHORD_FLOOR) \
+                        or chord_steps >= CHORD_LIMIT:
+                    factorization, step = None, None  # chord steps converge too slowly
             fresh = False
             if not coupled and step_size * contraction < COUPLE_WITHIN \
                     and not self._converged(residual, state):
@@ -541,68 +674,75 @@ class DeltaRobot:
                         else f'no convergence in {self.max_iterations} iterations',
                         factorization)
 
-    def _step(self, state: _State, residual: np.ndarray, leg_residuals: Optional[np.ndarray],
-              factorization: _Factorization) -> Tuple[np.ndarray, np.ndarray]:
+    def _correction(self, residual: np.ndarray, leg_residuals: Optional[np.ndarray],
+                    factorization: _Factorization, coupled: bool) -> np.ndarray:
         """
-        Newton step (platform unknowns, SI; leg unknowns (3, n)) for the given residuals.
+        Newton step for the given residuals, flat and scaled (kernels.coupled_step).
 
-        Leg k's unknowns move by -J_k^-1 (r_k + dr_k/dw dw_k): its own Newton correction
-        a_k = J_k^-1 r_k, which turns its end disk by the twist -T_k a_k, and the response
-        to the wrench change. The platform step absorbs those twists into its
-        compatibility residual. Without ``leg_residuals`` (legs solved in full, or the
-        continuation predictor) only the wrench response moves the legs.
+        [platform step / x_scale (24); leg steps (3 x n, nondimensional)]. Leg k's unknowns
+        move by -J_k^-1 (r_k + dr_k/dw dw_k): its own Newton correction a_k = J_k^-1 r_k,
+        which turns its end disk by the twist -T_k a_k, and the response to the wrench
+        change. The platform step absorbs those twists into its compatibility residual (the
+        twist enters the rotation error through the inverse left Jacobian of SO(3), the
+        identity to first order in that small error: a change of the Newton matrix only,
+        which leaves the solution where it is). Without ``leg_residuals`` (legs solved in
+        full, or the continuation predictor) only the wrench response moves the legs.
+        ``coupled``: with the factorization's Broyden updates (``_Secants``).
         """
-        modified = residual / self._r_scale
-        if leg_residuals is None:
-            corrections = None
-        else:
-            corrections = np.matmul(factorization.inverses, leg_residuals[:, :, None])
-            # the twist enters the rotation error through the inverse left Jacobian of
-            # SO(3), the identity to first order in that (small) error: a change of the
-            # Newton matrix only, which leaves the solution where it is
-            twists = np.matmul(factorization.twists, corrections)[:, :, 0]
-            modified[:18] -= twists.ravel() / self._r_scale[:18]
-        platform = -self._x_scale * (factorization.platform_inverse @ modified)
-        legs = -np.matmul(factorization.gains, platform[6:].reshape(3, 6, 1))
-        if corrections is not None:
-            legs -= corrections
-        return platform, legs[:, :, 0]
+        legs = factorization.gains
+        out = np.empty(SIZE + legs.shape[0] * legs.shape[1])
+        secants = factorization.secants
+        coupled_step(residual, leg_residuals if leg_residuals is not None else self._no_legs,
+                     leg_residuals is not None, self._r_scale, self._x_scale,
+                     factorization.factors, factorization.pivots, factorization.twists, legs,
+                     factorization.platform_inverse, secants.updates, secants.steps,
+                     secants.count if coupled else 0, out)
+        return out
 
-    def _step_norm(self, step: Tuple[np.ndarray, np.ndarray], coupled: bool) -> float:
-        """Norm of a step in the scaled unknowns (the legs' count only when ``coupled``)."""
-        platform = step[0] / self._x_scale
-        if not coupled:
-            return float(np.linalg.norm(platform))
-        return math.sqrt(float(platform @ platform) + float(np.sum(step[1] ** 2)))
+    def _unflat(self, step: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Platform step (SI) and leg steps (3, n) of a flat scaled step."""
+        return step[:SIZE] * self._x_scale, step[SIZE:].reshape(3, -1)
 
-    def _line_search(self, state: _State, step: Tuple[np.ndarray, np.ndarray],
-                     inputs: np.ndarray, factorization: _Factorization,
-                     coupled: bool) -> Optional[Tuple[_State, np.ndarray, float]]:
+    @staticmethod
+    def _norm(step: np.ndarray, coupled: bool) -> float:
+        """Norm of a flat scaled step (the legs' part counts only when ``coupled``)."""
+        counted = step if coupled else step[:SIZE]
+        return math.sqrt(float(counted @ counted))
+
+    def _line_search(self, state: _State, step: np.ndarray, inputs: np.ndarray,
+                     factorization: _Factorization, coupled: bool
+                     ) -> Optional[Tuple[_State, np.ndarray, float, Optional[np.ndarray]]]:
         """
-        Halve the Newton ``step`` until a trial passes the monotonicity test.
+        Halve the Newton ``step`` (flat, scaled) until a trial passes the monotonicity test.
 
-        Return (state, residual, contraction ||J^-1 r_trial|| / ||step||), or None.
+        Return (state, residual, contraction ||J^-1 r_trial|| / ||step||, the next step), or
+        None. A converged trial is taken at once (contraction 0, no next step); ``coupled``,
+        an accepted one updates the inverse Jacobian (``_Secants``), which makes the next
+        step from its simplified correction.
         """
-        norm = self._step_norm(step, coupled)
+        norm = self._norm(step, coupled)
         scale = 1.0
         for _ in range(10):
-            trial = state.moved(scale * step[0], scale * step[1])
+            trial = state.moved(*self._unflat(scale * step))
             if self._evaluate(trial, coupled):
                 residual = self._residual(trial, inputs)
-                simplified = self._step(trial, residual,
-                                        trial.leg_residuals if coupled else None, factorization)
-                contraction = self._step_norm(simplified, coupled) / norm
+                if self._converged(residual, trial):
+                    return trial, residual, 0.0, None
+                simplified = self._correction(residual, trial.leg_residuals if coupled else None,
+                                              factorization, coupled)
+                contraction = self._norm(simplified, coupled) / norm
                 if contraction < 1.0 - 0.25 * scale:
-                    return trial, residual, contraction
+                    if coupled:  # H y = H r_trial - H r = step - simplified
+                        simplified = factorization.secants.add(scale * step, step - simplified,
+                                                               simplified)
+                    return trial, residual, contraction, simplified
             scale *= 0.5
         return None
 
     def _converged(self, residual: np.ndarray, state: _State) -> bool:
-        compatibility = residual[:18].reshape(3, 2, 3)
-        return bool(np.abs(residual[18:]).max() <= self.equilibrium_tolerance
-                    and np.abs(compatibility[:, 0]).max() <= self.position_tolerance
-                    and np.abs(compatibility[:, 1]).max() <= self.rotation_tolerance
-                    and state.leg_error <= self._leg_tolerance)
+        return bool(state.leg_error <= self._leg_tolerance
+                    and within(residual, self.equilibrium_tolerance, self.position_tolerance,
+                               self.rotation_tolerance))
 
     # legs ------------------------------------------------------------------------------------
     def _evaluate(self, state: _State, coupled: bool) -> bool:
@@ -618,13 +758,11 @@ class DeltaRobot:
             return all(leg.converged for leg in legs)
         residuals = np.empty_like(state.unknowns)
         frames = np.empty((3, 4, 4))
-        for k, solver in enumerate(self.leg_solvers):
-            residuals[k], frames[k] = solver.problem.residual_and_end_frame(
-                state.unknowns[k], state.wrenches[k])
+        state.leg_error = shoot_legs(state.unknowns, state.wrenches, *self._leg_scales,
+                                     residuals, frames)
         self._counts['leg_shots'] += 3
         state.leg_residuals, state.frames = residuals, frames
-        state.leg_error = float(np.abs(residuals).max())
-        return math.isfinite(state.leg_error) and bool(np.all(np.isfinite(frames)))
+        return math.isfinite(state.leg_error)
 
     def _store_legs(self, state: _State, legs: List[SolveResult]) -> None:
         """Set ``state``'s leg unknowns, frames and residual size from solved legs."""
@@ -640,32 +778,37 @@ class DeltaRobot:
         remaining = self._deadline - time.perf_counter()
         if remaining <= 0.0:
             raise _Deadline(f'time limit of {self.time_limit_s} s reached')
+        if self._legs_at is not None:  # the last coupled solution: each leg starts there
+            for solver, start in zip(self.leg_solvers, self._legs_at):
+                solver.start_at(*start)
+            self._legs_at = None
         solver = self.leg_solvers[k]
         solver.time_limit_s = remaining
         self._counts['leg_solves'] += 1
         return solver.solve(wrench[:3], wrench[3:])
 
     def _leg_results(self, state: _State,
-                     factorization: Optional[_Factorization]) -> List[SolveResult]:
+                     factorization: Optional[_Factorization]) -> Sequence[SolveResult]:
         """
         Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
 
-        A coupled iterate has none yet: each leg solver is started at the state's leg
-        unknowns with the leg's factorization (TranslatorSolver.start_at), so its solve
-        only confirms the residual and adds its verdicts.
+        A LegResults builds each on first access from the state's leg unknowns
+        (TranslatorSolver.result_at: one shot and the verdicts, what a leg solve started
+        there gives): with the leg's factorization after a coupled iteration, with an exact
+        Jacobian there after a nested one (whose leg solves are not judged). After a
+        coupled iteration the next full leg solve (nested iteration) starts each leg there
+        (TranslatorSolver.start_at).
         """
-        if state.legs is not None:
-            return state.legs
-        legs = []
-        for k, solver in enumerate(self.leg_solvers):
-            leg = factorization.legs[k] if factorization is not None else None
-            solver.start_at(state.unknowns[k], state.wrenches[k],
-                            None if leg is None else (leg.lu, leg.pose, leg.wrench))
-            solver.time_limit_s = max(self._deadline - time.perf_counter(), 0.0)
-            legs.append(solver.solve(state.wrenches[k, :3], state.wrenches[k, 3:]))
-        self._counts['leg_solves'] += 3
-        state.legs = legs
-        return legs
+        coupled = state.legs is None
+        starts = []
+        for k in range(3):
+            leg = factorization.legs[k] if factorization is not None and coupled else None
+            starts.append((state.unknowns[k].copy(), state.wrenches[k].copy(),
+                           None if leg is None else (leg.lu, leg.pose, leg.wrench)))
+        if coupled:
+            self._legs_at = tuple(starts)
+        return LegResults(functools.partial(solver.result_at, *start)
+                          for solver, start in zip(self.leg_solvers, starts))
 
     def _factorize(self, state: _State, inputs: np.ndarray) -> _Factorization:
         """
@@ -697,17 +840,6 @@ class DeltaRobot:
         return _Factorization(platform, tuple(legs), state)
 
     # residual and derivatives ----------------------------------------------------------------
-    def _targets(self, state: _State, sliders: np.ndarray) -> List[Tuple[np.ndarray,
-                                                                         np.ndarray]]:
-        """Pose (rotation, position) of each platform attachment in its leg base frame."""
-        targets = []
-        for leg, slider in zip(self.legs, sliders):
-            position = leg.rotation.T @ (state.position + state.rotation @ leg.attachment
-                                         - leg.base(slider))
-            rotation = leg.rotation.T @ state.rotation @ leg.rotation
-            targets.append((rotation, position))
-        return targets
-
     def _reactions(self, state: _State) -> Tuple[np.ndarray, np.ndarray]:
         """
         Return the leg forces on the platform in {w} (3, 3) and their lever arms (3, 3).
@@ -724,24 +856,16 @@ class DeltaRobot:
         """Compatibility (18: m, rad, in {pe_i}) and equilibrium (6: N, N m, in {w})."""
         if state.frames is None:
             raise RuntimeError('the legs have not been evaluated at this state')
-        force, moment, offset = inputs[3:6], inputs[6:9], inputs[9:]
-        rotations, transposed = self._leg_rotations
-        arms = self._attachments @ state.rotation.T  # (3, 3): R a_i
-        bases = self._home_bases + inputs[:3, None] * self._slider_axes
-        # each attachment's position in its leg base frame, R_i^T (p + R a_i - b_i)
-        positions = np.matmul(transposed, (state.position + arms - bases)[:, :, None])
-        # R_de (R_i^T R R_i)^T = R_de R_i^T R^T R_i
-        errors = state.frames[:, :3, :3] @ (transposed @ state.rotation.T @ rotations)
         residual = np.empty(SIZE)
-        compatibility = residual[:18].reshape(3, 6)
-        compatibility[:, :3] = state.frames[:, :3, 3] - positions[:, :, 0]
-        for k in range(3):
-            compatibility[k, 3:] = rotation_vector(errors[k])
-        forces = -np.matmul(rotations, state.wrenches[:, :3, None])[:, :, 0]  # on the platform
-        moments = np.matmul(rotations, state.wrenches[:, 3:, None])[:, :, 0]
-        residual[18:21] = force + forces.sum(axis=0)
-        residual[21:24] = (moment + _cross_sum((state.rotation @ offset)[None], force[None])
-                           + _cross_sum(arms, forces) - moments.sum(axis=0))
+        rotations = self._leg_rotations
+        if not platform_residual(state.position, state.rotation, state.wrenches, state.frames,
+                                 inputs, rotations, self._attachments, self._home_bases,
+                                 self._slider_axes, residual):
+            # a rotation error of 90 degrees or more (far from the solution)
+            for k in range(3):
+                target = rotations[k].T @ state.rotation @ rotations[k]
+                residual[6 * k + 3:6 * k + 6] = rotation_vector(
+                    state.frames[k, :3, :3] @ target.T)
         return residual
 
     def _jacobian(self, state: _State, inputs: np.ndarray,
@@ -771,12 +895,8 @@ class DeltaRobot:
 
     def _input_sensitivity(self, state: _State, inputs: np.ndarray) -> np.ndarray:
         """d(residual)/d(inputs) for inputs [q (3); force (3); moment (3); offset (3)]."""
-        sensitivity = np.zeros((SIZE, 12))
-        for k, leg in enumerate(self.legs):
-            sensitivity[6 * k:6 * k + 3, k] = leg.rotation.T @ leg.slider_axis
-        sensitivity[18:21, 3:6] = np.eye(3)
+        sensitivity = self._constant_sensitivity.copy()
         sensitivity[21:24, 3:6] = _skew(state.rotation @ inputs[9:])
-        sensitivity[21:24, 6:9] = np.eye(3)
         sensitivity[21:24, 9:12] = -_skew(inputs[3:6]) @ state.rotation
         return sensitivity
 
@@ -786,7 +906,7 @@ class DeltaRobot:
         result.leg_shots = self._counts['leg_shots']
         result.leg_jacobians = self._counts['leg_jacobians']
 
-    def _result(self, outcome: _Outcome, legs: List[SolveResult], inputs: np.ndarray,
+    def _result(self, outcome: _Outcome, legs: Sequence[SolveResult], inputs: np.ndarray,
                 elapsed: float) -> DeltaResult:
         state = outcome.state
         residual = outcome.residual
@@ -798,7 +918,7 @@ class DeltaRobot:
             payload_force=inputs[3:6].copy(), payload_moment=inputs[6:9].copy(),
             payload_offset=inputs[9:].copy(), platform_position=state.position.copy(),
             platform_rotation=state.rotation.copy(), home_position=self.home_position.copy(),
-            leg_results=tuple(legs), leg_tip_wrenches=state.wrenches.copy(),
+            leg_results=legs, leg_tip_wrenches=state.wrenches.copy(),
             equilibrium_residual=residual[18:].copy(),
             compatibility_residual=residual[:18].reshape(3, 6).copy(),
             solve_time_s=elapsed, leg_solves=0)
@@ -806,13 +926,21 @@ class DeltaRobot:
         return result
 
 
-def _distance(first: _State, second: _State, x_scale: np.ndarray) -> float:
-    """Largest difference of two states in the scaled unknowns (platform and legs)."""
+def _difference(first: _State, second: _State, x_scale: np.ndarray) -> np.ndarray:
+    """
+    ``first`` minus ``second`` in the flat scaled unknowns (platform / x_scale, then legs).
+
+    The rotation's part is the rotation vector of R_first R_second^T (``_State.moved``'s).
+    """
     platform = np.concatenate([first.position - second.position,
                                rotation_vector(first.rotation @ second.rotation.T),
                                (first.wrenches - second.wrenches).ravel()]) / x_scale
-    return max(float(np.abs(platform).max()),
-               float(np.abs(first.unknowns - second.unknowns).max()))
+    return np.concatenate([platform, (first.unknowns - second.unknowns).ravel()])
+
+
+def _distance(first: _State, second: _State, x_scale: np.ndarray) -> float:
+    """Largest difference of two states in the scaled unknowns (platform and legs)."""
+    return float(np.abs(_difference(first, second, x_scale)).max())
 
 
 def solve_delta(sliders: ArrayLike, payload_force: ArrayLike,

@@ -2,14 +2,15 @@
 
 from dataclasses import dataclass
 import math
-from typing import Optional, Tuple
+from typing import Any, Callable, Iterable, List, Optional, overload, Sequence, Tuple, Union
 
 import numpy as np
 
+from .kernels import small_rotation_vector
 from .. import geometry
 from ..result import SolveResult
 
-__all__ = ['DeltaResult', 'INPUT_NAMES', 'rotation_vector']
+__all__ = ['DeltaResult', 'INPUT_NAMES', 'LegResults', 'rotation_vector']
 
 #: Names of the 12 inputs whose sensitivities ``DeltaResult.input_sensitivity`` holds.
 INPUT_NAMES = ('slider 1', 'slider 2', 'slider 3', 'force x', 'force y', 'force z',
@@ -20,21 +21,66 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     """
     Rotation vector (axis times angle, rad) of a rotation matrix.
 
-    From the skew part, sin(angle) times the axis, and the trace, 1 + 2 cos(angle); beyond
-    90 deg (where the skew part loses the axis near 180 deg) from geometry.quaternion_xyzw.
-    A few us, where scipy's Rotation.from_matrix took 0.3 ms: the CDR residual takes three.
+    Below 90 deg from the skew part and the trace (kernels.small_rotation_vector); beyond
+    (where the skew part loses the axis near 180 deg) from geometry.quaternion_xyzw.
+    A few us, where scipy's Rotation.from_matrix took 0.3 ms.
     """
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = rotation.tolist()
-    cosine = 0.5 * (m00 + m11 + m22 - 1.0)
-    if cosine > 0.0:
-        x, y, z = 0.5 * (m21 - m12), 0.5 * (m02 - m20), 0.5 * (m10 - m01)
-        sine = math.sqrt(x * x + y * y + z * z)
-        factor = math.atan2(sine, cosine) / sine if sine > 1e-8 else 1.0 / cosine
-    else:
-        x, y, z, w = geometry.quaternion_xyzw(rotation).tolist()
-        sine = math.sqrt(x * x + y * y + z * z)
-        factor = 2.0 * math.atan2(sine, w) / sine
+    out = np.empty(3)
+    if small_rotation_vector(np.asarray(rotation, dtype=float), out):
+        return out
+    x, y, z, w = geometry.quaternion_xyzw(rotation).tolist()
+    sine = math.sqrt(x * x + y * y + z * z)
+    factor = 2.0 * math.atan2(sine, w) / sine
     return np.array([factor * x, factor * y, factor * z])
+
+
+class LegResults(Sequence[SolveResult]):
+    """
+    The legs' SolveResults, each built on first access and kept: a read-only sequence.
+
+    A converged coupled CDR solve has each leg's unknowns already; building a leg's result
+    from them (shape, stability verdict, error estimate: TranslatorSolver.result_at) costs
+    more than the rest of a warm solve, so it is deferred until someone asks. Compares
+    equal to the tuple of its results.
+    """
+
+    def __init__(self, builders: Iterable[Callable[[], SolveResult]]) -> None:
+        """Keep one builder per leg (each called at most once, on first access)."""
+        self._builders = tuple(builders)
+        self._results: List[Optional[SolveResult]] = [None] * len(self._builders)
+
+    def __len__(self) -> int:
+        """Return the number of legs."""
+        return len(self._builders)
+
+    @overload
+    def __getitem__(self, index: int) -> SolveResult: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Tuple[SolveResult, ...]: ...
+
+    def __getitem__(self, index: Union[int, slice]) -> Any:
+        """Return leg ``index``'s result (built now if not yet), or a tuple for a slice."""
+        if isinstance(index, slice):
+            return tuple(self[k] for k in range(len(self))[index])
+        result = self._results[index]
+        if result is None:
+            result = self._builders[index]()
+            self._results[index] = result
+        return result
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to any sequence of the same results (a tuple, another LegResults)."""
+        if not isinstance(other, Sequence):
+            return NotImplemented
+        return tuple(self) == tuple(other)
+
+    __hash__ = None  # type: ignore[assignment]  # mutable cache: not hashable
+
+    def __repr__(self) -> str:
+        """Show the results built so far (the others as <deferred>)."""
+        return 'LegResults(' + ', '.join('<deferred>' if result is None else repr(result)
+                                         for result in self._results) + ')'
 
 
 @dataclass
@@ -48,10 +94,13 @@ class DeltaResult:
     moment about the platform origin in {w} (N, N m). ``compatibility_residual`` (3, 6):
     per leg, the solved end-disk pose minus the platform attachment pose in {pe_i}
     (position m, rotation vector rad). Failure to converge is a result (``converged``
-    False, ``message`` says why) holding the best iterate found. The work it took:
-    ``leg_solves`` (TranslatorSolver solves, including the three that give
-    ``leg_results``), ``leg_shots`` (residual shots of one leg in the coupled Newton) and
-    ``leg_jacobians`` (exact leg Jacobians, one tangent-linear shot each: the costly part).
+    False, ``message`` says why) holding the best iterate found. ``leg_results``: each
+    leg's SolveResult at that state (shape, bending, the leg's own stability verdict and
+    error estimate), a LegResults: each built from the solved leg unknowns on first access
+    (TranslatorSolver.result_at, 0.3-1 ms a leg, not in ``solve_time_s``). The work the
+    solve took: ``leg_solves`` (full TranslatorSolver solves of a leg, not judged),
+    ``leg_shots`` (residual shots of one leg in the coupled Newton) and ``leg_jacobians``
+    (exact leg Jacobians, one tangent-linear shot each: the costly part).
 
     With ``solve(..., compliance=True)`` (a converged solve) the linearization of the
     assembled closed chain at the solution is added, from the Newton Jacobian J exact at
@@ -86,7 +135,7 @@ class DeltaResult:
     platform_position: np.ndarray
     platform_rotation: np.ndarray
     home_position: np.ndarray
-    leg_results: Tuple[SolveResult, ...]
+    leg_results: Sequence[SolveResult]  # a tuple, or LegResults (built on first access)
     leg_tip_wrenches: np.ndarray
     equilibrium_residual: np.ndarray
     compatibility_residual: np.ndarray
