@@ -3,7 +3,7 @@ Latency and throughput of translator_node over DDS (localhost, its own domain).
 
 Usage: python -m bench.node_latency [--rates 100 200 500 1000 2000] [--seconds 3] [--no-log]
                                      [--compliance] [--node-python PY] [--label TEXT]
-                                     [--markdown FILE]
+                                     [--markdown FILE] [--profile OUT.md]
 
 Starts the node, streams a smooth wrench sequence (a 0.5 Hz sweep of 0-12 N lateral force,
 the kind a force sensor sends) at each rate, and reports per rate: wrenches sent, received
@@ -15,7 +15,9 @@ what logging costs; ``--compliance`` subscribes to the compliance eigenvalues to
 ``--node-python`` runs the node with another checkout's interpreter (``-m
 cdr_translator.node`` of that venv, without this checkout on PYTHONPATH), so an old and a
 new node can be measured with the same client in the same minutes; ``--markdown`` appends
-the table to a file (bench/results/node_rate.md).
+the table to a file (bench/results/node_rate.md). ``--profile`` runs this checkout's node
+under bench.node_profile (timers around its stages, every thread's CPU time), which writes
+its account to OUT.md when the node stops (use one rate per run to see that rate's split).
 
 The publisher sleeps between wrenches (no busy spin). The client process (publisher and
 recorder) shares the machine with the node: on a loaded machine both lose time, so
@@ -28,6 +30,7 @@ import math
 import os
 from pathlib import Path
 import signal
+import sys
 import tempfile
 import time
 from typing import List
@@ -53,9 +56,32 @@ def stream(client: TranslatorClient, rate_hz: float, seconds: float) -> list:
 
 
 def cpu_seconds(pid: int) -> float:
-    """Return the CPU time (user + system, s) process ``pid`` has used so far (Linux)."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    """
+    Return the CPU time (user + system, s) process ``pid`` and its children used so far.
+
+    Its running children (the MCAP log process) count too (Linux /proc).
+    """
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    total = (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    return total + sum(cpu_seconds(child) for child in child_pids(pid))
+
+
+def child_pids(pid: int) -> List[int]:
+    """Return the running child processes of ``pid`` (a scan of /proc/*/stat)."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / 'stat').read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(entry.name))
+    return found
 
 
 def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) -> dict:
@@ -91,6 +117,8 @@ def main() -> None:
     parser.add_argument('--label', default='this checkout', help='name of the node measured')
     parser.add_argument('--markdown', type=Path, default=None,
                         help='append the table to this markdown file')
+    parser.add_argument('--profile', type=Path, default=None,
+                        help="write the node's CPU account (bench.node_profile) to this file")
     args = parser.parse_args()
     env = isolated_ros_env()
     os.environ.update(env)
@@ -98,6 +126,8 @@ def main() -> None:
     if args.node_python:
         node_env.pop('PYTHONPATH', None)
         command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout
+    elif args.profile:
+        command = (sys.executable, '-m', 'bench.node_profile', str(args.profile.resolve()))
     with tempfile.TemporaryDirectory() as folder:
         ros_args = ['-p', 'log_to_mcap:=false'] if args.no_log else [
             '-p', f'mcap_path:={Path(folder) / "bench.mcap"}']

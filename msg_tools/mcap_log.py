@@ -261,8 +261,14 @@ class McapLog:
 
     def __init__(self, path: Union[str, Path], *, flush_every_messages: int = 100,
                  flush_every_s: float = 1.0, chunk_size: int = 1024 * 1024,
-                 if_exists: str = 'fail', retry_s: float = 1.0) -> None:
-        """Create ``path`` (see ``open_exclusive``), its parent folders, and start the MCAP."""
+                 if_exists: str = 'fail', retry_s: float = 1.0,
+                 opened: Optional[Tuple[int, Path]] = None) -> None:
+        """
+        Create ``path`` (see ``open_exclusive``), its parent folders, and start the MCAP.
+
+        ``opened``: (descriptor, path) that ``open_exclusive(path, if_exists)`` returned
+        already, e.g. in the process that handed the descriptor to this one; the log owns it.
+        """
         if (isinstance(flush_every_messages, bool) or not isinstance(flush_every_messages, int)
                 or flush_every_messages < 0):
             raise ValueError('flush_every_messages must be an int >= 0, got '
@@ -294,7 +300,9 @@ class McapLog:
         self._unflushed = 0
         self._closed = False
         self._final: Optional[LogStatus] = None
-        fd, self.path = open_exclusive(self.requested_path, if_exists)
+        if opened is None:
+            opened = open_exclusive(self.requested_path, if_exists)
+        fd, self.path = opened
         try:
             self._start(fd)
         except OSError:

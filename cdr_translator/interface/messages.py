@@ -92,7 +92,7 @@ def header(stamp: Mapping[str, int], frame_id: str) -> dict:
 
 def _vector3(values: ArrayLike, names: str = 'xyz') -> dict:
     """Return a dict of named float components (Vector3, Point, Quaternion with 'xyzw')."""
-    return {name: float(value) for name, value in zip(names, np.asarray(values, dtype=float))}
+    return dict(zip(names, np.asarray(values, dtype=float).tolist()))
 
 
 def wrench_message(force: ArrayLike, moment: ArrayLike, frame_id: str,

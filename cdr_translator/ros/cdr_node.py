@@ -100,8 +100,7 @@ class CdrNode(Node):
                   for topic, message_class in inputs.items()]
         topics += [(publisher.topic_name, type_name(CDR_OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
-        self._log, self.mcap_path = open_log(self._settings, 'cdr', topics,
-                                             idle=self._mailbox.idle)
+        self._log, self.mcap_path = open_log(self._settings, 'cdr', topics)
         self._log_watch = LogWatch(self._log) if self._log is not None else None
         self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
                            if self._log is not None else None)

@@ -1,8 +1,8 @@
 """
-The runtime both nodes share: mailbox, message filling, MCAP log thread, start and spin.
+The runtime both nodes share: mailbox, message filling, MCAP log process, start and spin.
 
-The latest-wins mailbox, message filling and the MCAP log thread can each be tested without
-DDS; ``run`` starts a node, spins it until SIGINT/SIGTERM and closes it cleanly. The input
+The latest-wins mailbox, message filling and the MCAP log process can each be tested
+without DDS; ``run`` starts a node, spins it until SIGINT/SIGTERM and closes it cleanly. The input
 checks and the solve of one wrench are cdr_translator.interface.processing's, shared with
 the offline replay.
 """
@@ -10,18 +10,19 @@ the offline replay.
 import datetime
 from functools import lru_cache
 import importlib
+import math
 import os
 from pathlib import Path
-import queue
 import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Sequence
+from typing import Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
-from msg_tools.mcap_log import LogStatus, McapLog
+from msg_tools.log_process import LogProcess
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -51,19 +52,40 @@ OUTPUTS = {
 #: How long main() waits for the solver thread to finish its solve at shutdown.
 SHUTDOWN_JOIN_S = 5.0
 
-#: Records the MCAP log thread may hold before a producer waits (never dropped, never
-#: unbounded): at 1 kHz input with five outputs per solve, several seconds of backlog.
-LOG_QUEUE_CAPACITY = 20000
-
 #: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
 LOG_CHECK_PERIOD_S = 1.0
 
-#: While the solver works, the log thread holds its records back (they would take the GIL
-#: from the solve) at most this long, then writes what is queued ...
-LOG_HOLD_S = 0.1
-#: ... or as soon as this many records are queued (checked every LOG_HOLD_CHECK_S).
-LOG_HOLD_RECORDS = 1000
-LOG_HOLD_CHECK_S = 0.02
+#: How long a node trusts its count of an output topic's subscribers before counting again
+#: (s): a count costs 10-15 us, and a node publishes several outputs per input at 1 kHz.
+SUBSCRIBERS_REFRESH_S = 0.05
+
+
+class SubscriberCounts:
+    """
+    Which output topics have subscribers, counted again at most every ``refresh_s``.
+
+    A node builds and publishes an output only for a topic someone subscribes to (or when
+    it logs it): a subscriber that appears is served from the next count on.
+    """
+
+    def __init__(self, publishers: Mapping[str, Any], refresh_s: float = SUBSCRIBERS_REFRESH_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """Watch ``publishers`` (topic -> rclpy Publisher)."""
+        self._publishers = dict(publishers)
+        self._refresh_s = refresh_s
+        self._clock = clock
+        self._next = -math.inf
+        self._subscribed: FrozenSet[str] = frozenset()
+
+    def subscribed(self) -> FrozenSet[str]:
+        """Return the topics with at least one subscriber (as last counted)."""
+        now = self._clock()
+        if now >= self._next:
+            self._subscribed = frozenset(
+                topic for topic, publisher in self._publishers.items()
+                if publisher.get_subscription_count() > 0)
+            self._next = now + self._refresh_s
+        return self._subscribed
 
 
 def sensor_qos(depth: int) -> QoSProfile:
@@ -77,9 +99,7 @@ class LatestMailbox:
     """
     One-slot, thread-safe mailbox: ``put`` replaces an untaken item (counted as skipped).
 
-    The consumer always gets the newest item; nothing ever queues up behind it. ``idle`` is
-    set while the consumer waits with nothing to take (and once closed): the time a node's
-    log thread writes in.
+    The consumer always gets the newest item; nothing ever queues up behind it.
     """
 
     def __init__(self) -> None:
@@ -89,7 +109,6 @@ class LatestMailbox:
         self._full = False
         self._closed = False
         self.skipped = 0
-        self.idle = threading.Event()
 
     def put(self, item: Any) -> bool:
         """Leave ``item``; return True if it replaced one nobody had taken yet."""
@@ -98,27 +117,22 @@ class LatestMailbox:
             if replaced:
                 self.skipped += 1
             self._item, self._full = item, True
-            self.idle.clear()
             self._condition.notify()
             return replaced
 
     def take(self, timeout: Optional[float] = None) -> Any:
         """Wait for an item and return it; None once closed (or after ``timeout`` s)."""
         with self._condition:
-            if not self._full:
-                self.idle.set()
             self._condition.wait_for(lambda: self._full or self._closed, timeout)
             if self._closed or not self._full:
                 return None
             item, self._item, self._full = self._item, None, False
-            self.idle.clear()
             return item
 
     def close(self) -> None:
         """Wake the consumer for good; an untaken item is dropped."""
         with self._condition:
             self._closed = True
-            self.idle.set()
             self._condition.notify_all()
 
 
@@ -172,140 +186,22 @@ def type_name(message_class: Any) -> str:
     return f'{package}/msg/{message_class.__name__}'
 
 
-class LogThread:
+class NodeLog(LogProcess):
     """
-    Serialize and write log records to an McapLog on a thread of its own.
+    A node's MCAP log: an McapLog in a child process (msg_tools.log_process).
 
-    Producers (the subscription callback, the solver thread) only enqueue: a record is the
-    already-serialized bytes of a received message or a published message object, which
-    this thread serializes. The queue is bounded (``capacity``); when it is full a producer
-    waits rather than drop a record. The McapLog itself flushes completed chunks every N
-    messages and T seconds. ``enqueue_wait_s`` and ``write_time_s`` measure whether logging
-    ever holds up the solver.
-
-    With ``idle`` (the solver's LatestMailbox.idle), records are written while the solver
-    waits for input: a write holds the GIL for tens of microseconds, and a solver waiting
-    for it can lose up to Python's switch interval (5 ms) each time. While the solver
-    works, records wait at most ``hold_s`` (then what is queued is written) or until
-    ``hold_records`` are queued.
-
-    Log times never go back on a channel (what MCAP readers and ``mcap doctor`` expect): a
-    record whose log time is earlier than the previous one of its topic (two producer
-    threads, or rmw receive stamps out of step) is written with that previous time and
-    counted in ``reordered``. Write errors do not stop the thread: the McapLog counts what
-    it could not write (``status()``), ``errors`` counts records that could not even be
-    serialized.
+    The node's threads only hand records over (one pickled send per batch); the writing
+    runs beside them instead of taking the GIL from the solve. Records may be CDR bytes or
+    generated message objects, which are serialized here.
     """
 
-    def __init__(self, log: Any, capacity: int = LOG_QUEUE_CAPACITY,
-                 idle: Optional[threading.Event] = None, hold_s: float = LOG_HOLD_S,
-                 hold_records: int = LOG_HOLD_RECORDS) -> None:
-        """Start writing to ``log`` (an McapLog, closed by ``close()``), while ``idle`` is set."""
-        self._log = log
-        self._idle = idle
-        self._hold_s = hold_s
-        self._hold_records = hold_records
-        self.held = 0
-        self._queue: queue.Queue = queue.Queue(maxsize=capacity)
-        self.submitted = 0
-        self.written = 0
-        self.errors = 0
-        self.reordered = 0
-        self.last_error = ''
-        self.max_depth = 0
-        self.enqueue_wait_s = 0.0
-        self.max_enqueue_wait_s = 0.0
-        self.write_time_s = 0.0
-        self._last_log_time: Dict[str, int] = {}
-        self._closed = False
-        self._final: Optional[LogStatus] = None
-        self._thread = threading.Thread(target=self._run, name='mcap_log', daemon=True)
-        self._thread.start()
-
-    @property
-    def path(self) -> str:
-        """Return the file being written (a new one after a write error)."""
-        return str(self._log.path)
-
-    def submit(self, topic: str, type_name: str, message: Any, log_time_ns: int,
-               publish_time_ns: Optional[int] = None) -> None:
-        """Queue one record; ``message`` is CDR bytes or a generated message object."""
-        started = time.perf_counter()
-        self._queue.put((topic, type_name, message, log_time_ns, publish_time_ns))
-        waited = time.perf_counter() - started
-        self.submitted += 1
-        self.enqueue_wait_s += waited
-        self.max_enqueue_wait_s = max(self.max_enqueue_wait_s, waited)
-        self.max_depth = max(self.max_depth, self._queue.qsize())
-
-    def _run(self) -> None:
-        """Write queued records until the ``None`` that close() queues."""
-        ungated = 0  # records to write without waiting (queued when a hold ran out)
-        while True:
-            record = self._queue.get()
-            if record is None:
-                return
-            if ungated > 0:
-                ungated -= 1
-            elif self._idle is not None and not self._idle.is_set():
-                self.held += 1
-                ungated = self._hold(self._idle)
-            topic, name, message, log_time_ns, publish_time_ns = record
-            started = time.perf_counter()
-            previous = self._last_log_time.get(topic, 0)
-            if log_time_ns < previous:
-                log_time_ns = previous
-                self.reordered += 1
-            self._last_log_time[topic] = log_time_ns
-            try:
-                data = message if isinstance(message, bytes) else serialize_message(message)
-                self._log.write_serialized(topic, name, data, log_time_ns, publish_time_ns)
-                self.written += 1
-            except Exception as error:  # noqa: B902 - a bad record must not end the log
-                self.errors += 1
-                self.last_error = f'{topic}: {error}'
-            self.write_time_s += time.perf_counter() - started
-
-    def _hold(self, idle: threading.Event) -> int:
-        """
-        Wait until ``idle``, at most hold_s or until hold_records are queued.
-
-        Return 0 when the solver waits for input now, else the number of records queued,
-        to be written without waiting again.
-        """
-        deadline = time.monotonic() + self._hold_s
-        while self._queue.qsize() < self._hold_records:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                break
-            if idle.wait(min(remaining, LOG_HOLD_CHECK_S)):
-                return 0
-        return self._queue.qsize()
-
-    def status(self) -> LogStatus:
-        """Return the McapLog's status: records written and lost, the last error."""
-        return self._final if self._final is not None else self._log.status()
-
-    def close(self, timeout_s: float = 10.0) -> LogStatus:
-        """Write what is queued, close the McapLog (summary written); idempotent, no raise."""
-        if self._final is not None:
-            return self._final
-        self._closed = True
-        self._queue.put(None)
-        self._thread.join(timeout_s)
-        self._final = self._log.close()
-        return self._final
-
-    def closing_line(self) -> Tuple[bool, str]:
-        """Return (all written, the node's closing log line) after ``close()``."""
-        status = self.status()
-        lost = status.lost + self.errors
-        text = (f'MCAP log closed: {status.written} records written, {lost} lost '
-                f'({status.lost} not written, {self.errors} not serializable) in '
-                f'{", ".join(status.files)}')
-        if status.message:
-            text += f'; {status.message}'
-        return lost == 0, text
+    def submit_many(self, records: Sequence[Tuple[str, str, Any, int, Optional[int]]]
+                    ) -> None:
+        """Hand records over; message objects are serialized first."""
+        super().submit_many([
+            record if isinstance(record[2], bytes) else
+            (record[0], record[1], serialize_message(record[2]), record[3], record[4])
+            for record in records])
 
 
 class LogWatch:
@@ -316,7 +212,7 @@ class LogWatch:
     or None when there is nothing to say: nothing is published while the log is fine.
     """
 
-    def __init__(self, log: LogThread) -> None:
+    def __init__(self, log: NodeLog) -> None:
         """Watch ``log``."""
         self.log = log
         self._reported_lost = 0
@@ -364,7 +260,7 @@ def log_health(watch: Optional[LogWatch], logger: Any, node_name: str,
                                           name=f'{node_name}: mcap_log'))]
 
 
-def log_lost(log: Optional[LogThread]) -> Dict[str, int]:
+def log_lost(log: Optional[NodeLog]) -> Dict[str, int]:
     """Return ``{'log_records_lost': N}`` for a node's diagnostics ({} without a log)."""
     if log is None:
         return {}
@@ -391,30 +287,28 @@ def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[A
     return SetParametersResult(successful=True)
 
 
-def open_log(settings: Any, prefix: str, topics: Sequence[Tuple[str, str, str]],
-             idle: Optional[threading.Event] = None) -> Tuple[Optional[LogThread], str]:
+def open_log(settings: Any, prefix: str, topics: Sequence[Tuple[str, str, str]]
+             ) -> Tuple[Optional[NodeLog], str]:
     """
-    Open a node's MCAP log and its writer thread; (None, '') when logging is off.
+    Open a node's MCAP log and its writer process; (None, '') when logging is off.
 
     ``settings`` has log_to_mcap, mcap_path, log_dir, mcap_flush_messages and mcap_flush_s;
     an empty mcap_path names the file <log_dir>/<prefix>_<UTC time>_<pid>.mcap (another
     free name if that exists). A given mcap_path is created exclusively: an existing file
     (an earlier run's log) or one another writer holds is an OSError naming it (and the
     holder's PID), which ``run`` turns into exit code 2. ``topics`` are (resolved name, type
-    name, 'sensor_data' or 'reliable') to register up front; ``idle``: when the log thread
-    writes (LogThread). The path returned is the file actually written.
+    name, 'sensor_data' or 'reliable') to register up front. The path returned is the file
+    actually written.
     """
     if not settings.log_to_mcap:
         return None, ''
     path = Path(settings.mcap_path) if settings.mcap_path else (
         Path(settings.log_dir) / datetime.datetime.now(datetime.timezone.utc).strftime(
             f'{prefix}_%Y-%m-%d_%H-%M-%S_{os.getpid()}.mcap'))
-    log = McapLog(path, flush_every_messages=settings.mcap_flush_messages,
+    log = NodeLog(path, topics=topics, flush_every_messages=settings.mcap_flush_messages,
                   flush_every_s=settings.mcap_flush_s,
                   if_exists='fail' if settings.mcap_path else 'rename')
-    for topic, name, qos in topics:
-        log.register(topic, name, qos=qos)
-    return LogThread(log, idle=idle), str(log.path)
+    return log, log.path
 
 
 def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None) -> int:

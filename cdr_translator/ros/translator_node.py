@@ -7,15 +7,15 @@ with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``
 defines their content). The subscription callback only counts and logs a wrench and hands
 its bytes to a solver thread through a one-slot mailbox: when they arrive faster than the
 solver, the newest wins and the others are counted as skipped. The solver thread decodes
-and checks the wrench it takes (cdr_translator.interface.processing: the same checks,
-frames and follower-load solve as the offline replay). The subscription's queue is
+(cdr.decode) and checks the wrench it takes (cdr_translator.interface.processing: the same
+checks, frames and follower-load solve as the offline replay). The subscription's queue is
 ``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
-one by one with the pose first (it is published before the others are built), serialized
-once, and the same bytes published and logged: every received wrench and every published
-message goes to an MCAP file through a log thread, which writes while the solver thread
-waits for a wrench (or when records have waited 0.1 s). Only cdr_translator.ros imports
-rclpy or ROS message classes.
+one by one with the pose first (it is published before the others are built), encoded
+straight to CDR from their dicts (cdr.encode), published only where someone subscribes,
+and the same bytes logged: every received wrench and every output goes to an MCAP file
+written by a child process (runtime.NodeLog), so that the writing takes no time from the
+solve. Only cdr_translator.ros imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
@@ -30,12 +30,12 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
 
+from . import cdr
 from .parameters import descriptor, ros_parameter_sources, SPECS
-from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogThread, LogWatch, open_log, OUTPUTS, run
-from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
+from .runtime import check_parameters, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, NodeLog, open_log, OUTPUTS, run
+from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
 from ..interface.processing import check_magnitude, in_end_disk_frame, node_solver
@@ -76,6 +76,11 @@ class TranslatorNode(Node):
         self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
                                                                   reliable)
                                      for topic, message_class in OUTPUTS.items()}
+        self._subscribers = SubscriberCounts(self._publishers_by_topic)
+        self._encoders = {topic: cdr.encoder(message_class)
+                          for topic, message_class in OUTPUTS.items()}
+        self._type_names = {topic: type_name(message_class)
+                            for topic, message_class in OUTPUTS.items()}
         self._mailbox = LatestMailbox()
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
@@ -107,24 +112,24 @@ class TranslatorNode(Node):
     def _warm_up(self) -> None:
         """Solve once (compiles or loads the kernels) and build every output, then forget."""
         result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
-        for _, message in _filled(messages.output_messages(
+        for topic, _, values in messages.output_messages(
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
-                backbones_params=self.solver.params, extra_values=self._counts())):
-            serialize_message(message)
+                backbones_params=self.solver.params, extra_values=self._counts()):
+            self._encoders[topic](values)
         self.solver.reset()
 
-    def _open_log(self) -> Tuple[Optional[LogThread], str]:
+    def _open_log(self) -> Tuple[Optional[NodeLog], str]:
         """Open the MCAP log (unless disabled) and register the wrench and output topics."""
         topics = [(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
                    'sensor_data')]
         topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
-        return open_log(self._settings, 'translator', topics, idle=self._mailbox.idle)
+        return open_log(self._settings, 'translator', topics)
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        self._publish_all(_filled(log_health(self._log_watch, self.get_logger(), NODE_NAME,
-                                             self._counts())))
+        self._publish_all(self._serialized(log_health(self._log_watch, self.get_logger(),
+                                                      NODE_NAME, self._counts())))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes) -> None:
@@ -153,14 +158,14 @@ class TranslatorNode(Node):
             stamp = {'sec': 0, 'nanosec': 0}
             try:
                 force, moment, frame_id, stamp = messages.wrench_from_message(
-                    deserialize_message(data, WrenchStamped))
+                    cdr.decode(WrenchStamped, data))
                 end_disk = self._checked(force, moment, frame_id, stamp)
                 if end_disk is not None:
                     self._process(stamp, force, moment, end_disk)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
                 self.get_logger().error(f'solver thread: {error!r}')
-                self._publish_all(self._filled(messages.rejection_messages(
+                self._publish_all(self._serialized(messages.rejection_messages(
                     stamp, f'internal error: {error!r}', self._counts())))
 
     def _checked(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
@@ -174,18 +179,18 @@ class TranslatorNode(Node):
         except ValueError as error:
             self.rejected += 1
             self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
-            self._publish_all(self._filled(messages.rejection_messages(
+            self._publish_all(self._serialized(messages.rejection_messages(
                 stamp, f'rejected: {error}', self._counts())))
             return None
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
                  end_disk: bool) -> None:
         """Solve one wrench; publish and log what it gives."""
-        want_compliance = self._settings.log_compliance or any(
-            self._publishers_by_topic[topic].get_subscription_count() > 0
-            for topic in (messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC))
-        want_backbones = (self._settings.log_backbones or self._publishers_by_topic[
-            messages.BACKBONES_TOPIC].get_subscription_count() > 0)
+        subscribed = self._subscribers.subscribed()
+        want_compliance = self._settings.log_compliance or bool(
+            subscribed & {messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC})
+        want_backbones = (self._settings.log_backbones
+                          or messages.BACKBONES_TOPIC in subscribed)
         result, solves = solve_wrench(self.solver, force, moment, end_disk, self._rotation,
                                       want_compliance)
         if result.converged:
@@ -210,37 +215,44 @@ class TranslatorNode(Node):
 
     def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
                          want_backbones: bool, extra: Dict[str, Any]
-                         ) -> Iterator[Tuple[str, Any]]:
+                         ) -> Iterator[Tuple[str, bytes]]:
         """
-        Build and fill the messages of one solve one by one, the pose first.
+        Build and serialize the messages of one solve one by one, the pose first.
 
         interface.messages defines their content; each is built when the one before has
         been published, so the pose goes out before the others are even built.
         """
-        return self._filled(messages.iter_output_messages(
+        return self._serialized(messages.iter_output_messages(
             result, stamp, self._settings.base_frame, compliance=want_compliance,
             backbones_params=self.solver.params if want_backbones else None,
             extra_values=extra))
 
-    def _wanted(self, topic: str) -> bool:
-        """Say whether an output is needed: logged, or someone subscribes to it."""
-        return self._log is not None or (
-            self._publishers_by_topic[topic].get_subscription_count() > 0)
+    def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
+        """
+        CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
-    def _filled(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, Any]]:
-        """Fill the rclpy messages of the wanted outputs among (topic, type, dict) triples."""
-        return ((topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built
-                if self._wanted(topic))
+        Wanted: logged, or someone subscribes to the topic (cdr.encode writes the bytes
+        straight from the dict, no rclpy message in between).
+        """
+        logged = self._log is not None
+        subscribed = self._subscribers.subscribed()
+        return ((topic, self._encoders[topic](values)) for topic, _, values in built
+                if logged or topic in subscribed)
 
-    def _publish_all(self, topic_messages: Iterable[Tuple[str, Any]]) -> None:
-        """Serialize each output once; publish those bytes and queue them for the MCAP log."""
-        for topic, message in topic_messages:
+    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:
+        """Publish each serialized output that someone subscribes to; log all of them."""
+        subscribed = self._subscribers.subscribed()
+        records = []
+        for topic, data in topic_data:
             publisher = self._publishers_by_topic[topic]
-            data = serialize_message(message)
-            publisher.publish(data)
+            if topic in subscribed:
+                publisher.publish(data)
             if self._log is not None:
-                self._log.submit(publisher.topic_name, type_name(OUTPUTS[topic]), data,
-                                 time.time_ns())
+                records.append((publisher.topic_name, self._type_names[topic], data,
+                                time.time_ns(), None))
+        if records:
+            assert self._log is not None
+            self._log.submit_many(records)
 
     # shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
@@ -254,7 +266,7 @@ class TranslatorNode(Node):
             log = self._log
             log.close()
             complete, line = log.closing_line()
-            text = (f'{line}; handing a record to the log thread took '
+            text = (f'{line}; handing a record to the log process took '
                     f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
                     f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
                     f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record; '
@@ -263,11 +275,6 @@ class TranslatorNode(Node):
                 self.get_logger().info(text)
             else:
                 self.get_logger().error(text)
-
-
-def _filled(built: Sequence[Tuple[str, str, dict]]) -> List[Tuple[str, Any]]:
-    """Turn interface.messages' (topic, type, dict) triples into (topic, rclpy message)."""
-    return [(topic, fill_message(OUTPUTS[topic](), values)) for topic, _, values in built]
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:

@@ -16,7 +16,7 @@ import time
 from cdr_translator.interface import messages
 from cdr_translator.params import NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
-from cdr_translator.ros.runtime import LogThread
+from cdr_translator.ros.runtime import NodeLog
 from mcap.reader import make_reader
 from msg_tools.mcap_log import McapLog
 from msg_tools.reader import McapSource
@@ -151,13 +151,13 @@ def test_log_times_never_go_back_on_a_channel(tmp_path, ros_env):
     assert count > 200 and {'/wrench', '/diagnostics', '/end_disk_pose'} <= set(last)
 
 
-def test_log_thread_holds_back_an_earlier_log_time(tmp_path):
+def test_log_process_holds_back_an_earlier_log_time(tmp_path):
     """Records handed over out of time order: written in order, each held-back one counted."""
     wrench = messages.wrench_message([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], '',
                                      messages.stamp_from_ns(0))
     with McapLog(tmp_path / 'scratch.mcap') as scratch:
         data = scratch._encoder(messages.WRENCH_TYPE)(wrench)
-    log = LogThread(McapLog(tmp_path / 'run.mcap', flush_every_s=0.0))
+    log = NodeLog(tmp_path / 'run.mcap', flush_every_s=0.0)
     for topic, time_ns in [('/wrench', 5), ('/wrench', 3), ('/other', 1), ('/wrench', 7),
                            ('/wrench', 6), ('/other', 2)]:
         log.submit(topic, messages.WRENCH_TYPE, data, time_ns, time_ns)

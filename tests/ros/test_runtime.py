@@ -1,5 +1,6 @@
 """translator_node's parts that need no DDS: parameters, input checks, mailbox, filler, log."""
 
+import os
 import threading
 import time
 
@@ -8,12 +9,14 @@ from cdr_translator.interface.processing import check_magnitude, in_end_disk_fra
 from cdr_translator.params import ParameterError
 from cdr_translator.ros.parameters import default_values, descriptor, ros_parameter_sources
 from cdr_translator.ros.parameters import SPECS
-from cdr_translator.ros.runtime import fill_message, LatestMailbox, LogThread, type_name
+from cdr_translator.ros.runtime import fill_message, LatestMailbox, log_lost, LogWatch, NodeLog
+from cdr_translator.ros.runtime import type_name
 from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools.mcap_log import McapLog
+from msg_tools.errors import LogFileBusyError, LogFileExistsError
+from msg_tools.reader import McapSource
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from visualization_msgs.msg import MarkerArray
 
 
@@ -88,23 +91,25 @@ def test_fill_message_nested_sequences_and_bytes():
     assert type_name(MarkerArray) == 'visualization_msgs/msg/MarkerArray'
 
 
-def test_log_thread_writes_bytes_and_messages_in_order(tmp_path):
+def test_log_process_writes_bytes_and_messages_in_order(tmp_path):
     """Raw CDR and message objects both land in the MCAP, decodable, in submission order."""
     path = tmp_path / 'log.mcap'
-    log = LogThread(McapLog(path, flush_every_messages=2, flush_every_s=0.0))
+    log = NodeLog(path, flush_every_messages=2, flush_every_s=0.0,
+                  topics=[('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, 'reliable')])
     stamp = {'sec': 1, 'nanosec': 2}
     first = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 0, 'a', {}))
     log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, serialize_message(first), 10)
     second = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 2, 'b', {}))
-    log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, second, 20, 15)
-    log.close()
-    log.close()
+    log.submit_many([('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, second, 20, 15)])
+    status = log.close()
+    assert log.close() == status and status.ok and (status.written, status.lost) == (2, 0)
     decoded = list(read_ros2_messages(str(path)))
     assert [message.ros_msg.status[0].message for message in decoded] == ['a', 'b']
     assert [message.log_time_ns for message in decoded] == [10, 20]
     assert decoded[1].publish_time_ns == 15
-    assert log.written == 2 and log.errors == 0
-    assert deserialize_message(serialize_message(second), DiagnosticArray) == second
+    assert log.written == 2 and log.errors == 0 and log.submitted == 2
+    assert log.closing_line() == (True, f'MCAP log closed: 2 records written, 0 lost (0 not '
+                                        f'written, 0 not serializable) in {path}')
 
 
 def _wait(condition, timeout_s=10.0):
@@ -115,39 +120,39 @@ def _wait(condition, timeout_s=10.0):
     return condition()
 
 
-def test_log_thread_writes_while_the_solver_waits(tmp_path):
-    """A record waits while the solver works (mailbox not idle) and is written once it waits."""
-    mailbox = LatestMailbox()
-    assert not mailbox.idle.is_set()
-    log = LogThread(McapLog(tmp_path / 'log.mcap', flush_every_s=0.0), idle=mailbox.idle,
-                    hold_s=600.0)
-    stamp = {'sec': 1, 'nanosec': 2}
-    record = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 0, 'a', {}))
-    mailbox.put('wrench')
-    log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, record, 10)
-    assert _wait(lambda: log.held == 1)
-    assert log.written == 0  # held: hold_s is 10 minutes
-    assert mailbox.take() == 'wrench' and not mailbox.idle.is_set()  # the solver works
-    assert mailbox.take(timeout=0.05) is None and mailbox.idle.is_set()  # then waits
-    assert _wait(lambda: log.written == 1)
-    mailbox.put('next')
-    assert not mailbox.idle.is_set()
-    mailbox.close()
-    assert mailbox.idle.is_set()
-    log.close()
+def test_log_process_holds_the_file_for_its_caller(tmp_path):
+    """The file is locked in the caller's name: a second writer fails naming the caller."""
+    path = tmp_path / 'log.mcap'
+    log = NodeLog(path, flush_every_s=0.0)
+    try:
+        with pytest.raises(LogFileBusyError, match=f'PID {os.getpid()}'):
+            NodeLog(path)
+    finally:
+        log.close()
+    with pytest.raises(LogFileExistsError):
+        NodeLog(path)
 
 
-@pytest.mark.parametrize('hold_s, hold_records', [(0.0, 1000), (600.0, 2)],
-                         ids=['held long enough', 'too many held'])
-def test_log_thread_stops_holding_back(tmp_path, hold_s, hold_records):
-    """While the solver works: written after hold_s, or once hold_records are queued."""
-    busy = threading.Event()  # never set: the solver never waits
-    log = LogThread(McapLog(tmp_path / 'log.mcap', flush_every_s=0.0), idle=busy,
-                    hold_s=hold_s, hold_records=hold_records)
-    stamp = {'sec': 1, 'nanosec': 2}
-    record = fill_message(DiagnosticArray(), messages.diagnostics_message(stamp, 0, 'a', {}))
-    for index in range(3):
-        log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, record, 10 + index)
-    assert _wait(lambda: log.written >= 2)
-    log.close()
-    assert log.written == 3
+def test_a_dead_log_process_is_an_error_with_the_records_counted_lost(tmp_path):
+    """Killing the writer: status not ok, every unconfirmed record lost, ERROR diagnostic."""
+    path = tmp_path / 'log.mcap'
+    log = NodeLog(path, flush_every_messages=1, flush_every_s=0.0)
+    watch = LogWatch(log)
+    data = serialize_message(fill_message(DiagnosticArray(), messages.diagnostics_message(
+        {'sec': 1, 'nanosec': 2}, 0, 'a', {})))
+    log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, data, 10)
+    assert _wait(lambda: log.status().written == 1)
+    assert watch.check() is None
+    log._process.kill()
+    assert _wait(lambda: not log.status().ok)
+    log.submit('/diagnostics', messages.DIAGNOSTIC_ARRAY_TYPE, data, 20)
+    status = log.status()
+    assert (status.written, status.lost + log.errors) == (1, 1)
+    assert 'exited with code -9' in status.message
+    level, text, values = watch.check()
+    assert level == messages.ERROR and 'writer process' in text
+    assert values['records_lost'] == 1
+    assert log_lost(log) == {'log_records_lost': 1}
+    assert log.close().lost + log.errors == 1
+    assert log.closing_line()[0] is False
+    assert [raw.log_time_ns for raw in McapSource(path).messages()] == [10]  # salvaged

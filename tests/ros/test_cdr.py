@@ -1,0 +1,152 @@
+"""
+The node's CDR encoding from message dicts, and which outputs it builds and publishes.
+
+cdr.encode must give what rclpy's fill_message + serialize_message gives (compared after
+rclpy decodes both: rclpy leaves its padding bytes uninitialized), cdr.decode must read
+rclpy's bytes; the node publishes only topics with subscribers and, without a log, builds
+nothing else. No DDS traffic: the node test runs in-process in its own context and domain.
+"""
+
+from cdr_translator.interface import messages
+from cdr_translator.interface.processing import node_solver
+from cdr_translator.interface.settings import TranslatorSettings
+from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.ros import cdr
+from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
+from cdr_translator.ros.translator_node import TranslatorNode
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+STAMP = {'sec': 1_700_000_000, 'nanosec': 123_456_789}
+
+
+@pytest.fixture(scope='module')
+def result():
+    """Solve once with compliance; return the result and the solver's parameters."""
+    settings = TranslatorSettings.from_params_files([], defaults_path=DEFAULT_PARAMS_PATH)
+    solver = node_solver(settings.params, settings)
+    solved = solver.solve([6.0, 2.0, -1.0], [0.05, 0.0, 0.02], compliance=True)
+    assert solved.converged
+    return solved, solver.params
+
+
+def _same_as_rclpy(topic, values):
+    """Assert that cdr.encode gives the message rclpy fills and serializes from ``values``."""
+    message_class = OUTPUTS[topic]
+    expected = fill_message(message_class(), values)
+    data = cdr.encode(message_class, values)
+    assert data[:4] == cdr.HEADER
+    assert deserialize_message(data, message_class) == expected
+    assert deserialize_message(serialize_message(expected), message_class) == expected
+
+
+def test_every_output_encodes_as_rclpy_does(result):
+    """Pose, angles, both compliance arrays, the markers and the diagnostics."""
+    solved, params = result
+    outputs = messages.output_messages(solved, STAMP, 'translator_base',
+                                       backbones_params=params,
+                                       extra_values={'received': 3, 'skipped': 1})
+    assert {topic for topic, _, _ in outputs} == set(OUTPUTS)
+    for topic, _, values in outputs:
+        _same_as_rclpy(topic, values)
+    for topic, _, values in messages.rejection_messages(STAMP, 'rejected: |force| é', {}):
+        _same_as_rclpy(topic, values)
+
+
+def test_missing_fields_take_their_defaults_and_odd_sizes_align():
+    """An empty dict is the default message; strings of every length keep the alignment."""
+    assert deserialize_message(cdr.encode(PoseStamped, {}), PoseStamped) == PoseStamped()
+    for length in range(9):
+        values = {'header': {'frame_id': 'x' * length}, 'name': ['a' * length, 'bc'],
+                  'position': [0.5, -1.0], 'effort': [2.0]}
+        message = deserialize_message(cdr.encode(JointState, values), JointState)
+        assert message == fill_message(JointState(), values)
+    layout = {'layout': {'dim': [{'label': 'l' * 3, 'size': 2, 'stride': 2}]}, 'data': [1.5]}
+    assert deserialize_message(cdr.encode(Float64MultiArray, layout), Float64MultiArray) \
+        == fill_message(Float64MultiArray(), layout)
+
+
+def test_decode_reads_rclpy_bytes_and_refuses_damaged_ones():
+    """A WrenchStamped from rclpy decodes to the dict it was filled from; cut bytes do not."""
+    values = messages.wrench_message([1.0, -2.5, 3.0], [0.1, 0.0, -0.2], 'translator_end_disk',
+                                     STAMP)
+    data = serialize_message(fill_message(WrenchStamped(), values))
+    assert cdr.decode(WrenchStamped, data) == values
+    assert cdr.decode(WrenchStamped, cdr.encode(WrenchStamped, values)) == values
+    with pytest.raises(ValueError, match='ends at byte'):
+        cdr.decode(WrenchStamped, data[:40])
+    with pytest.raises(ValueError, match='little-endian'):
+        cdr.decode(WrenchStamped, b'\x00\x00' + data[2:])
+    with pytest.raises(ValueError, match='string length'):
+        cdr.decode(WrenchStamped, data[:12] + b'\xff\xff\x00\x00' + data[16:])
+
+
+class _Publisher:
+    """A stand-in for an rclpy Publisher: a settable subscriber count, counted queries."""
+
+    def __init__(self, subscribers=0):
+        self.subscribers = subscribers
+        self.queries = 0
+
+    def get_subscription_count(self):
+        self.queries += 1
+        return self.subscribers
+
+
+def test_subscriber_counts_are_refreshed_at_most_every_period():
+    """Within the period the last count stands; after it a new subscriber is seen."""
+    now = [0.0]
+    pose, angles = _Publisher(1), _Publisher(0)
+    counts = SubscriberCounts({'pose': pose, 'angles': angles}, refresh_s=0.05,
+                              clock=lambda: now[0])
+    assert counts.subscribed() == {'pose'}
+    angles.subscribers = 2
+    now[0] = 0.04
+    assert counts.subscribed() == {'pose'} and pose.queries == 1
+    now[0] = 0.05
+    assert counts.subscribed() == {'pose', 'angles'} and pose.queries == 2
+
+
+@pytest.fixture
+def node(ros_env):
+    """Run a translator_node in this process (own context, no log); close it afterwards."""
+    context = Context()
+    rclpy.init(args=[], context=context)
+    made = TranslatorNode(context=context,
+                          ros_arguments=['--ros-args', '-p', 'log_to_mcap:=false'])
+    try:
+        yield made
+    finally:
+        made.close()
+        made.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
+        node, result, monkeypatch):
+    """Without a log and with only the pose subscribed, only the pose is encoded and sent."""
+    solved, _ = result
+    sent, encoded = [], []
+    for topic, publisher in node._publishers_by_topic.items():
+        monkeypatch.setattr(publisher, 'publish',
+                            lambda data, topic=topic: sent.append((topic, data)))
+    for topic, encode in list(node._encoders.items()):
+        node._encoders[topic] = lambda values, topic=topic, encode=encode: (
+            encoded.append(topic), encode(values))[1]
+    pose_only = _Publisher(1)
+    node._subscribers = SubscriberCounts({messages.END_DISK_POSE_TOPIC: pose_only})
+    node._publish_all(node._output_messages(solved, STAMP, False, False, {'received': 1}))
+    assert encoded == [messages.END_DISK_POSE_TOPIC]
+    assert [topic for topic, _ in sent] == [messages.END_DISK_POSE_TOPIC]
+    pose = deserialize_message(sent[0][1], PoseStamped)
+    assert pose.header.stamp.sec == STAMP['sec']
+    assert pose.pose.position.x == pytest.approx(float(solved.end_disk_position[0]))
+    node._subscribers = SubscriberCounts({})
+    node._publish_all(node._serialized(log_health(None, None, 'n', {})))
+    node._publish_all(node._output_messages(solved, STAMP, True, True, {}))
+    assert len(sent) == 1 and len(encoded) == 1
