@@ -28,7 +28,7 @@ $(STAMP): requirements.txt setup.py setup.cfg
 	$(VPY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	@touch $@
 
-# Last step of setup: compile the kernels once (about a minute; a few seconds when numba's
+# Last step of setup: compile the kernels once (about 2.5 min; a few seconds when numba's
 # cache already has them), so that the first translator_node / cdr_node start loads them.
 $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 	$(VPY) -m cdr_translator compile

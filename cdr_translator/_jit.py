@@ -35,10 +35,10 @@ _NUMBA_CONFIG: Any = numba.config
 #: Every compiled kernel (numba dispatcher) created by ``jit``, in definition order.
 KERNELS: List[Any] = []
 
-#: What compiling every kernel the nodes use costs on a lightly loaded 2-core machine (s;
-#: 132 s measured at load 2-3 with the inlined tangent kernels); a busy one takes longer.
-#: Said in the log when a node has to compile.
-COMPILE_ESTIMATE_S = 90.0
+#: What compiling every kernel costs on an idle 2-core machine (s; 147 s measured in a fresh
+#: clone's `make setup` with the lifted-Newton and CDR kernels, 155 s under load); a busy one
+#: takes longer. Said in the log when a node has to compile.
+COMPILE_ESTIMATE_S = 150.0
 
 
 def user_cache_dir() -> Path:
