@@ -190,9 +190,9 @@ class TranslatorSolver:
         the exact Jacobian, a cold continuation corrects by the lifted Newton method
         (multiple shooting, lifted.py); warm solves stay single shooting (chord steps).
         ``judge=False`` skips the stability verdict, the error estimate and so refinement:
-        ``stable`` stays None and the estimates NaN (for a caller that iterates on leg
-        solutions and judges only the one it keeps, with ``result_at``: robot/delta.py's
-        nested iteration).
+        ``stable`` stays None, the estimates NaN and ``accuracy_met`` False, as the message
+        says (for a caller that iterates on leg solutions and judges only the one it keeps,
+        with ``result_at``: robot/delta.py's nested iteration).
         """
         if path not in PATHS:
             raise ValueError(f'path must be one of {PATHS}, got {path!r}')
@@ -381,6 +381,10 @@ class TranslatorSolver:
                     outcome, result = branch, self._result(branch, wrench, 0.0)
         if verdict is not None:
             _apply_verdict(result, verdict)
+        if outcome.converged and not self.judge:
+            # converged is all this result claims: it must not read as verified accurate
+            result.accuracy_met = False
+            result.message += '; not judged (judge=False): no stability verdict or error estimate'
         if outcome.converged and self.judge:
             self._estimate_error(result, outcome, wrench)
             if not result.accuracy_met and self.method == 'fast':

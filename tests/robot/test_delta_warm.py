@@ -209,6 +209,7 @@ def test_unjudged_leg_solves_and_judged_results():
     full = judged.solve(wrench[:3], wrench[3:])
     assert plain.converged and plain.stable is None
     assert math.isnan(plain.stability_margin) and math.isnan(plain.error_estimate_m)
+    assert not plain.accuracy_met and 'not judged' in plain.message
     assert np.abs(plain.frames['de'] - full.frames['de']).max() <= 1e-9
     kept = unjudged.result_at(plain.unknowns / unjudged.problem.x_scale, wrench)
     assert kept.stable is full.stable is True
