@@ -28,6 +28,7 @@ from typing import Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
+from msg_tools.interrupts import deferred_sigint
 from msg_tools.mcap_log import LogStatus, McapLog
 from msg_tools.plots import plot_replay
 from msg_tools.reader import Decoders, McapSource, ReadReport
@@ -370,7 +371,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
 
     ReplayError when nothing can be replayed (OutputError when an output cannot be
     written: checked before the input is read). A write error during the replay ends it
-    with ``summary.output_error`` or ``summary.output_status.lost`` set. A
+    with ``summary.output_error`` or ``summary.output_status.lost`` set. Ctrl-C (SIGINT;
+    in the main thread it is taken between two messages, see ``interrupts``) or a
     KeyboardInterrupt stops the replay early: the output MCAP (and CSV) are still
     finalized, and ``summary.interrupted`` is True. ``plot_samples``: message indices kept
     in ``summary.series`` whatever its thinning.
@@ -401,69 +403,74 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                       flush_every_s=flush_every_s, if_exists='overwrite')
     except OSError as error:
         raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
-    try:
-        table = csv.writer(csv_file) if csv_file else None
-        if table:
-            table.writerow(CSV_COLUMNS)
-        for topic in chosen:
-            log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
+    with deferred_sigint() as interrupt:
         try:
-            for index, raw in enumerate(source.messages()):
-                summary.messages += 1
-                log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
-                                     raw.log_time_ns, raw.publish_time_ns)
-                try:
-                    force, moment, frame_id, stamp = messages.wrench_from_message(
-                        decoders.decode(raw))
-                except (ValueError, AttributeError, TypeError) as error:
-                    summary.undecodable += 1
-                    summary.warn(f'message {index} on {raw.topic}: {error}')
-                    if table:
-                        table.writerow([index, raw.topic, '', raw.log_time_ns, '']
-                                       + [''] * 6 + ['undecodable', str(error)])
-                    continue
-                outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
-                for name, type_name, message in outcome.outputs:
-                    log.write(output_topic(raw.topic, name), type_name, message,
-                              raw.log_time_ns, raw.log_time_ns)
-                stamp_ns = messages.stamp_to_ns(stamp)
-                result = outcome.result
-                if result is None:
-                    summary.rejected += 1
-                elif not result.converged:
-                    summary.not_converged += 1
-                    summary.solve_times.add(result.solve_time_s)
-                else:
-                    summary.solved += 1
-                    summary.solve_times.add(result.solve_time_s)
-                    first_stamp_ns = stamp_ns if first_stamp_ns is None else first_stamp_ns
-                    joints = messages.joint_positions(result)
-                    position = result.end_disk_position.tolist()
-                    summary.converged(joints, position)
-                    summary.series.add(index, 1e-9 * (stamp_ns - first_stamp_ns), joints,
-                                       position, np.concatenate([result.force, result.moment]))
-                if table:
-                    table.writerow(_csv_row(index, raw, force, moment, frame_id,
-                                            stamp_ns, outcome))
-                if bar:
-                    bar.update(summary.messages)
-                if not log.status().ok:
-                    summary.output_error = f'output MCAP: {log.status().message}'
-                    break
-        except KeyboardInterrupt:
-            summary.interrupted = True
-        except OSError as error:   # the CSV (the MCAP writer reports through its status)
-            summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
-    finally:
-        summary.output_status = log.close()
-        if csv_file:
+            table = csv.writer(csv_file) if csv_file else None
+            if table:
+                table.writerow(CSV_COLUMNS)
+            for topic in chosen:
+                log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             try:
-                csv_file.close()
-            except OSError as error:
-                summary.output_error = summary.output_error or f'CSV {csv_path}: {error}'
-        if bar:
-            bar.close(summary.messages)
-        summary.wall_s = time.perf_counter() - started
+                for index, raw in enumerate(source.messages()):
+                    if interrupt.requested:
+                        summary.interrupted = True
+                        break
+                    summary.messages += 1
+                    log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
+                                         raw.log_time_ns, raw.publish_time_ns)
+                    try:
+                        force, moment, frame_id, stamp = messages.wrench_from_message(
+                            decoders.decode(raw))
+                    except (ValueError, AttributeError, TypeError) as error:
+                        summary.undecodable += 1
+                        summary.warn(f'message {index} on {raw.topic}: {error}')
+                        if table:
+                            table.writerow([index, raw.topic, '', raw.log_time_ns, '']
+                                           + [''] * 6 + ['undecodable', str(error)])
+                        continue
+                    outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
+                    for name, type_name, message in outcome.outputs:
+                        log.write(output_topic(raw.topic, name), type_name, message,
+                                  raw.log_time_ns, raw.log_time_ns)
+                    stamp_ns = messages.stamp_to_ns(stamp)
+                    result = outcome.result
+                    if result is None:
+                        summary.rejected += 1
+                    elif not result.converged:
+                        summary.not_converged += 1
+                        summary.solve_times.add(result.solve_time_s)
+                    else:
+                        summary.solved += 1
+                        summary.solve_times.add(result.solve_time_s)
+                        first_stamp_ns = stamp_ns if first_stamp_ns is None else first_stamp_ns
+                        joints = messages.joint_positions(result)
+                        position = result.end_disk_position.tolist()
+                        summary.converged(joints, position)
+                        wrench = np.concatenate([result.force, result.moment])
+                        summary.series.add(index, 1e-9 * (stamp_ns - first_stamp_ns), joints,
+                                           position, wrench)
+                    if table:
+                        table.writerow(_csv_row(index, raw, force, moment, frame_id,
+                                                stamp_ns, outcome))
+                    if bar:
+                        bar.update(summary.messages)
+                    if not log.status().ok:
+                        summary.output_error = f'output MCAP: {log.status().message}'
+                        break
+            except KeyboardInterrupt:
+                summary.interrupted = True
+            except OSError as error:   # the CSV (the MCAP writer reports through its status)
+                summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
+        finally:
+            summary.output_status = log.close()
+            if csv_file:
+                try:
+                    csv_file.close()
+                except OSError as error:
+                    summary.output_error = summary.output_error or f'CSV {csv_path}: {error}'
+            if bar:
+                bar.close(summary.messages)
+            summary.wall_s = time.perf_counter() - started
     return summary
 
 

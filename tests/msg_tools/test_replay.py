@@ -21,6 +21,7 @@ from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
 from msg_tools.__main__ import main
+from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay, ReplayError
@@ -303,6 +304,28 @@ def test_ctrl_c_finalizes_the_output(tmp_path, monkeypatch):
         counts = make_reader(stream).get_summary().statistics.channel_message_counts
     assert sorted(counts.values()) == [5, 5, 5, 6]   # pose, angles, diagnostics; 6 inputs
     assert len(list(csv.DictReader(open(tmp_path / 'o.csv')))) == 5
+
+
+def test_sigint_inside_a_write_waits_for_the_message(tmp_path, monkeypatch):
+    """SIGINT arriving inside the MCAP writer: the message is finished, then the replay stops."""
+    bag = tmp_path / 'ramp.mcap'
+    synth.write_wrenches(bag, synth.generate('ramp', count=20))
+    original = McapLog.write
+    calls = []
+
+    def signalled(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 7:   # the first output of the third message (three outputs each)
+            os.kill(os.getpid(), signal.SIGINT)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(McapLog, 'write', signalled)
+    summary = replay(bag, tmp_path / 'out.mcap', compliance=False)
+    assert summary.interrupted and summary.messages == summary.solved == 3
+    source = McapSource(tmp_path / 'out.mcap')
+    topics = [m.topic for m in source.messages()]
+    assert source.report.complete and len(topics) == 12   # 3 inputs, 3 x 3 outputs
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def _default_sigint() -> None:

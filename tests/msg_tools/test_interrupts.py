@@ -1,0 +1,33 @@
+"""msg_tools.interrupts: SIGINT as a request inside the block, the handler restored after."""
+
+import os
+import signal
+import threading
+
+from msg_tools.interrupts import deferred_sigint
+import pytest
+
+
+def test_a_second_sigint_interrupts_at_once():
+    """The first SIGINT sets ``requested``, the second raises KeyboardInterrupt."""
+    with deferred_sigint() as interrupt:
+        assert not interrupt.requested
+        os.kill(os.getpid(), signal.SIGINT)
+        assert interrupt.requested
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_outside_the_main_thread_nothing_changes():
+    """In a worker thread the handler cannot be set: the block leaves SIGINT as it was."""
+    seen = []
+
+    def work():
+        with deferred_sigint() as interrupt:
+            seen.append((signal.getsignal(signal.SIGINT), interrupt.requested))
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join(timeout=10)
+    assert seen == [(signal.default_int_handler, False)]
