@@ -110,7 +110,7 @@ def apply_updates(updates, steps, count, out):
 @jit
 def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, lu, pivots,
                      updates, taken, count, fresh, tolerance, max_iterations, chord_rate,
-                     points, frames, slot):
+                     points, frames, slot, shoot):
     """
     Newton iterations from ``xs`` (residual ``rs``, its norm ``norm``) on the factors given.
 
@@ -126,6 +126,8 @@ def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, 
     ``xs`` and ``rs`` are updated in place to the last accepted iterate, whose shape is in
     ``points[slot]``, ``frames[slot]`` (two buffers each; the other holds trial shots).
     ``fresh`` says the factors were made at ``xs`` (a failed line search is then final).
+    With ``shoot`` the residual at ``xs`` is computed first (into ``rs``, its shape into
+    ``slot``; ``norm`` is then ignored): one compiled call from the predicted guess on.
     Returns (status, iterations done, residual norm, slot of the accepted shape, update
     count).
     """
@@ -137,6 +139,9 @@ def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, 
     unknowns = np.empty(size)
     done = 0
     stale = False
+    if shoot:
+        norm = _shoot(xs, wrench, x_scale, residual_scale, model_args, rs, points[slot],
+                      frames[slot], unknowns)
     if count >= updates.shape[0]:
         count = 0  # full: restart from the factorization (limited-memory Broyden)
     broyden_apply(lu, pivots, updates, taken, count, rs, direction)  # H rs

@@ -127,21 +127,39 @@ def _blas_controller() -> Optional[Any]:
 _BLAS = _blas_controller()
 
 
+#: The BLAS libraries' controllers (threadpoolctl.LibController: get_num_threads,
+#: set_num_threads), none without threadpoolctl
+_BLAS_LIBRARIES = ([] if _BLAS is None else
+                   [library for library in _BLAS.lib_controllers if library.user_api == 'blas'])
+
+
 def one_blas_thread(method: Callable) -> Callable:
     """
-    Run ``method`` with BLAS limited to one thread (about 8 us to switch).
+    Run ``method`` with BLAS limited to one thread, the previous limits restored after.
 
     The factorizations here are 90x90: extra BLAS threads cannot speed them up, and on a busy
     machine their spin-waiting made a compliance computation 10x slower (1.8 -> 10 ms median).
-    Without threadpoolctl ``method`` is returned unchanged.
+    The limits are read and set on the libraries directly (a few us; threadpoolctl's
+    ``limit()`` context, which first gathers every library's info, took 30-40 us, a tenth of
+    a warm solve); libraries already at one thread (``OPENBLAS_NUM_THREADS=1``, or a call
+    nested in another limited one) are left alone. Without threadpoolctl ``method`` is
+    returned unchanged.
     """
-    if _BLAS is None:
+    if not _BLAS_LIBRARIES:
         return method
 
     @functools.wraps(method)
     def wrapper(*args, **kwargs):
-        with _BLAS.limit(limits=1, user_api='blas'):
+        changed = [(library, threads) for library in _BLAS_LIBRARIES
+                   for threads in (library.get_num_threads(),)
+                   if threads is not None and threads != 1]
+        for library, _ in changed:
+            library.set_num_threads(1)
+        try:
             return method(*args, **kwargs)
+        finally:
+            for library, threads in changed:
+                library.set_num_threads(threads)
     return wrapper
 
 
@@ -352,7 +370,7 @@ class TranslatorSolver:
         self._exact_at = None  # the unknowns self._lu is exact at, once known
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
-        warm = warm_start and self._previous is not None and bool(np.any(self._previous[1]))
+        warm = warm_start and self._previous is not None and bool(self._previous[1].any())
         with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
             if self.path == 'tracking' and self.method == 'fast':
                 outcome = self._track_only(wrench, warm, deadline)
@@ -530,8 +548,9 @@ class TranslatorSolver:
             # the margin moves about as fast as the load, relative to the load: a verdict
             # from a factorization made at a wrench more than half the margin away (or
             # STALE_WRENCH) could already be on the other side of zero
-            drift = float(np.linalg.norm(wrench - lu_wrench)) / max(
-                float(np.linalg.norm(wrench)), 1e-300)
+            change = wrench - lu_wrench
+            drift = math.sqrt(float(change @ change)) / max(
+                math.sqrt(float(wrench @ wrench)), 1e-300)
             if verdict.stable and verdict.margin >= RECHECK_MARGIN and \
                     drift <= min(STALE_WRENCH, 0.5 * verdict.margin):
                 return verdict
@@ -617,10 +636,8 @@ class TranslatorSolver:
         assert self._previous is not None
         xs, start = self._previous
         lu, pose = self._lu, self._pose
-        sensitivity = self.problem.wrench_sensitivity
         # the whole step's linear prediction: sizes the first step, is its predictor if whole
-        whole = None if lu is None else self.problem.inverse_apply(
-            lu, sensitivity @ (wrench - start))
+        whole = None if lu is None else self.problem.wrench_response(lu, wrench - start)
         done, step, iterations = 0.0, _first_step(whole), 0
         current = start
         outcome: Optional[_Outcome] = None
@@ -633,7 +650,7 @@ class TranslatorSolver:
             elif whole is not None and target == 1.0 and done == 0.0:
                 guess = xs - whole
             else:
-                guess = xs - self.problem.inverse_apply(lu, sensitivity @ (goal - current))
+                guess = xs - self.problem.wrench_response(lu, goal - current)
             outcome = corrector(guess, goal, deadline, lu, self.max_iterations, pose)
             iterations += outcome.iterations
             if (not outcome.converged and np.abs(outcome.rs).max() < NEARLY_CONVERGED
@@ -804,11 +821,17 @@ class TranslatorSolver:
         The iterations run compiled (chord.chord_iterations: backtracking line search, a
         chord step that shrinks the residual by less than CHORD_RATE discards the
         factorization); Python only refactors, between those calls, and checks the deadline.
+        Given ``lu`` (a warm solve's usual case) the residual at ``xs`` is the first shot of
+        the first compiled call.
         """
         problem = self.problem
         xs = np.array(xs, dtype=float)
-        rs = problem.residual_and_shape(xs, wrench)
-        norm = _norm(rs)
+        shoot = lu is not None and time.perf_counter() <= deadline
+        if shoot:
+            rs, norm = np.empty(problem.size), math.nan  # chord_newton's first shot sets both
+        else:
+            rs = problem.residual_and_shape(xs, wrench)
+            norm = _norm(rs)
         slot, done, fresh, pose = 0, 0, False, pose_in
 
         def ended(converged: bool, message: str) -> _Outcome:
@@ -817,14 +840,15 @@ class TranslatorSolver:
             return outcome
 
         while True:
-            if not math.isfinite(norm):
-                return ended(False, 'residual became non-finite during the iteration')
-            if np.abs(rs).max() <= self.tolerance:
-                return ended(True, 'converged')
-            if done >= max_iterations:
-                return ended(False, f'no convergence in {max_iterations} iterations')
-            if time.perf_counter() > deadline:
-                return ended(False, f'time limit of {self.time_limit_s} s reached')
+            if not shoot:
+                if not math.isfinite(norm):
+                    return ended(False, 'residual became non-finite during the iteration')
+                if np.abs(rs).max() <= self.tolerance:
+                    return ended(True, 'converged')
+                if done >= max_iterations:
+                    return ended(False, f'no convergence in {max_iterations} iterations')
+                if time.perf_counter() > deadline:
+                    return ended(False, f'time limit of {self.time_limit_s} s reached')
             if lu is None:
                 with warnings.catch_warnings():  # a singular J shows as a non-finite step
                     warnings.simplefilter('ignore', LinAlgWarning)
@@ -833,9 +857,11 @@ class TranslatorSolver:
                 fresh = True
             status, used, norm, slot = problem.chord_newton(
                 xs, rs, wrench, lu, fresh, self.tolerance, max_iterations - done, CHORD_RATE,
-                slot)
+                slot, shoot)
             done += used
-            fresh = False
+            fresh, shoot = False, False
+            if status == chord.CONVERGED:  # the largest |residual| is within the tolerance
+                return ended(True, 'converged')
             if status == chord.REFACTOR:
                 lu = None
             elif status == chord.NO_DECREASE:
@@ -894,7 +920,7 @@ class TranslatorSolver:
             iterations=outcome.iterations, residual_norm=_norm(outcome.rs),
             residual_by_type=problem.residual_by_kind(outcome.rs),
             force=wrench[:3].copy(), moment=wrench[3:].copy(),
-            frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
+            frames=dict(zip(FRAME_NAMES, frames)),  # views of a copy no one else keeps
             backbones=points, solve_time_s=elapsed, method=self.method,
             unknowns=outcome.xs * problem.x_scale,
             steps_per_segment=self.params.steps_per_segment)
