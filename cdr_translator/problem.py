@@ -275,6 +275,24 @@ class Problem:
         rhs[self.wrench_rows] = self._wrench_gain * change
         return self.inverse_apply(lu, rhs)
 
+    def extrapolate(self, lu: tuple, path_xs: np.ndarray, path_wrenches: np.ndarray,
+                    wrench: np.ndarray, miss_limit: float) -> Optional[np.ndarray]:
+        """
+        Return the unknowns at ``wrench`` extrapolated from three solutions, or None.
+
+        chord.extrapolate: ``path_xs`` (3, size; nondimensional) and ``path_wrenches``
+        (3, 6; SI) along a path, oldest first, extrapolated quadratically in its length; the
+        miss corrected to first order with ``lu`` and its Broyden updates. None when
+        ``wrench`` does not continue the path.
+        """
+        out = np.empty(self.size)
+        if not chord.extrapolate(path_xs, path_wrenches, wrench, self.wrench_scale,
+                                 self._wrench_gain, self.wrench_rows, lu[0], lu[1],
+                                 self._secant_updates, self._secant_steps,
+                                 self._secant_count(lu), miss_limit, out):
+            return None
+        return out
+
     def inverse_apply(self, lu: tuple, rhs: np.ndarray) -> np.ndarray:
         """Return J^-1 rhs for the factorization ``lu`` and its Broyden updates so far."""
         out = np.empty(self.size)
