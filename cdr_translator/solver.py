@@ -472,8 +472,8 @@ class TranslatorSolver:
                 break
             refined = attempt
             source = solver
+            assert solver._last_estimate is not None
             estimate = solver._last_estimate
-            assert estimate is not None
             refined.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
             if refined.accuracy_met:
                 break
