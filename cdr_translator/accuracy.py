@@ -239,13 +239,16 @@ def kept_steps(current: ErrorEstimate, position_target: float, angle_target: flo
     Return the steps per segment the next warm solve starts at, after one that met the targets.
 
     The steps are kept (a refined warm sequence stays refined) unless the estimate has room
-    for at most STEP_DOWN of them with refined_steps' 25 % margin: then the fewest such, at
-    least ``floor``. A refinement lands about 1.25^4 = 2.4 times inside the target, a step
-    down that far inside it, and a step down needs the error to fall about 1 / STEP_DOWN^4
-    = 3.2 times further first: the count does not oscillate (hysteresis).
+    for ``floor`` or at most STEP_DOWN of them with refined_steps' 25 % margin: then the
+    fewest such, at least ``floor``. A refinement lands about 1.25^4 = 2.4 times inside the
+    target, a step down that far inside it, and a step down needs the error to fall that
+    much and (above ``floor``) about 1 / STEP_DOWN^4 = 3.2 times further first: the count
+    does not oscillate (hysteresis).
     """
     ratio = _error_ratio(current, position_target, angle_target)
     if not ratio <= 1.0:
         return current.steps
-    wanted = max(floor, math.ceil(1.25 * ratio ** 0.25 * current.steps))
+    wanted = math.ceil(1.25 * ratio ** 0.25 * current.steps)
+    if wanted <= floor:
+        return floor
     return wanted if wanted <= STEP_DOWN * current.steps else current.steps

@@ -110,6 +110,8 @@ def test_kept_steps_has_hysteresis():
     assert kept_steps(estimate(0.2, 16), 2e-5, 0.0, 8) == 16
     assert kept_steps(estimate(0.1, 16), 2e-5, 0.0, 8) == 12 <= STEP_DOWN * 16
     assert kept_steps(estimate(1e-3, 16), 2e-5, 0.0, 8) == 8
+    assert kept_steps(estimate(0.2, 10), 2e-5, 0.0, 8) == 10
+    assert kept_steps(estimate(0.1, 10), 2e-5, 0.0, 8) == 8  # back to the base from < 8 / 0.75
     assert kept_steps(estimate(2.0, 16), 2e-5, 0.0, 8) == 16
     assert kept_steps(estimate(0.5, 16), 0.0, 0.0, 8) == 8  # refinement switched off
 
