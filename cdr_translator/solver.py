@@ -352,10 +352,14 @@ class TranslatorSolver:
         by implicit differentiation at the converged solution, timed apart from the solve.
         With ``verify`` the result is re-checked independently (``cdr_translator.verify``:
         ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
+        A warm solve after a refined one solves at the refined steps per segment directly
+        (``_solve_kept``, docs/accuracy.md).
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
-        if warm_start and self._kept is not None:
+        if self._kept is not None and not warm_start:
+            self._kept = None  # a cold solve starts over at this solver's steps
+        elif self._kept is not None:
             kept = self._solve_kept(wrench, started, compliance, verify, compliance_options)
             if kept is not None:
                 return kept
