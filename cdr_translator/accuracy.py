@@ -196,6 +196,23 @@ def _angle(first, second):
     return math.atan2(sine, 0.5 * (relative[0, 0] + relative[1, 1] + relative[2, 2] - 1.0))
 
 
+def meets(current: ErrorEstimate, position_target: float, angle_target: float) -> bool:
+    """Say whether ``current`` is within both targets (a zero target is always met)."""
+    return ((position_target <= 0.0 or current.position_m <= position_target)
+            and (angle_target <= 0.0 or current.angle_deg <= angle_target))
+
+
+def _error_ratio(current: ErrorEstimate, position_target: float, angle_target: float
+                 ) -> float:
+    """Return the larger of estimate / target over both kinds (0 when both are off)."""
+    ratio = 0.0
+    if position_target > 0.0:
+        ratio = max(ratio, current.position_m / position_target)
+    if angle_target > 0.0:
+        ratio = max(ratio, math.degrees(current.angle_rad) / angle_target)
+    return ratio
+
+
 def refined_steps(current: ErrorEstimate, position_target: float, angle_target: float,
                   ceiling: int) -> int:
     """
@@ -204,12 +221,34 @@ def refined_steps(current: ErrorEstimate, position_target: float, angle_target: 
     At most MAX_GROWTH times the current steps and ``ceiling``; returns ``current.steps``
     when both targets are met (a zero target is always met).
     """
-    ratio = 1.0
-    if position_target > 0.0:
-        ratio = max(ratio, current.position_m / position_target)
-    if angle_target > 0.0:
-        ratio = max(ratio, math.degrees(current.angle_rad) / angle_target)
+    ratio = _error_ratio(current, position_target, angle_target)
     if ratio <= 1.0:
         return current.steps
     wanted = MAX_GROWTH if not math.isfinite(ratio) else min(MAX_GROWTH, 1.25 * ratio ** 0.25)
     return min(ceiling, max(current.steps + 1, math.ceil(wanted * current.steps)))
+
+
+#: A warm solve at kept steps per segment lets the next one step down only to at most this
+#: fraction of them (fewer steps save little, and every count is its own solver).
+STEP_DOWN = 0.75
+
+
+def kept_steps(current: ErrorEstimate, position_target: float, angle_target: float,
+               floor: int) -> int:
+    """
+    Return the steps per segment the next warm solve starts at, after one that met the targets.
+
+    The steps are kept (a refined warm sequence stays refined) unless the estimate has room
+    for ``floor`` or at most STEP_DOWN of them with refined_steps' 25 % margin: then the
+    fewest such, at least ``floor``. A refinement lands about 1.25^4 = 2.4 times inside the
+    target, a step down that far inside it, and a step down needs the error to fall that
+    much and (above ``floor``) about 1 / STEP_DOWN^4 = 3.2 times further first: the count
+    does not oscillate (hysteresis).
+    """
+    ratio = _error_ratio(current, position_target, angle_target)
+    if not ratio <= 1.0:
+        return current.steps
+    wanted = math.ceil(1.25 * ratio ** 0.25 * current.steps)
+    if wanted <= floor:
+        return floor
+    return wanted if wanted <= STEP_DOWN * current.steps else current.steps

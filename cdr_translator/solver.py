@@ -24,7 +24,7 @@ from scipy.linalg import LinAlgWarning, lu_factor
 
 from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
-from .accuracy import ErrorEstimate, estimate as estimate_error, refined_steps
+from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
 from .checks import check_vector
 from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
@@ -274,6 +274,9 @@ class TranslatorSolver:
         #: on (None: never); LIFT_FROM_SPACERS unless changed (benchmarks compare both)
         self.lift_from_spacers = LIFT_FROM_SPACERS
         self._refined: Dict[int, 'TranslatorSolver'] = {}
+        #: steps per segment the next warm solve starts at (a key of ``_refined``), kept from
+        #: the refinement of an earlier one; None: this solver's own (``_solve_kept``)
+        self._kept: Optional[int] = None
         self._last_estimate: Optional[ErrorEstimate] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
@@ -283,6 +286,7 @@ class TranslatorSolver:
         self._previous = None
         self._lu = None
         self._pose = None
+        self._kept = None
 
     def start_from(self, result: SolveResult, keep_factorization: bool = False) -> None:
         """
@@ -299,6 +303,7 @@ class TranslatorSolver:
                              f'(finite ones, {self.problem.size} expected)')
         self._previous = (unknowns / self.problem.x_scale,
                           np.concatenate([result.force, result.moment]))
+        self._kept = None
         if not keep_factorization:
             self._lu = None
             self._pose = None
@@ -315,6 +320,7 @@ class TranslatorSolver:
         for chord steps; without one, the stability verdict factors an exact Jacobian.
         """
         self._previous = (np.array(xs, dtype=float), check_wrench(wrench[:3], wrench[3:]))
+        self._kept = None
         if factorization is None:
             self._lu, self._pose = None, None
         else:
@@ -377,9 +383,17 @@ class TranslatorSolver:
         by implicit differentiation at the converged solution, timed apart from the solve.
         With ``verify`` the result is re-checked independently (``cdr_translator.verify``:
         ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
+        A warm solve after a refined one solves at the refined steps per segment directly
+        (``_solve_kept``, docs/accuracy.md).
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
+        if self._kept is not None and not warm_start:
+            self._kept = None  # a cold solve starts over at this solver's steps
+        elif self._kept is not None:
+            kept = self._solve_kept(wrench, started, compliance, verify, compliance_options)
+            if kept is not None:
+                return kept
         self._exact_at = None  # the unknowns self._lu is exact at, once known
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
@@ -424,8 +438,9 @@ class TranslatorSolver:
         if outcome.converged and self.judge:
             self._estimate_error(result, outcome, wrench)
             if not result.accuracy_met and self.method == 'fast':
-                refined = self._refine(result, wrench, deadline, compliance, verify,
-                                       compliance_options)
+                assert self._last_estimate is not None  # set by _estimate_error
+                refined = self._refine(result, self._last_estimate, self, wrench, deadline,
+                                       compliance, verify, compliance_options)
                 if refined is not None:
                     refined.solve_time_s = time.perf_counter() - started
                     return refined
@@ -463,56 +478,48 @@ class TranslatorSolver:
         result.error_estimate_m = estimate.position_m
         result.error_estimate_deg = estimate.angle_deg
         target = self.accuracy
-        result.accuracy_met = bool(
-            (target.position_m <= 0.0 or estimate.position_m <= target.position_m)
-            and (target.angle_deg <= 0.0 or estimate.angle_deg <= target.angle_deg))
+        result.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
         self._last_estimate = estimate
 
-    def _refine(self, result: SolveResult, wrench: np.ndarray, deadline: float,
+    def _refine(self, result: SolveResult, estimate: ErrorEstimate,
+                source: 'TranslatorSolver', wrench: np.ndarray, deadline: float,
                 compliance: bool, verify: bool,
                 compliance_options: dict) -> Optional[SolveResult]:
         """
         Re-solve with more steps per segment until the accuracy target is met.
 
-        Each refined solve starts from the previous result (the unknowns mean the same at
-        any discretization). Returns the last converged refined result (its message says
-        whether the target was met), or None when no refinement converged.
+        ``result`` (with its ``estimate``) is the solve of ``source`` (this solver, or a
+        refined one of a kept solve). Each refined solve starts from the previous one's
+        solution and factorization (the unknowns mean the same at any discretization, and
+        the Jacobians differ by the discretization error: its chord steps converge).
+        Returns the last converged refined result (its message says whether the target was
+        met), or None when no refinement converged; the next warm solve starts at its steps.
         """
-        estimate, current, refined = self._last_estimate, result, None
-        assert estimate is not None  # _estimate_error ran first
+        refined = None
+        target = self.accuracy
         for _ in range(MAX_REFINEMENTS):
-            steps = refined_steps(estimate, self.accuracy.position_m, self.accuracy.angle_deg,
+            steps = refined_steps(estimate, target.position_m, target.angle_deg,
                                   MAX_REFINED_STEPS)
             remaining = deadline - time.perf_counter()
             if steps <= estimate.steps or remaining <= 0.0:
                 break
-            solver = self._refined.get(steps)
-            if solver is None:
-                solver = TranslatorSolver(self.params.with_changes(steps_per_segment=steps),
-                                          tolerance=self.tolerance,
-                                          max_iterations=self.max_iterations,
-                                          jacobian=self.jacobian,
-                                          accuracy=Accuracy(0.0, 0.0),
-                                          follow_stable_branch=self.follow_stable_branch)
-                self._refined[steps] = solver
+            solver = self._refined_solver(steps)
             solver.time_limit_s = remaining
-            solver.start_from(current, keep_factorization=True)
+            solver._take_over(source)
             attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance,
                                    verify=verify, **compliance_options)
             if not attempt.converged:
                 break
-            current = refined = attempt
+            refined = attempt
+            source = solver
+            assert solver._last_estimate is not None
             estimate = solver._last_estimate
-            assert estimate is not None
-            met = ((self.accuracy.position_m <= 0.0
-                    or estimate.position_m <= self.accuracy.position_m)
-                   and (self.accuracy.angle_deg <= 0.0
-                        or estimate.angle_deg <= self.accuracy.angle_deg))
-            refined.accuracy_met = met
-            if met:
+            refined.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
+            if refined.accuracy_met:
                 break
         if refined is None:
             return None
+        self._kept = refined.steps_per_segment
         refined.iterations += result.iterations
         extra = '' if refined.message == 'converged' else f' ({refined.message})'
         refined.message = result.message + extra
@@ -525,6 +532,90 @@ class TranslatorSolver:
                                 f'{refined.error_estimate_m:.2g} m, '
                                 f'{refined.error_estimate_deg:.2g} deg')
         return refined
+
+    def _refined_solver(self, steps: int) -> 'TranslatorSolver':
+        """Return the solver at ``steps`` steps per segment (made once; no target of its own)."""
+        solver = self._refined.get(steps)
+        if solver is None:
+            solver = TranslatorSolver(self.params.with_changes(steps_per_segment=steps),
+                                      tolerance=self.tolerance,
+                                      max_iterations=self.max_iterations,
+                                      jacobian=self.jacobian, accuracy=Accuracy(0.0, 0.0),
+                                      follow_stable_branch=self.follow_stable_branch)
+            self._refined[steps] = solver
+        return solver
+
+    def _take_over(self, source: 'TranslatorSolver') -> None:
+        """
+        Warm-start the next solve from ``source``'s last solution and factorization.
+
+        ``source`` solves the same structure at other steps per segment: the unknowns mean
+        the same, and its factorization (the Jacobian differs by the discretization error)
+        serves the chord steps and the stability verdict as a stale one would.
+        """
+        self._previous = source._previous
+        self._lu, self._pose = source._lu, source._pose
+        self._kept = None
+
+    def _solve_kept(self, wrench: np.ndarray, started: float, compliance: bool, verify: bool,
+                    compliance_options: dict) -> Optional[SolveResult]:
+        """
+        Warm solve at the steps per segment kept from an earlier refinement (``_kept``).
+
+        A warm sequence that needed refinement usually needs it again: solving at the kept
+        steps directly skips this solver's own solve and the refined one after it. The
+        solve is judged at those steps: refined further when its estimate misses the target
+        (``_refine``), and the next solve steps down (accuracy.kept_steps) when it has room.
+        Returns None, forgetting the kept steps, when that solve did not converge or the
+        wrench moved by more than STALE_WRENCH (relative) since the last one (a long
+        continuation, cheaper at this solver's steps): this solver then solves as usual,
+        from the last solution.
+        """
+        steps = self._kept
+        assert steps is not None
+        solver = self._refined[steps]
+        self._kept = None
+        if solver._previous is None or float(np.linalg.norm(wrench - solver._previous[1])) > \
+                STALE_WRENCH * float(np.linalg.norm(wrench)):
+            return None  # not a warm sequence: a long continuation is cheaper at fewer steps
+        solver.time_limit_s = self.time_limit_s
+        attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance, verify=verify,
+                               **compliance_options)
+        if not attempt.converged:
+            return None
+        assert solver._previous is not None and solver._last_estimate is not None
+        self._previous = solver._previous
+        estimate = self._last_estimate = solver._last_estimate
+        target = self.accuracy
+        attempt.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
+        extra = '' if attempt.message == 'converged' else f' ({attempt.message})'
+        attempt.message = (f'converged{extra} at {steps} steps per segment, kept from the '
+                           'refinement of an earlier solve')
+        result = attempt
+        if not attempt.accuracy_met:
+            refined = self._refine(attempt, estimate, solver, wrench,
+                                   started + self.time_limit_s, compliance, verify,
+                                   compliance_options)
+            if refined is not None:
+                result = refined
+            else:
+                self._kept = steps
+                result.message += (f'; accuracy target not met: estimated error '
+                                   f'{result.error_estimate_m:.2g} m, '
+                                   f'{result.error_estimate_deg:.2g} deg at {steps} steps '
+                                   'per segment')
+        else:
+            fewer = kept_steps(estimate, target.position_m, target.angle_deg,
+                               self.params.steps_per_segment)
+            if fewer == steps:
+                self._kept = steps
+            elif fewer > self.params.steps_per_segment:
+                self._kept = fewer
+                self._refined_solver(fewer)._take_over(solver)
+            else:
+                self._take_over(solver)
+        result.solve_time_s = time.perf_counter() - started
+        return result
 
     # stability -------------------------------------------------------------------------------
     def _origin(self) -> stability.Reference:

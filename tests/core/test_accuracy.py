@@ -3,6 +3,7 @@
 import json
 
 from cdr_translator import cli, TranslatorSolver
+from cdr_translator.accuracy import ErrorEstimate, kept_steps, refined_steps, STEP_DOWN
 from cdr_translator.params import Accuracy, ParameterError, TranslatorParams
 import numpy as np
 import pytest
@@ -27,6 +28,92 @@ def test_the_known_failure_is_refined_until_it_verifies(solver):
     assert result.accuracy_met
     assert result.error_estimate_deg <= solver.accuracy.angle_deg
     assert result.error_estimate_m <= solver.accuracy.position_m
+
+
+#: The issue's moment (refined to about 54 steps per segment at 1 spacer disk).
+HARD_MOMENT = np.array([-4.482, -2.070, 7.803])
+
+
+def _within(result, accuracy: Accuracy) -> bool:
+    return (result.error_estimate_m <= accuracy.position_m
+            and result.error_estimate_deg <= accuracy.angle_deg)
+
+
+def test_a_warm_solve_after_a_refined_one_starts_at_its_steps(params, monkeypatch):
+    """
+    The warm solve after a refinement solves at the refined steps only, judged there.
+
+    No solve at the base 8 steps first (the solver's own continuation is not called), and
+    the result means what a solve at those steps means: its estimate (within the target),
+    stability verdict and steps per segment, and a message that says so.
+    """
+    solver = TranslatorSolver(params)
+    first = solver.solve([0.0, 0.0, 0.0], HARD_MOMENT)
+    steps = first.steps_per_segment
+    assert steps > 8 and 'refined to' in first.message and first.accuracy_met
+
+    def no_base_solve(*args, **kwargs):
+        raise AssertionError('solved at the base steps per segment first')
+    monkeypatch.setattr(solver, '_continuation', no_base_solve)
+    moment = 0.98 * HARD_MOMENT
+    kept = solver.solve([0.0, 0.0, 0.0], moment)
+    assert kept.converged and kept.steps_per_segment == steps, kept.message
+    assert f'at {steps} steps per segment, kept' in kept.message
+    assert kept.accuracy_met and _within(kept, solver.accuracy) and kept.stable
+    direct = TranslatorSolver(params.with_changes(steps_per_segment=steps),
+                              accuracy=Accuracy(0.0, 0.0)).solve([0.0, 0.0, 0.0], moment)
+    assert np.allclose(kept.end_disk_position, direct.end_disk_position, atol=1e-9)
+    assert kept.error_estimate_m == pytest.approx(direct.error_estimate_m, rel=0.05)
+    assert kept.error_estimate_deg == pytest.approx(direct.error_estimate_deg, rel=0.05)
+    # from the factorization of the previous solve, 2 % of the load away, as warm solves do
+    assert kept.stability_margin == pytest.approx(direct.stability_margin, rel=0.02)
+
+
+def test_a_kept_solve_is_refined_further_when_the_load_grows(params):
+    """A warm solve at kept steps whose estimate misses the target refines from there."""
+    solver = TranslatorSolver(params)
+    steps = solver.solve([0.0, 0.0, 0.0], 0.9 * HARD_MOMENT).steps_per_segment
+    result = solver.solve([0.0, 0.0, 0.0], 1.05 * HARD_MOMENT)
+    assert result.steps_per_segment > steps and result.accuracy_met, result.message
+    assert (f'at {steps} steps per segment, kept' in result.message
+            and f'refined to {result.steps_per_segment}' in result.message
+            and f'estimated error at {steps}:' in result.message)
+
+
+def test_kept_steps_step_down_as_the_load_falls_without_oscillating(params):
+    """
+    Along a falling load the steps only go down, and back to the base 8 at a small load.
+
+    Every result meets the target at the steps it reports.
+    """
+    solver = TranslatorSolver(params)
+    counts = []
+    for scale in np.linspace(1.0, 0.2, 33):
+        result = solver.solve([0.0, 0.0, 0.0], scale * HARD_MOMENT)
+        assert result.accuracy_met and _within(result, solver.accuracy), result.message
+        counts.append(result.steps_per_segment)
+    assert all(later <= earlier for earlier, later in zip(counts, counts[1:])), counts
+    assert counts[0] > 8 and counts[-1] == 8 and result.message == 'converged', counts
+    assert len(set(counts)) < 8, counts  # a few counts, not one per solve
+
+
+def test_kept_steps_has_hysteresis():
+    """kept_steps keeps what refined_steps chose; it steps down only with room to spare."""
+    def estimate(ratio: float, steps: int) -> ErrorEstimate:
+        return ErrorEstimate(ratio * 2e-5, 0.0, steps, steps // 2)
+    for ratio in (1.01, 1.5, 3.0, 10.0, 60.0):
+        for steps in (8, 11, 16, 40):
+            refined = refined_steps(estimate(ratio, steps), 2e-5, 0.0, 256)
+            there = estimate(ratio * (steps / refined) ** 4, refined)
+            assert kept_steps(there, 2e-5, 0.0, 8) == refined
+    assert kept_steps(estimate(0.9, 16), 2e-5, 0.0, 8) == 16
+    assert kept_steps(estimate(0.2, 16), 2e-5, 0.0, 8) == 16
+    assert kept_steps(estimate(0.1, 16), 2e-5, 0.0, 8) == 12 <= STEP_DOWN * 16
+    assert kept_steps(estimate(1e-3, 16), 2e-5, 0.0, 8) == 8
+    assert kept_steps(estimate(0.2, 10), 2e-5, 0.0, 8) == 10
+    assert kept_steps(estimate(0.1, 10), 2e-5, 0.0, 8) == 8  # back to the base from < 8 / 0.75
+    assert kept_steps(estimate(2.0, 16), 2e-5, 0.0, 8) == 16
+    assert kept_steps(estimate(0.5, 16), 0.0, 0.0, 8) == 8  # refinement switched off
 
 
 def test_estimate_tracks_the_true_error(params):

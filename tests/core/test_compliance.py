@@ -203,3 +203,25 @@ def test_cli_compliance_equals_central_differences_of_cli_poses(capsys):
         columns.append(frame_twist(poses[1], poses[0])
                        / (2.0 * step * (1.0 if axis < 3 else 0.1)))
     assert relative_difference(np.column_stack(columns), matrix) <= 1e-5
+
+
+def test_analysis_eigen_parts_equal_numpy_including_complex_pairs():
+    """The direct LAPACK eigen call gives numpy.linalg.eig's real parts, complex pairs too."""
+    rng = np.random.default_rng(3)
+    skew = rng.standard_normal((6, 6))
+    for matrix in (np.diag([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]) + 0.1 * skew, skew - skew.T):
+        analysis = analyse(matrix, 0.1, sparsity_threshold=0.0)
+        values, vectors = np.linalg.eig(matrix)
+        for value, vector in zip(analysis.eigenvalues, analysis.eigenvectors.T):
+            k = np.argmin(np.abs(values.real - value) + np.abs(
+                np.abs(vectors.real.T @ vector) - np.linalg.norm(vectors.real, axis=0)))
+            expected = vectors[:, k].real / np.linalg.norm(vectors[:, k].real)
+            assert abs(values[k].real - value) <= 1e-12 * np.abs(values).max()
+            assert np.allclose(np.abs(expected @ vector), 1.0, atol=1e-12)
+
+
+def test_analysis_of_a_singular_compliance_is_not_stable():
+    """A singular C has no stiffness: smallest eigenvalue -inf, not stable."""
+    analysis = analyse(np.diag([1.0, 1.0, 1.0, 1.0, 1.0, 0.0]), 0.1)
+    assert analysis.smallest_stiffness_eigenvalue == -np.inf and not analysis.stable
+    assert analyse(np.eye(6), 0.1).smallest_stiffness_eigenvalue == pytest.approx(1.0)
