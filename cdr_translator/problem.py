@@ -75,8 +75,12 @@ class Problem:
         kind[n_station_values + 24:] = [2, 2, 2, 3, 3, 3]
         self.x_scale = x_scale
         self.residual_kind = kind
-        self._kind_rows = [np.flatnonzero(kind == code) for code in range(len(RESIDUAL_KINDS))]
         self.residual_scale = np.array([length, 1.0, force, moment])[kind]
+        # the rows grouped by kind (every kind has rows), for one reduction in residual_by_kind
+        self._kind_order = np.argsort(kind, kind='stable')
+        self._kind_starts = np.searchsorted(kind[self._kind_order],
+                                            np.arange(len(RESIDUAL_KINDS)))
+        self._kind_scale = self.residual_scale[self._kind_order]
         self.wrench_scale = np.repeat([force, moment], 3)
         #: rows of the end-disk equilibrium, the only residuals the applied wrench enters
         self.wrench_rows = np.arange(self.size - 6, self.size)
@@ -84,6 +88,7 @@ class Problem:
         self.wrench_sensitivity = np.zeros((self.size, 6))
         self.wrench_sensitivity[self.wrench_rows, np.arange(6)] = \
             1.0 / self.residual_scale[self.wrench_rows]
+        self._wrench_gain = self.wrench_sensitivity[self.wrench_rows, np.arange(6)]
         #: node states of multiple shooting (lifted.py): one per disk interval after the first
         self.node_count = model.interval_count(spacers) - 1
         node_scale = np.empty(model.STATE_SIZE)
@@ -237,24 +242,56 @@ class Problem:
 
     def chord_newton(self, xs: np.ndarray, rs: np.ndarray, wrench: np.ndarray, lu: tuple,
                      fresh: bool, tolerance: float, max_iterations: int, chord_rate: float,
-                     slot: int) -> Tuple[int, int, float, int]:
+                     slot: int, shoot: bool = False) -> Tuple[int, int, float, int]:
         """
         Newton-Broyden iterations on the factorization ``lu`` in one compiled call (chord.py).
 
         ``xs``, ``rs`` (nondimensional, residual at xs) are updated in place; the shape of
         the accepted iterate is in ``recorded_shape(slot)`` for the slot returned, the
-        shape of ``xs`` on entry being in ``slot``. The Broyden updates gathered on ``lu``
+        shape of ``xs`` on entry being in ``slot``. With ``shoot`` the call first computes
+        the residual at ``xs`` itself (``rs`` is only written, its shape goes to ``slot``):
+        no separate ``residual_and_shape`` shot. The Broyden updates gathered on ``lu``
         are kept for the next call on the same factorization (``inverse_apply``). Returns
         (status, iterations, residual norm, slot); status is one of chord's codes.
         """
         count = self._secant_count(lu)
         status, done, norm, slot, count = chord.chord_iterations(
-            xs, rs, float(np.sqrt(rs @ rs)), wrench, self.x_scale, self.residual_scale,
-            self._args, lu[0], lu[1], self._secant_updates, self._secant_steps, count, fresh,
-            tolerance, max_iterations, chord_rate, self._shape_points, self._shape_frames,
-            slot)
+            xs, rs, 0.0 if shoot else float(np.sqrt(rs @ rs)), wrench, self.x_scale,
+            self.residual_scale, self._args, lu[0], lu[1], self._secant_updates,
+            self._secant_steps, count, fresh, tolerance, max_iterations, chord_rate,
+            self._shape_points, self._shape_frames, slot, shoot)
         self._secant = (lu, int(count))
         return int(status), int(done), float(norm), int(slot)
+
+    def wrench_response(self, lu: tuple, change: np.ndarray) -> np.ndarray:
+        """
+        Return J^-1 (dr/dw) ``change``: the first-order change of the unknowns, negated.
+
+        ``change`` is a wrench change (SI); J^-1 is ``inverse_apply``'s. The same as
+        ``inverse_apply(lu, wrench_sensitivity @ change)``, without the product with a
+        matrix that has one entry per column.
+        """
+        rhs = np.zeros(self.size)
+        rhs[self.wrench_rows] = self._wrench_gain * change
+        return self.inverse_apply(lu, rhs)
+
+    def extrapolate(self, lu: tuple, path_xs: np.ndarray, path_wrenches: np.ndarray,
+                    wrench: np.ndarray, miss_limit: float) -> Optional[np.ndarray]:
+        """
+        Return the unknowns at ``wrench`` extrapolated from three solutions, or None.
+
+        chord.extrapolate: ``path_xs`` (3, size; nondimensional) and ``path_wrenches``
+        (3, 6; SI) along a path, oldest first, extrapolated quadratically in its length; the
+        miss corrected to first order with ``lu`` and its Broyden updates. None when
+        ``wrench`` does not continue the path.
+        """
+        out = np.empty(self.size)
+        if not chord.extrapolate(path_xs, path_wrenches, wrench, self.wrench_scale,
+                                 self._wrench_gain, self.wrench_rows, lu[0], lu[1],
+                                 self._secant_updates, self._secant_steps,
+                                 self._secant_count(lu), miss_limit, out):
+            return None
+        return out
 
     def inverse_apply(self, lu: tuple, rhs: np.ndarray) -> np.ndarray:
         """Return J^-1 rhs for the factorization ``lu`` and its Broyden updates so far."""
@@ -295,9 +332,8 @@ class Problem:
 
     def residual_by_kind(self, rs: np.ndarray) -> dict:
         """Largest absolute residual of each kind, in SI units."""
-        si = np.abs(rs * self.residual_scale)
-        return {name: float(si[rows].max(initial=0.0))
-                for name, rows in zip(RESIDUAL_KINDS, self._kind_rows)}
+        si = np.abs(rs[self._kind_order] * self._kind_scale)
+        return dict(zip(RESIDUAL_KINDS, np.maximum.reduceat(si, self._kind_starts).tolist()))
 
     def straight_guess(self, wrench: np.ndarray) -> np.ndarray:
         """Unloaded shape with the whole wrench carried by the primary backbone."""

@@ -14,12 +14,14 @@ def factorized():
     return matrix, lu_factor(matrix)
 
 
-def test_lu_solve_matches_lapack(factorized):
-    """The compiled substitutions give LAPACK's solution (pivoting included)."""
+@pytest.mark.parametrize('order', ['F', 'C'])
+def test_lu_solve_matches_lapack(factorized, order):
+    """The compiled substitutions give LAPACK's solution (pivoting included), either layout."""
     matrix, (lu, pivots) = factorized
+    assert lu.flags.f_contiguous  # lu_factor's layout: the column sweeps
     rhs = np.random.default_rng(8).normal(size=40)
     out = np.empty(40)
-    chord.lu_solve(lu, pivots, rhs, out)
+    chord.lu_solve(np.asarray(lu, order=order), pivots, rhs, out)
     assert np.allclose(out, lu_solve((lu, pivots), rhs), rtol=0, atol=1e-12)
     assert np.allclose(matrix @ out, rhs, atol=1e-10)
 
@@ -75,3 +77,36 @@ def test_a_stale_factorization_asks_for_a_new_one(solver):
         xs, rs, wrench, stale, False, 1e-10, 40, 0.9, 0)
     assert status == chord.REFACTOR
     assert iterations >= 1 and norm < start  # the steps it took were accepted descents
+
+
+def test_extrapolation_is_exact_on_a_quadratic_path(factorized):
+    """Unknowns quadratic in the length of a straight wrench path: extrapolated exactly."""
+    _, (lu, pivots) = factorized
+    rng = np.random.default_rng(11)
+    a, b, c = rng.normal(size=(3, 40))
+    start, direction = rng.normal(size=6), rng.normal(size=6)
+    scale = np.array([2.0, 2.0, 2.0, 0.5, 0.5, 0.5])
+    direction /= np.linalg.norm(direction / scale)  # unit path length per unit t
+    times = np.array([-0.7, -0.3, 0.0])  # unequal steps; the new wrench at t = 0.5
+    path_xs = np.array([a + b * t + c * t * t for t in times])
+    path_wrenches = np.array([start + t * direction for t in times])
+    out = np.empty(40)
+    assert chord.extrapolate(path_xs, path_wrenches, start + 0.5 * direction, scale,
+                             np.ones(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
+                             np.empty((1, 40)), 0, 0.5, out)
+    assert np.allclose(out, a + 0.5 * b + 0.25 * c, rtol=0, atol=1e-12)
+
+
+def test_a_wrench_off_the_path_is_not_extrapolated(factorized):
+    """A wrench that turns away from the path (or lies far ahead) gets no extrapolation."""
+    _, (lu, pivots) = factorized
+    path_xs = np.zeros((3, 40))
+    path_wrenches = np.array([[0.0] * 6, [1.0] + [0.0] * 5, [2.0] + [0.0] * 5])
+    out = np.empty(40)
+    arguments = (np.ones(6), np.ones(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
+                 np.empty((1, 40)), 0, 0.5, out)
+    assert chord.extrapolate(path_xs, path_wrenches, np.array([3.0] + [0.0] * 5), *arguments)
+    assert not chord.extrapolate(path_xs, path_wrenches, np.array([2.0, 1.0, 0, 0, 0, 0]),
+                                 *arguments)  # turned by 90 degrees: misses by the step
+    assert not chord.extrapolate(path_xs, path_wrenches, np.array([7.0] + [0.0] * 5),
+                                 *arguments)  # more than twice the path's length ahead

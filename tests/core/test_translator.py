@@ -2,7 +2,7 @@
 
 import math
 
-from cdr_translator import TranslatorSolver
+from cdr_translator import solver as solver_module, TranslatorSolver
 from cdr_translator.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
 from cdr_translator.params import Accuracy
 import numpy as np
@@ -177,3 +177,24 @@ def test_paper_method_agrees_at_its_tolerances(params):
     assert baseline.converged, baseline.message
     assert np.allclose(baseline.end_disk_position, fast.end_disk_position, atol=2e-4)
     assert abs(baseline.pj_bending[0] - fast.pj_bending[0]) < 1e-3
+
+
+def test_a_warm_sequence_extrapolates_and_ends_where_cold_solves_do(params, monkeypatch):
+    """Along a smooth sequence the extrapolating predictor needs fewer iterations, same answers."""
+    wrenches = [np.array([10.0 + 0.05 * k, 6.0 - 0.03 * k, -0.02 * k * k, 0.0, 0.01, 0.0])
+                for k in range(8)]
+
+    def sequence():
+        solver = TranslatorSolver(params)
+        return [solver.solve(w[:3], w[3:]) for w in wrenches]
+
+    extrapolated = sequence()
+    monkeypatch.setattr(solver_module, 'EXTRAPOLATION_MISS', -1.0)  # never extrapolate
+    linear = sequence()
+    assert sum(r.iterations for r in extrapolated[3:]) < sum(r.iterations for r in linear[3:])
+    for result, other in zip(extrapolated, linear):
+        assert result.converged and result.stable and result.accuracy_met, result.message
+        cold_result = cold(TranslatorSolver(params), result.force, result.moment)
+        for candidate in (result, other):
+            assert np.allclose(candidate.end_disk_position, cold_result.end_disk_position,
+                               rtol=0, atol=1e-11)
