@@ -278,26 +278,35 @@ def _paper_comparison(params: TranslatorParams) -> str:
     return '\n'.join(lines)
 
 
+def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
+    """
+    Run every compiled kernel once (loading or compiling it).
+
+    Solves once at every fidelity level, with each Jacobian, and the CDR; a cold solve with
+    spacer disks runs the multiple-shooting kernels (lifted.py), four warm solves along a
+    path the extrapolating predictor (chord.extrapolate).
+    """
+    for fidelity in FIDELITIES:
+        FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
+    for jacobian in JACOBIANS:
+        TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
+    along_a_path = TranslatorSolver(params)
+    for force in (1.0, 1.5, 2.0, 2.5):
+        along_a_path.solve([force, 0.0, 0.0])
+    spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
+    TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
+    robot = DeltaRobot.from_yaml(params_path)
+    for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
+        robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
+
+
 def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
     """
-    Solve once at every fidelity level, with each Jacobian, and the CDR (all kernels run).
-
-    A cold solve with spacer disks runs the multiple-shooting kernels (lifted.py).
+    Run every kernel (``warm_up_kernels``) so that numba's cache holds them all.
 
     Then say what it compiled and where; a kernel that did not run is named as not cached.
     """
-    def warm_up() -> None:
-        for fidelity in FIDELITIES:
-            FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
-        for jacobian in JACOBIANS:
-            TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
-        spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
-        TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
-        robot = DeltaRobot.from_yaml(params_path)
-        for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
-            robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
-
-    elapsed = _jit.timed_warm_up(warm_up, print)
+    elapsed = _jit.timed_warm_up(lambda: warm_up_kernels(params, params_path), print)
     missing = _jit.uncached_kernels()
     if missing:
         print(f'error: not cached: {", ".join(missing)}', file=sys.stderr)
