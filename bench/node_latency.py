@@ -19,13 +19,15 @@ the table to a file (bench/results/node_rate.md). ``--profile`` runs this checko
 under bench.node_profile (timers around its stages, every thread's CPU time), which writes
 its account to OUT.md when the node stops (use one rate per run to see that rate's split).
 
-The publisher sleeps between wrenches (no busy spin). The client process (publisher and
-recorder) shares the machine with the node: on a loaded machine both lose time, so
-compare rows measured in the same run only.
+The publisher sleeps between wrenches (no busy spin); the client runs without the cyclic
+garbage collector (a collection over the messages it keeps stalled it by 0.2-0.3 s). The
+client process (publisher and recorder) shares the machine with the node: on a loaded
+machine both lose time, so compare rows measured in the same run only.
 """
 
 import argparse
 import datetime
+import gc
 import math
 import os
 from pathlib import Path
@@ -122,10 +124,16 @@ def main() -> None:
     args = parser.parse_args()
     env = isolated_ros_env()
     os.environ.update(env)
-    node_env, command = dict(env), MODULE_COMMAND
+    node_env, command, checkout = dict(env), MODULE_COMMAND, None
     if args.node_python:
         node_env.pop('PYTHONPATH', None)
         command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout
+        # CHECKOUT/.venv/bin/python (not resolved: the venv's python is a symlink); -m
+        # imports from the working directory, which must be that checkout (until
+        # 2026-12-02 it was this one, so such runs measured this checkout's node)
+        checkout = Path(args.node_python).absolute().parents[2]
+        if not (checkout / 'cdr_translator').is_dir():
+            raise SystemExit(f'--node-python: no cdr_translator beside {checkout / ".venv"}')
     elif args.profile:
         command = (sys.executable, '-m', 'bench.node_profile', str(args.profile.resolve()))
     with tempfile.TemporaryDirectory() as folder:
@@ -134,8 +142,13 @@ def main() -> None:
         topics = [messages.END_DISK_POSE_TOPIC, messages.DIAGNOSTICS_TOPIC]
         if args.compliance:
             topics.append(messages.COMPLIANCE_EIGENVALUES_TOPIC)
-        with NodeProcess(ros_args, node_env, Path(folder) / 'node.log', command) as node:
+        with NodeProcess(ros_args, node_env, Path(folder) / 'node.log', command,
+                         checkout) as node:
             client = TranslatorClient(topics, depth=10000)
+            # the client keeps every message it receives: a full collection over them
+            # stalled its callbacks by 190-320 ms once per 1-2 kHz row (counted as the
+            # node's latency until 2026-12-02); nothing here needs the cyclic collector
+            gc.disable()
             try:
                 if not client.handshake(120.0):
                     raise SystemExit(f'node did not answer:\n{node.text()}')

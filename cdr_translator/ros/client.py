@@ -54,12 +54,17 @@ class NodeProcess:
     """translator_node as a child process (``python -m cdr_translator.ros.translator_node``)."""
 
     def __init__(self, ros_args: Sequence[str], env: Mapping[str, str], output: Path,
-                 command: Sequence[str] = MODULE_COMMAND) -> None:
-        """Start ``command --ros-args ros_args``; stdout and stderr go to ``output``."""
+                 command: Sequence[str] = MODULE_COMMAND, cwd: Optional[Path] = None) -> None:
+        """
+        Start ``command --ros-args ros_args`` in ``cwd``; stdout and stderr go to ``output``.
+
+        ``python -m`` imports from its working directory first: to run another checkout's
+        node, ``cwd`` must be that checkout (else this one's code runs).
+        """
         self.output = Path(output)
         self._file = open(self.output, 'wb')
         self.process = subprocess.Popen([*command, '--ros-args', *ros_args], env=dict(env),
-                                        stdout=self._file, stderr=subprocess.STDOUT)
+                                        stdout=self._file, stderr=subprocess.STDOUT, cwd=cwd)
 
     def text(self) -> str:
         """Return what the node has printed so far."""
