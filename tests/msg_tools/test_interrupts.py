@@ -8,6 +8,14 @@ from msg_tools.interrupts import deferred_sigint
 import pytest
 
 
+@pytest.fixture(autouse=True)
+def python_sigint_handler():
+    """Python's own SIGINT handler for the test (a CI job may start with SIGINT ignored)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 def test_a_second_sigint_interrupts_at_once():
     """The first SIGINT sets ``requested``, the second raises KeyboardInterrupt."""
     with deferred_sigint() as interrupt:
@@ -31,3 +39,12 @@ def test_outside_the_main_thread_nothing_changes():
     worker.start()
     worker.join(timeout=10)
     assert seen == [(signal.default_int_handler, False)]
+
+
+def test_an_ignored_sigint_stays_ignored():
+    """A process that ignores SIGINT (a background job) keeps ignoring it in the block."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with deferred_sigint() as interrupt:
+        os.kill(os.getpid(), signal.SIGINT)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN and not interrupt.requested
+    assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
