@@ -15,7 +15,7 @@ import time
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import InputSettings, WrenchProcessor
-from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
@@ -222,17 +222,31 @@ def test_replay_without_ros_equals_the_cli(tmp_path):
 
 
 def test_warm_replay_agrees_with_cold_solves(tmp_path):
-    """Along a random walk the warm-started replay equals cold solves to 1e-10 m."""
+    """
+    Along a random walk the warm-started replay equals cold solves to 1e-10 m.
+
+    Each at the steps per segment the replay's solve used (its diagnostic says which: a
+    warm solve keeps the steps of an earlier refinement, a cold one refines from the base
+    count and may stop at other steps, both within the accuracy target).
+    """
     bag = tmp_path / 'walk.mcap'
     synth.write_wrenches(bag, synth.generate('random-walk', count=60, moment=(0, 0, 0.1)))
     summary = replay(bag, tmp_path / 'out.mcap', compliance=False)
     assert summary.solved == 60
-    solver = TranslatorSolver()
+    params = TranslatorSolver().params
+    solvers = {}
     poses = [m.ros_msg.pose.position for m in
              read_ros2_messages(str(tmp_path / 'out.mcap'), topics=['/end_disk_pose'])]
-    for wrench, pose in zip(summary.series.wrench, poses):
-        cold = solver.solve(wrench[:3], wrench[3:], warm_start=False).end_disk_position
-        assert np.abs(cold - [pose.x, pose.y, pose.z]).max() < 1e-10
+    steps = [int(next(item.value for item in m.ros_msg.status[0].values
+                      if item.key == 'steps_per_segment'))
+             for m in read_ros2_messages(str(tmp_path / 'out.mcap'), topics=['/diagnostics'])]
+    assert len(poses) == len(steps) == 60
+    for wrench, pose, count in zip(summary.series.wrench, poses, steps):
+        if count not in solvers:  # that discretization, no refinement of its own
+            solvers[count] = TranslatorSolver(params.with_changes(steps_per_segment=count),
+                                              accuracy=Accuracy(0.0, 0.0))
+        cold = solvers[count].solve(wrench[:3], wrench[3:], warm_start=False)
+        assert np.abs(cold.end_disk_position - [pose.x, pose.y, pose.z]).max() < 1e-10
 
 
 def test_bad_messages_are_reported_and_the_rest_processed(tmp_path):
