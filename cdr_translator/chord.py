@@ -168,11 +168,11 @@ def extrapolate(path_xs, path_wrenches, wrench, wrench_scale, gain, rows, lu, pi
 
 
 @jit
-def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, lu, pivots,
+def chord_iterations(xs, rs, wrench, x_scale, residual_scale, model_args, lu, pivots,
                      updates, taken, count, fresh, tolerance, max_iterations, chord_rate,
                      points, frames, slot, shoot):
     """
-    Newton iterations from ``xs`` (residual ``rs``, its norm ``norm``) on the factors given.
+    Newton iterations from ``xs`` (residual ``rs``) on the factors given.
 
     Each accepted step updates the inverse Jacobian by Broyden's good formula (Kelley,
     "Solving Nonlinear Equations with Newton's Method", SIAM 2003, Sec. 1.11 and algorithm
@@ -187,9 +187,12 @@ def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, 
     ``points[slot]``, ``frames[slot]`` (two buffers each; the other holds trial shots).
     ``fresh`` says the factors were made at ``xs`` (a failed line search is then final).
     With ``shoot`` the residual at ``xs`` is computed first (into ``rs``, its shape into
-    ``slot``; ``norm`` is then ignored): one compiled call from the predicted guess on.
-    Returns (status, iterations done, residual norm, slot of the accepted shape, update
-    count).
+    ``slot``): one compiled call from the predicted guess on. Returns (status, iterations
+    done, residual norm, slot of the accepted shape, update count).
+
+    Nineteen arguments, no more: numba's dispatcher allocates about 400 bytes per call of
+    a function with twenty or more (freed only at the next garbage-collector pass), which
+    piled up between collections along a replay (tests/core/test_chord.py).
     """
     size = xs.shape[0]
     step = np.empty(size)
@@ -202,6 +205,11 @@ def chord_iterations(xs, rs, norm, wrench, x_scale, residual_scale, model_args, 
     if shoot:
         norm = _shoot(xs, wrench, x_scale, residual_scale, model_args, rs, points[slot],
                       frames[slot], unknowns)
+    else:
+        total = 0.0
+        for i in range(size):
+            total += rs[i] * rs[i]
+        norm = math.sqrt(total)
     if count >= updates.shape[0]:
         count = 0  # full: restart from the factorization (limited-memory Broyden)
     broyden_apply(lu, pivots, updates, taken, count, rs, direction)  # H rs

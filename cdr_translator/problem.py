@@ -256,10 +256,9 @@ class Problem:
         """
         count = self._secant_count(lu)
         status, done, norm, slot, count = chord.chord_iterations(
-            xs, rs, 0.0 if shoot else float(np.sqrt(rs @ rs)), wrench, self.x_scale,
-            self.residual_scale, self._args, lu[0], lu[1], self._secant_updates,
-            self._secant_steps, count, fresh, tolerance, max_iterations, chord_rate,
-            self._shape_points, self._shape_frames, slot, shoot)
+            xs, rs, wrench, self.x_scale, self.residual_scale, self._args, lu[0], lu[1],
+            self._secant_updates, self._secant_steps, count, fresh, tolerance, max_iterations,
+            chord_rate, self._shape_points, self._shape_frames, slot, shoot)
         self._secant = (lu, int(count))
         return int(status), int(done), float(norm), int(slot)
 
