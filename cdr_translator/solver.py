@@ -445,10 +445,7 @@ class TranslatorSolver:
                     refined.solve_time_s = time.perf_counter() - started
                     return refined
             if not result.accuracy_met:
-                result.message += (f'; accuracy target not met: estimated error '
-                                   f'{result.error_estimate_m:.2g} m, '
-                                   f'{result.error_estimate_deg:.2g} deg at '
-                                   f'{result.steps_per_segment} steps per segment')
+                result.message += _accuracy_shortfall(result)
         result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
             stored = self._pose[0] if self._pose is not None else None
@@ -528,9 +525,7 @@ class TranslatorSolver:
                             f'{result.error_estimate_m:.2g} m, '
                             f'{result.error_estimate_deg:.2g} deg)')
         if not refined.accuracy_met:
-            refined.message += (f'; accuracy target not met: estimated error '
-                                f'{refined.error_estimate_m:.2g} m, '
-                                f'{refined.error_estimate_deg:.2g} deg')
+            refined.message += _accuracy_shortfall(refined)
         return refined
 
     def _refined_solver(self, steps: int) -> 'TranslatorSolver':
@@ -600,10 +595,7 @@ class TranslatorSolver:
                 result = refined
             else:
                 self._kept = steps
-                result.message += (f'; accuracy target not met: estimated error '
-                                   f'{result.error_estimate_m:.2g} m, '
-                                   f'{result.error_estimate_deg:.2g} deg at {steps} steps '
-                                   'per segment')
+                result.message += _accuracy_shortfall(result)
         else:
             fewer = kept_steps(estimate, target.position_m, target.angle_deg,
                                self.params.steps_per_segment)
@@ -1074,6 +1066,13 @@ def _apply_verdict(result: SolveResult, verdict: stability.Stability) -> None:
     result.stability_margin = verdict.margin
     if not verdict.stable:
         result.message += f'; {verdict.message}'
+
+
+def _accuracy_shortfall(result: SolveResult) -> str:
+    """Return the message tail of a result whose error estimate misses the accuracy target."""
+    return (f'; accuracy target not met: estimated error {result.error_estimate_m:.2g} m, '
+            f'{result.error_estimate_deg:.2g} deg at {result.steps_per_segment} steps per '
+            'segment')
 
 
 def _first_step(predicted: Optional[np.ndarray]) -> float:
