@@ -4,7 +4,10 @@ Compiled pieces of the CDR's coupled Newton iterate (robot/delta.py).
 An iterate of a warm CDR solve is three leg shots (~35 us each) and a little algebra on
 24 platform and 3 x n leg unknowns; written with numpy, the algebra's call overhead cost
 twice the shots (the platform residual 75 us, the reduced Newton step 80 us, the three
-shots' wrappers 40 us on top). Here each is one compiled call.
+shots' wrappers 40 us on top). Here each is one compiled call, and ``coupled_iterations``
+runs the whole loop of chord iterations on one factorization (line searches, Broyden
+updates, the chord-rate test) in one call: the Python loop around the pieces cost about
+0.1 ms per iteration, half a warm solve.
 """
 
 import math
@@ -203,3 +206,195 @@ def coupled_step(residual, leg_residuals, with_legs, r_scale, x_scale, leg_lu, l
                 total += gains[k, i, j] * wrench_step[j]
             out[base + i] = -total - corrections[k, i]
     apply_updates(updates, steps, count, out)
+
+
+#: Statuses of ``coupled_iterations``: where its loop of chord iterations stopped.
+#: CONVERGED_AT_TOP: the state reached was within the tolerances (the caller's next loop top
+#: says so); OUT_OF_BUDGET: every iteration allowed was done; REBUILD: the factorization is
+#: to be rebuilt (chord steps too slow or too many, or a stale one found no step);
+#: NO_STEP: a fresh factorization found no contracting step; FAR: a trial's rotation error
+#: reached 90 degrees (the caller redoes that iteration: its residual needs the general
+#: rotation vector).
+CONVERGED_AT_TOP = 0
+OUT_OF_BUDGET = 1
+REBUILD = 2
+NO_STEP = 3
+FAR = 4
+
+#: Step halvings of a line search (robot/delta.py's _line_search).
+HALVINGS = 10
+
+
+@jit
+def _turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale, out_position,
+                   out_rotation, out_wrenches, out_unknowns):
+    """
+    Write the state moved by ``scale`` times the flat scaled ``step`` (_State.moved).
+
+    Platform position + dp, rotation exp([dphi]) R (Rodrigues, as _rotation_matrix), leg
+    wrenches + dw, leg unknowns + their steps.
+    """
+    x = scale * step[3] * x_scale[3]
+    y = scale * step[4] * x_scale[4]
+    z = scale * step[5] * x_scale[5]
+    square = x * x + y * y + z * z
+    if square < 1e-12:  # the series, error below angle^3 / 6
+        first, second = 1.0, 0.5
+    else:
+        angle = math.sqrt(square)
+        first, second = math.sin(angle) / angle, (1.0 - math.cos(angle)) / square
+    turn = np.empty((3, 3))
+    turn[0, 0] = 1.0 + second * (x * x - square)
+    turn[0, 1] = second * x * y - first * z
+    turn[0, 2] = second * x * z + first * y
+    turn[1, 0] = second * x * y + first * z
+    turn[1, 1] = 1.0 + second * (y * y - square)
+    turn[1, 2] = second * y * z - first * x
+    turn[2, 0] = second * x * z - first * y
+    turn[2, 1] = second * y * z + first * x
+    turn[2, 2] = 1.0 + second * (z * z - square)
+    for i in range(3):
+        out_position[i] = position[i] + scale * step[i] * x_scale[i]
+        for j in range(3):
+            out_rotation[i, j] = (turn[i, 0] * rotation[0, j] + turn[i, 1] * rotation[1, j]
+                                  + turn[i, 2] * rotation[2, j])
+    for k in range(3):
+        for j in range(6):
+            out_wrenches[k, j] = wrenches[k, j] + scale * step[6 + 6 * k + j] * x_scale[
+                6 + 6 * k + j]
+    legs, size = unknowns.shape
+    for k in range(legs):
+        for i in range(size):
+            out_unknowns[k, i] = unknowns[k, i] + scale * step[24 + k * size + i]
+
+
+@jit
+def _norm(vector):
+    """Return the Euclidean norm of a flat vector."""
+    total = 0.0
+    for i in range(vector.shape[0]):
+        total += vector[i] * vector[i]
+    return math.sqrt(total)
+
+
+@jit
+def _copy_state(source, target):
+    """Copy the arrays of a state tuple (see ``coupled_iterations``) into another's."""
+    target[0][:] = source[0]
+    target[1][:, :] = source[1]
+    target[2][:, :] = source[2]
+    target[3][:, :] = source[3]
+    target[4][:, :, :] = source[4]
+    target[5][:, :] = source[5]
+    target[6][:] = source[6]
+
+
+@jit
+def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, factorization,
+                       updates, steps, count, tolerances, controls, fresh, chord_steps,
+                       chord_log, leg_error):
+    """
+    Run the coupled Newton's chord iterations on one factorization (delta.py _newton).
+
+    ``state`` and ``trial`` are state tuples (position (3), rotation (3, 3), wrenches
+    (3, 6), leg unknowns (3, n), leg end-disk frames (3, 4, 4), leg residuals (3, n),
+    residual (24)): ``state`` holds the evaluated state on entry and the one reached on
+    return, ``trial`` is scratch. ``step`` (flat, scaled) is the next correction when
+    ``has_step``. ``leg`` = (x_scale, residual_scale, model_args) of a leg's Problem;
+    ``platform`` = (leg rotations, attachments, home bases, slider axes, r_scale, x_scale);
+    ``factorization`` = (leg LU factors, pivots, twists, gains, platform inverse);
+    ``updates``, ``steps``, ``count`` the Broyden updates on it (kernels.coupled_step);
+    ``tolerances`` = (equilibrium, position, rotation, leg); ``controls`` = (SLOW_CHORD,
+    CHORD_RATE, CHORD_FLOOR, CHORD_LIMIT, iterations allowed).
+
+    Each iteration: stop if the state is converged; else the correction (if none is
+    pending), a line search that halves it until the trial shrinks the simplified
+    correction (Deuflhard's restricted monotonicity test), a good-Broyden update on
+    acceptance, and the chord-rate test that asks for a rebuild. The same steps, in the
+    same order, as the Python loop it replaces, which still runs the rest (rebuilds, the
+    nested iteration, rotation errors of 90 degrees or more). Returns (status, iterations
+    done, leg shots, leg error, count, chord steps, chord log, has_step, fresh, moved):
+    ``moved`` says whether ``state`` changed (an iteration accepted its trial).
+    """
+    leg_x_scale, leg_residual_scale, model_args = leg
+    leg_rotations, attachments, home_bases, slider_axes, r_scale, x_scale = platform
+    factors, pivots, twists, gains, platform_inverse = factorization
+    equilibrium_tolerance, position_tolerance, rotation_tolerance, leg_tolerance = tolerances
+    slow_chord, chord_rate, chord_floor, chord_limit, allowed = controls
+    simplified = np.empty(step.shape[0])
+    shots = 0
+    moved = False
+    for done in range(allowed):
+        if leg_error <= leg_tolerance and within(state[6], equilibrium_tolerance,
+                                                 position_tolerance, rotation_tolerance):
+            return (CONVERGED_AT_TOP, done, shots, leg_error, count, chord_steps, chord_log,
+                    has_step, fresh, moved)
+        if not has_step:
+            coupled_step(state[6], state[5], True, r_scale, x_scale, factors, pivots, twists,
+                         gains, platform_inverse, updates, steps, count, step)
+        step_size = _norm(step)
+        scale = 1.0
+        accepted = False
+        contraction = 0.0
+        trial_error = math.inf
+        for _ in range(HALVINGS):
+            _turn_and_move(state[0], state[1], state[2], state[3], step, scale, x_scale,
+                           trial[0], trial[1], trial[2], trial[3])
+            trial_error = shoot_legs(trial[3], trial[2], leg_x_scale, leg_residual_scale,
+                                     model_args, trial[5], trial[4])
+            shots += 3
+            if math.isfinite(trial_error):
+                if not platform_residual(trial[0], trial[1], trial[2], trial[4], inputs,
+                                         leg_rotations, attachments, home_bases, slider_axes,
+                                         trial[6]):
+                    return (FAR, done, shots, leg_error, count, chord_steps, chord_log,
+                            True, fresh, moved)
+                if trial_error <= leg_tolerance and within(
+                        trial[6], equilibrium_tolerance, position_tolerance,
+                        rotation_tolerance):
+                    accepted, contraction, has_step = True, 0.0, False
+                    break
+                coupled_step(trial[6], trial[5], True, r_scale, x_scale, factors, pivots,
+                             twists, gains, platform_inverse, updates, steps, count,
+                             simplified)
+                contraction = _norm(simplified) / step_size
+                if contraction < 1.0 - 0.25 * scale:
+                    # H y = H r_trial - H r = step - simplified (robot/delta.py _Secants.add)
+                    denominator = 0.0
+                    for i in range(step.shape[0]):
+                        denominator += scale * step[i] * (step[i] - simplified[i])
+                    if count < updates.shape[0] and denominator != 0.0 and \
+                            math.isfinite(denominator):
+                        dot = 0.0
+                        for i in range(step.shape[0]):
+                            taken = scale * step[i]
+                            updates[count, i] = (taken - (step[i] - simplified[i])) / denominator
+                            steps[count, i] = taken
+                            dot += taken * simplified[i]
+                        for i in range(step.shape[0]):
+                            simplified[i] += updates[count, i] * dot
+                        count += 1
+                    accepted, has_step = True, True
+                    break
+            scale *= 0.5
+        if not accepted:
+            status = NO_STEP if fresh else REBUILD
+            return (status, done + 1, shots, leg_error, count, chord_steps, chord_log, False,
+                    fresh, moved)
+        _copy_state(trial, state)
+        moved = True
+        leg_error = trial_error
+        if has_step:
+            step[:] = simplified
+        if fresh:
+            chord_steps, chord_log = 0, 0.0
+        else:
+            chord_steps += 1
+            chord_log += math.log(max(contraction, 1e-300))
+            slow = contraction > slow_chord or chord_log > chord_steps * math.log(chord_rate)
+            if (slow and contraction * step_size > chord_floor) or chord_steps >= chord_limit:
+                return (REBUILD, done + 1, shots, leg_error, count, chord_steps, chord_log,
+                        False, False, moved)
+        fresh = False
+    return (OUT_OF_BUDGET, allowed, shots, leg_error, count, chord_steps, chord_log, has_step,
+            fresh, moved)
