@@ -20,6 +20,7 @@ import statistics
 from typing import List, Tuple
 
 from cdr_translator import geometry
+from cdr_translator.blas import single_blas_thread
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.result import DeltaResult
 import numpy as np
@@ -140,4 +141,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
+        main()

@@ -31,6 +31,7 @@ import statistics
 import time
 from typing import Callable, Dict, List, Sequence, Tuple
 
+from cdr_translator.blas import single_blas_thread
 from cdr_translator.params import TranslatorParams
 from cdr_translator.solver import TranslatorSolver
 import numpy as np
@@ -143,4 +144,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
+        main()
