@@ -20,7 +20,6 @@ import statistics
 from typing import List, Tuple
 
 from cdr_translator import geometry
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.result import DeltaResult
 import numpy as np
@@ -141,5 +140,4 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
-        main()
+    main()

@@ -17,7 +17,6 @@ import platform
 import time
 
 from cdr_translator import TranslatorParams
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.studies import hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,5 +64,4 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
-        main()
+    main()

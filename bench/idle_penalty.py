@@ -31,7 +31,6 @@ import statistics
 import time
 from typing import Callable, Dict, List, Sequence, Tuple
 
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.params import TranslatorParams
 from cdr_translator.solver import TranslatorSolver
 import numpy as np
@@ -144,5 +143,4 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
-        main()
+    main()

@@ -15,7 +15,6 @@ import statistics
 import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.paper import TABLE_II
 import numpy as np
 
@@ -60,5 +59,4 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
-        main()
+    main()

@@ -31,7 +31,6 @@ import time
 from typing import Callable, Dict, List, Optional
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
 from cdr_translator.fidelity import validation
 from cdr_translator.fidelity.reduced import ROD_STEPS
@@ -521,5 +520,4 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    with single_blas_thread():  # as the nodes and the replay run (cdr_translator.blas)
-        main()
+    main()

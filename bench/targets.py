@@ -36,7 +36,6 @@ from typing import Callable, Dict, List
 from bench.delta_statics import COLD_CASES, cold_solves, warm_solves
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.paper import TABLE_II
 from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
@@ -239,22 +238,19 @@ def main() -> None:
     sequence = wrench_sequence()
     started = time.perf_counter()
     load_before = os.getloadavg()[0]
-    with single_blas_thread():  # as the nodes, the replay and the benchmarks run
-        jac = jacobian_times(params)
-        jac3 = jacobian_times(params.with_changes(spacers_per_joint=3, tube_length=0.0983))
-        solvers = {jacobian: TranslatorSolver(params, jacobian=jacobian)
-                   for jacobian in ('exact', 'fd')}
-        warm = warm_sequences(solvers, sequence)
-        cold = cold_cases(solvers)
-        three = spacers(params, 3, sequence)
-        rows = {name: {'warm': warm[name], 'cold': cold[name],
-                       'compliance': compliance_time(solver, sequence),
-                       'spacers3': three[name]} for name, solver in solvers.items()}
-        cdr = cdr_times()
-        paper = None if args.skip_paper else paper_baseline(params)
-        slope = spacer_slope(params) if args.spacers_slope else None
-    # a script that leaves BLAS at its default: each solve sets and restores the limit
-    per_solve_limit = warm_sequences({'exact': TranslatorSolver(params)}, sequence)['exact']
+    jac = jacobian_times(params)
+    jac3 = jacobian_times(params.with_changes(spacers_per_joint=3, tube_length=0.0983))
+    solvers = {jacobian: TranslatorSolver(params, jacobian=jacobian)
+               for jacobian in ('exact', 'fd')}
+    warm = warm_sequences(solvers, sequence)
+    cold = cold_cases(solvers)
+    three = spacers(params, 3, sequence)
+    rows = {name: {'warm': warm[name], 'cold': cold[name],
+                   'compliance': compliance_time(solver, sequence),
+                   'spacers3': three[name]} for name, solver in solvers.items()}
+    cdr = cdr_times()
+    paper = None if args.skip_paper else paper_baseline(params)
+    slope = spacer_slope(params) if args.spacers_slope else None
     exact, fd = rows['exact'], rows['fd']
     cold_exact = max(exact['cold'].values())
     cold_fd = max(fd['cold'].values())
@@ -279,13 +275,7 @@ def main() -> None:
         f'average {load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end). **A '
         'load near or above the core count inflates the absolute times and makes them '
         'noisy; the ratios, measured in the same run, are the robust figures.** Every '
-        'solve includes its stability verdict and error estimate. BLAS runs at one thread '
-        'for the whole measurement (`cdr_translator.blas.single_blas_thread`, as '
-        'translator_node, cdr_node and the replay run), so that no solve sets and '
-        'restores the limit itself; a script that leaves BLAS at its default pays that: '
-        f"warm median {_ms(per_solve_limit['median_s'])} ms measured right after the "
-        f"table ({per_solve_limit['median_s'] / warm['exact']['median_s']:.1f} times the "
-        'row below; docs/performance.md).',
+        'solve includes its stability verdict and error estimate.',
         '',
         '| quantity | target (ms) | measured, exact (ms) | met | forward differences (ms) '
         '| fd / exact | paper / exact |',

@@ -43,20 +43,6 @@ LINE_SEARCH_HALVINGS = 12
 
 
 @jit
-def norm(vector):
-    """
-    Return the Euclidean norm of a flat vector (inf on overflow, NaN with a NaN entry).
-
-    Compiled: numpy's ``sqrt(v @ v)`` took 2-3 us for 90 entries, 6 us inside the
-    ``errstate`` that silences its overflow warning; this takes a fraction of one.
-    """
-    total = 0.0
-    for i in range(vector.shape[0]):
-        total += vector[i] * vector[i]
-    return math.sqrt(total)
-
-
-@jit
 def lu_solve(lu, pivots, rhs, out):
     """
     Solve J out = rhs with LAPACK getrf's factors (scipy.linalg.lu_factor: lu, piv 0-based).

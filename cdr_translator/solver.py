@@ -12,9 +12,10 @@ benchmarks divide by.
 """
 
 from dataclasses import dataclass
+import functools
 import math
 import time
-from typing import Callable, Dict, Optional, Tuple
+from typing import Any, Callable, Dict, Optional, Tuple
 import warnings
 
 import numpy as np
@@ -24,7 +25,6 @@ from scipy.linalg import LinAlgWarning, lu_factor
 from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
-from .blas import one_blas_thread
 from .checks import check_vector
 from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
@@ -112,6 +112,61 @@ _LiftedState = Tuple[np.ndarray, np.ndarray, Optional[tuple], Optional[np.ndarra
 def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
     """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
+
+
+def _blas_controller() -> Optional[Any]:
+    """
+    Return a threadpoolctl controller of the loaded BLAS libraries; None without threadpoolctl.
+
+    threadpoolctl is optional: rosdep has no key for it (so package.xml cannot declare it),
+    pip installs get it (setup.py). Without it BLAS keeps its own thread count, which
+    ``OPENBLAS_NUM_THREADS=1`` in the environment sets to one.
+    """
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
+
+
+#: The BLAS libraries loaded in this process (numpy's and scipy's OpenBLAS), or None
+_BLAS = _blas_controller()
+
+
+#: The BLAS libraries' controllers (threadpoolctl.LibController: get_num_threads,
+#: set_num_threads), none without threadpoolctl
+_BLAS_LIBRARIES = ([] if _BLAS is None else
+                   [library for library in _BLAS.lib_controllers if library.user_api == 'blas'])
+
+
+def one_blas_thread(method: Callable) -> Callable:
+    """
+    Run ``method`` with BLAS limited to one thread, the previous limits restored after.
+
+    The factorizations here are 90x90: extra BLAS threads cannot speed them up, and on a busy
+    machine their spin-waiting made a compliance computation 10x slower (1.8 -> 10 ms median).
+    The limits are read and set on the libraries directly (a few us; threadpoolctl's
+    ``limit()`` context, which first gathers every library's info, took 30-40 us, a tenth of
+    a warm solve); libraries already at one thread (``OPENBLAS_NUM_THREADS=1``, or a call
+    nested in another limited one) are left alone. Without threadpoolctl ``method`` is
+    returned unchanged.
+    """
+    if not _BLAS_LIBRARIES:
+        return method
+
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        changed = [(library, threads) for library in _BLAS_LIBRARIES
+                   for threads in (library.get_num_threads(),)
+                   if threads is not None and threads != 1]
+        for library, _ in changed:
+            library.set_num_threads(1)
+        try:
+            return method(*args, **kwargs)
+        finally:
+            for library, threads in changed:
+                library.set_num_threads(threads)
+    return wrapper
 
 
 class TranslatorSolver:
@@ -1038,5 +1093,5 @@ def _first_step(predicted: Optional[np.ndarray]) -> float:
 
 
 def _norm(values: np.ndarray) -> float:
-    """Return the Euclidean norm of a residual vector (chord.norm: compiled, no warnings)."""
-    return float(chord.norm(values))
+    with np.errstate(over='ignore', invalid='ignore'):
+        return float(np.sqrt(values @ values))

@@ -25,7 +25,6 @@ import tempfile
 import time
 from typing import Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
 
-from cdr_translator.blas import single_blas_thread
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
@@ -404,7 +403,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                       flush_every_s=flush_every_s, if_exists='overwrite')
     except OSError as error:
         raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
-    with deferred_sigint() as interrupt, single_blas_thread():
+    with deferred_sigint() as interrupt:
         try:
             table = csv.writer(csv_file) if csv_file else None
             if table:

@@ -16,10 +16,10 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ..blas import one_blas_thread
 from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
 from ..compliance import implicit_compliance
 from ..problem import Problem
+from ..solver import one_blas_thread
 from ..stability import solve_lu
 
 

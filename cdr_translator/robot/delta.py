@@ -53,10 +53,9 @@ from .kernels import coupled_iterations, coupled_step, FAR, NO_STEP, platform_re
 from .kernels import shoot_legs, within
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult, LegResults, rotation_vector
-from ..blas import one_blas_thread
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
-from ..solver import check_wrench, TranslatorSolver
+from ..solver import check_wrench, one_blas_thread, TranslatorSolver
 from ..stability import pose_twist, solve_lu
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).

@@ -37,7 +37,6 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from .parameters import check_value
-from ..blas import single_blas_thread
 from ..interface import messages
 from ..params import ParameterError
 
@@ -336,31 +335,29 @@ def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] =
     its ``--params-file`` and ``-p`` values. The exit code is 2 when it cannot start (bad
     parameters, unwritable log), else 0 after its ``close()`` (which must stop its threads
     and finalize its log) and a clean shutdown. What the started node holds is frozen
-    (``freeze_heap``) before it spins; BLAS stays at one thread throughout
-    (``cdr_translator.blas.single_blas_thread``).
+    (``freeze_heap``) before it spins.
     """
     rclpy.init(args=None if args is None else list(args),
                signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
-    with single_blas_thread():  # the solves skip their own limit (cdr_translator.blas)
-        try:
-            node: Any = factory(ros_arguments=list(sys.argv if args is None else args))
-        except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
-                OSError) as error:
-            print(f'{name}: {error}', file=sys.stderr)
-            rclpy.try_shutdown()
-            return 2
-        freeze_heap()
-        executor = EventsExecutor()
-        executor.add_node(node)
-        try:
-            while not stop.is_set() and rclpy.ok():
-                executor.spin_once(timeout_sec=0.1)
-        finally:
-            node.close()
-            executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown()
+    try:
+        node: Any = factory(ros_arguments=list(sys.argv if args is None else args))
+    except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
+            OSError) as error:
+        print(f'{name}: {error}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    freeze_heap()
+    executor = EventsExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
     return 0

@@ -1,6 +1,6 @@
 """BLAS runs on one thread inside a solve (its LAPACK factorizations) and as before after it."""
 
-from cdr_translator import blas, solver as solver_module
+from cdr_translator import solver as solver_module
 from threadpoolctl import threadpool_info, threadpool_limits
 
 
@@ -34,7 +34,7 @@ def test_lu_factor_runs_on_one_blas_thread_and_the_limit_is_restored(solver, mon
 def test_a_library_already_at_one_thread_is_left_alone(monkeypatch):
     """Nested or OPENBLAS_NUM_THREADS=1: no library is set (nor restored to anything)."""
     calls = []
-    libraries = blas.BLAS_LIBRARIES
+    libraries = solver_module._BLAS_LIBRARIES
     assert libraries, 'threadpoolctl found no BLAS library (numpy and scipy ship OpenBLAS)'
     for library in libraries:
         monkeypatch.setattr(library, 'set_num_threads',
@@ -47,51 +47,3 @@ def test_a_library_already_at_one_thread_is_left_alone(monkeypatch):
 
     assert inner() == 'done'
     assert calls == []
-
-
-def _count_sets(monkeypatch):
-    """Record every set_num_threads call of every BLAS library (and still make it)."""
-    calls = []
-    for library in blas.BLAS_LIBRARIES:
-        original = library.set_num_threads
-
-        def recording(threads, library=library, original=original):
-            calls.append((library, threads))
-            return original(threads)
-        monkeypatch.setattr(library, 'set_num_threads', recording)
-    return calls
-
-
-def test_single_blas_thread_holds_one_thread_and_solves_inside_set_nothing(solver,
-                                                                           monkeypatch):
-    """
-    Inside single_blas_thread() every library is at one thread and solves touch no limit.
-
-    Warm solves inside set nothing (each used to set and restore the limit: 0.1-0.2 ms);
-    the previous limit is back after the context, and only the context set anything.
-    """
-    calls = _count_sets(monkeypatch)
-    with threadpool_limits(limits=2, user_api='blas'):
-        calls.clear()
-        with blas.single_blas_thread():
-            assert _blas_threads() == [1] * len(blas.BLAS_LIBRARIES)
-            entered = len(calls)
-            solver.reset()
-            for force in (12.0, 12.5, 13.0):
-                assert solver.solve([force, 0.0, 0.0]).converged
-            assert len(calls) == entered  # the solves set nothing
-        made = [threads for _, threads in calls]
-        assert _blas_threads() == [2] * len(blas.BLAS_LIBRARIES)
-    assert entered == len(blas.BLAS_LIBRARIES)
-    assert made == [1] * entered + [2] * entered  # the context's own limit and restore
-
-
-def test_solves_outside_set_and_restore_the_limit_each(solver, monkeypatch):
-    """Without the context each solve limits BLAS and restores it (what the context saves)."""
-    calls = _count_sets(monkeypatch)
-    with threadpool_limits(limits=2, user_api='blas'):
-        calls.clear()
-        solver.reset()
-        for force in (12.0, 12.5, 13.0):
-            assert solver.solve([force, 0.0, 0.0]).converged
-    assert len(calls) >= 3 * 2 * len(blas.BLAS_LIBRARIES)

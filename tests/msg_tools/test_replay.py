@@ -12,7 +12,7 @@ import subprocess
 import sys
 import time
 
-from cdr_translator import blas, TranslatorSolver
+from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import InputSettings, WrenchProcessor
 from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
@@ -27,7 +27,6 @@ from msg_tools.reader import McapSource
 from msg_tools.replay import replay, ReplayError
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[2]
 BAGS = ROOT / 'bags'
@@ -248,29 +247,6 @@ def test_warm_replay_agrees_with_cold_solves(tmp_path):
                                               accuracy=Accuracy(0.0, 0.0))
         cold = solvers[count].solve(wrench[:3], wrench[3:], warm_start=False)
         assert np.abs(cold.end_disk_position - [pose.x, pose.y, pose.z]).max() < 1e-10
-
-
-def test_replay_holds_one_blas_thread_for_the_whole_run(tmp_path, monkeypatch):
-    """
-    A replay sets BLAS to one thread once and restores it once, not around every solve.
-
-    (Setting and restoring OpenBLAS's limit cost 0.1-0.2 ms a solve: cdr_translator.blas.)
-    """
-    calls = []
-    for library in blas.BLAS_LIBRARIES:
-        def recording(threads, original=library.set_num_threads):
-            calls.append(threads)
-            return original(threads)
-        monkeypatch.setattr(library, 'set_num_threads', recording)
-    bag = tmp_path / 'walk.mcap'
-    synth.write_wrenches(bag, synth.generate('random-walk', count=20, moment=(0, 0, 0.1)))
-    with threadpool_limits(limits=2, user_api='blas'):
-        calls.clear()
-        summary = replay(bag, tmp_path / 'out.mcap', compliance=False)
-        made = list(calls)
-    assert summary.solved == 20
-    libraries = len(blas.BLAS_LIBRARIES)
-    assert libraries and made == [1] * libraries + [2] * libraries
 
 
 def test_bad_messages_are_reported_and_the_rest_processed(tmp_path):
