@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..chord import apply_updates, lu_solve
+from ..chord import apply_updates, lu_solve, norm
 from ..model import N_RODS, translator_residual
 
 
@@ -269,15 +269,6 @@ def _turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale,
 
 
 @jit
-def _norm(vector):
-    """Return the Euclidean norm of a flat vector."""
-    total = 0.0
-    for i in range(vector.shape[0]):
-        total += vector[i] * vector[i]
-    return math.sqrt(total)
-
-
-@jit
 def _copy_state(source, target):
     """Copy the arrays of a state tuple (see ``coupled_iterations``) into another's."""
     target[0][:] = source[0]
@@ -332,7 +323,7 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
         if not has_step:
             coupled_step(state[6], state[5], True, r_scale, x_scale, factors, pivots, twists,
                          gains, platform_inverse, updates, steps, count, step)
-        step_size = _norm(step)
+        step_size = norm(step)
         scale = 1.0
         accepted = False
         contraction = 0.0
@@ -357,7 +348,7 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
                 coupled_step(trial[6], trial[5], True, r_scale, x_scale, factors, pivots,
                              twists, gains, platform_inverse, updates, steps, count,
                              simplified)
-                contraction = _norm(simplified) / step_size
+                contraction = norm(simplified) / step_size
                 if contraction < 1.0 - 0.25 * scale:
                     # H y = H r_trial - H r = step - simplified (robot/delta.py _Secants.add)
                     denominator = 0.0

@@ -1,7 +1,9 @@
 """The compiled Newton-Broyden loop (cdr_translator/chord.py) against plain linear algebra."""
 
 import gc
+import math
 import tracemalloc
+import warnings
 
 from cdr_translator import chord
 import numpy as np
@@ -148,3 +150,13 @@ def test_chord_calls_leave_nothing_for_the_garbage_collector(solver):
         tracemalloc.stop()
         gc.enable()
     assert left < 5_000, left
+
+
+def test_norm_matches_numpy_and_overflows_quietly():
+    """chord.norm is the Euclidean norm; huge entries give inf and NaN stays NaN, no warning."""
+    values = np.random.default_rng(3).standard_normal(90)
+    assert chord.norm(values) == pytest.approx(np.linalg.norm(values), rel=1e-14)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert chord.norm(np.full(90, 1e200)) == math.inf
+        assert math.isnan(chord.norm(np.array([math.nan, 1.0])))
