@@ -50,7 +50,7 @@ from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
 from .kernels import coupled_iterations, coupled_step, FAR, NO_STEP, platform_residual, REBUILD
-from .kernels import shoot_legs, within
+from .kernels import shoot_legs, turn_and_move, within
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult, LegResults, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
@@ -110,24 +110,6 @@ def _skew(vector: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def _rotation_matrix(vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad): Rodrigues' formula, in plain floats."""
-    x, y, z = vector.tolist()
-    square = x * x + y * y + z * z
-    if square < 1e-12:  # the series, error below angle^3 / 6
-        first, second = 1.0, 0.5
-    else:
-        angle = math.sqrt(square)
-        first, second = math.sin(angle) / angle, (1.0 - math.cos(angle)) / square
-    # I + first [v]x + second [v]x^2, with [v]x^2 = v v^T - |v|^2 I
-    return np.array([[1.0 + second * (x * x - square), second * x * y - first * z,
-                      second * x * z + first * y],
-                     [second * x * y + first * z, 1.0 + second * (y * y - square),
-                      second * y * z - first * x],
-                     [second * x * z - first * y, second * y * z + first * x,
-                      1.0 + second * (z * z - square)]])
-
-
 def _inverse_left_jacobian(vector: np.ndarray) -> np.ndarray:
     """
     Inverse left Jacobian of SO(3) at rotation vector ``vector``.
@@ -165,11 +147,19 @@ class _State:
     leg_error: float = math.inf
     legs: Optional[List[SolveResult]] = None
 
-    def moved(self, platform: np.ndarray, legs: np.ndarray) -> '_State':
-        """Apply a step [dp; dphi; dw_1; dw_2; dw_3] and leg steps (3, n); not yet shot."""
-        return _State(self.position + platform[:3],
-                      _rotation_matrix(platform[3:6]) @ self.rotation,
-                      self.wrenches + platform[6:].reshape(3, 6), self.unknowns + legs)
+    def moved(self, step: np.ndarray, x_scale: np.ndarray) -> '_State':
+        """
+        Apply a flat scaled step [dp; dphi; dw_1; dw_2; dw_3 (/ x_scale); leg steps (3 x n)].
+
+        The platform turns by exp([dphi]) (kernels.turn_and_move, as the compiled
+        iterations move their trials); the result is not yet shot.
+        """
+        moved = _State(np.empty(3), np.empty((3, 3)), np.empty((3, 6)),
+                       np.empty_like(self.unknowns))
+        turn_and_move(self.position, self.rotation, self.wrenches, self.unknowns,
+                      np.ascontiguousarray(step, dtype=float), 1.0, x_scale, moved.position,
+                      moved.rotation, moved.wrenches, moved.unknowns)
+        return moved
 
 
 @dataclass
@@ -552,7 +542,7 @@ class DeltaRobot:
                     goal = start + target * (inputs - start)
                     predicted = fraction * self._correction(change, None, factorization,
                                                             coupled)
-                guess = state.moved(*self._unflat(predicted))
+                guess = state.moved(predicted, self._x_scale)
             outcome = self._newton(guess, goal, factorization, coupled)
             iterations += outcome.iterations
             if outcome.converged:
@@ -773,10 +763,6 @@ class DeltaRobot:
                      secants.count if coupled else 0, out)
         return out
 
-    def _unflat(self, step: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """Platform step (SI) and leg steps (3, n) of a flat scaled step."""
-        return step[:SIZE] * self._x_scale, step[SIZE:].reshape(3, -1)
-
     @staticmethod
     def _norm(step: np.ndarray, coupled: bool) -> float:
         """Norm of a flat scaled step (the legs' part counts only when ``coupled``)."""
@@ -797,7 +783,7 @@ class DeltaRobot:
         norm = self._norm(step, coupled)
         scale = 1.0
         for _ in range(10):
-            trial = state.moved(*self._unflat(scale * step))
+            trial = state.moved(scale * step, self._x_scale)
             if self._evaluate(trial, coupled):
                 residual = self._residual(trial, inputs)
                 if self._converged(residual, trial):

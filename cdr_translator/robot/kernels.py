@@ -226,19 +226,20 @@ HALVINGS = 10
 
 
 @jit
-def _turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale, out_position,
-                   out_rotation, out_wrenches, out_unknowns):
+def turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale, out_position,
+                  out_rotation, out_wrenches, out_unknowns):
     """
-    Write the state moved by ``scale`` times the flat scaled ``step`` (_State.moved).
+    Write the state moved by ``scale`` times the flat scaled ``step`` (delta._State.moved).
 
-    Platform position + dp, rotation exp([dphi]) R (Rodrigues, as _rotation_matrix), leg
-    wrenches + dw, leg unknowns + their steps.
+    Platform position + dp, rotation exp([dphi]) R (Rodrigues' formula; the series below
+    an angle of 1e-6 rad, error below angle^3 / 6), leg wrenches + dw, leg unknowns + their
+    steps; dp, dphi and dw are the step's first 24 entries times ``x_scale``.
     """
     x = scale * step[3] * x_scale[3]
     y = scale * step[4] * x_scale[4]
     z = scale * step[5] * x_scale[5]
     square = x * x + y * y + z * z
-    if square < 1e-12:  # the series, error below angle^3 / 6
+    if square < 1e-12:
         first, second = 1.0, 0.5
     else:
         angle = math.sqrt(square)
@@ -329,8 +330,8 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
         contraction = 0.0
         trial_error = math.inf
         for _ in range(HALVINGS):
-            _turn_and_move(state[0], state[1], state[2], state[3], step, scale, x_scale,
-                           trial[0], trial[1], trial[2], trial[3])
+            turn_and_move(state[0], state[1], state[2], state[3], step, scale, x_scale,
+                          trial[0], trial[1], trial[2], trial[3])
             trial_error = shoot_legs(trial[3], trial[2], leg_x_scale, leg_residual_scale,
                                      model_args, trial[5], trial[4])
             shots += 3
