@@ -38,8 +38,8 @@ import numpy as np
 
 from ._jit import jit, jit_inline
 from .rod import (integrate_segment, integrate_segment_tangent, LOCAL_DIRECTIONS, LOCAL_LENGTH,
-                  LOCAL_M, LOCAL_N, LOCAL_OUT_M, LOCAL_OUTPUTS, LOCAL_ROT, TANGENT_P,
-                  TANGENT_ROT)
+                  LOCAL_M, LOCAL_N, LOCAL_OUT_M, LOCAL_OUTPUTS, LOCAL_ROT, SEGMENT_SCRATCH,
+                  TANGENT_P, TANGENT_ROT)
 
 N_RODS = 5
 N_BASE_UNKNOWNS = 6 * N_RODS
@@ -332,6 +332,7 @@ def shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, ste
     used = np.zeros(4)
     record = points.shape[1] > 0
     segment = 0
+    scratch = np.empty(SEGMENT_SCRATCH)
     for joint in range(2):
         for station in range(spacers + 1):
             t = joint * (spacers + 1) + station
@@ -339,7 +340,7 @@ def shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, ste
                 _enter_node(mode, nodes[t - 1], defects[t - 1], p, rot, n, m, used)
             first_row = segment * (steps + 1) if record else 0
             integrate_segment(p[0], rot[0], n[0], m[0], spacing, steps, inv_kse, inv_kbt,
-                              points[0], first_row)
+                              points[0], first_row, scratch)
             is_end = joint == 1 and station == spacers
             for i in range(4):
                 if is_end:
@@ -348,7 +349,7 @@ def shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, ste
                     length = x[N_BASE_UNKNOWNS + STATION_WIDTH * (i * nst + t)]
                 used[i] += length
                 integrate_segment(p[i + 1], rot[i + 1], n[i + 1], m[i + 1], length, steps,
-                                  inv_kse, inv_kbt, points[i + 1], first_row)
+                                  inv_kse, inv_kbt, points[i + 1], first_row, scratch)
             segment += 1
             if is_end:
                 _store_frame(rot[0], p[0], frames[3])

@@ -95,22 +95,34 @@ def carry_moment(p, p_start, n, m_start, m):
     return dx, dy, dz
 
 
+#: Doubles of scratch ``integrate_segment`` needs: p(0), m(0), the four stage slopes of p
+#: and R, and a stage pose.
+SEGMENT_SCRATCH = 3 + 3 + 4 * 3 + 4 * 9 + 3 + 9
+
+
 @jit
-def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row):
+def integrate_segment(p, rot, n, m, length, steps, inv_kse, inv_kbt, points, first_row,
+                      scratch):
     """
     Integrate one load-free rod segment of arc length ``length`` with RK4, in place.
 
     On entry (p, rot, n, m) is the state at the segment start; on exit p, rot and m hold
     the state at its end (n is unchanged). When ``points`` has rows, the positions at the
     ``steps + 1`` grid points are written to ``points[first_row:first_row + steps + 1]``.
+    ``scratch`` (SEGMENT_SCRATCH doubles, the caller's) holds the stages: a shot
+    integrates 20 or more segments, and allocating them per segment added about 3 us to a
+    20-30 us shot (a tenth).
     """
     h = length / steps
-    p_start = p.copy()
-    m_start = m.copy()
-    k_p = np.empty((4, 3))
-    k_rot = np.empty((4, 3, 3))
-    p_stage = np.empty(3)
-    rot_stage = np.empty((3, 3))
+    p_start = scratch[0:3]
+    m_start = scratch[3:6]
+    k_p = scratch[6:18].reshape((4, 3))
+    k_rot = scratch[18:54].reshape((4, 3, 3))
+    p_stage = scratch[54:57]
+    rot_stage = scratch[57:66].reshape((3, 3))
+    for i in range(3):
+        p_start[i] = p[i]
+        m_start[i] = m[i]
     record = points.shape[0] > 0
     if record:
         points[first_row, :] = p
@@ -384,12 +396,14 @@ def solve_cantilever(length: float, tip_force, tip_moment, youngs_modulus: float
     moment = np.asarray(tip_moment, dtype=float)
     moment_scale = youngs_modulus * np.pi * diameter ** 4 / 64.0 / length
     points = np.empty((steps + 1, 3))
+    scratch = np.empty(SEGMENT_SCRATCH)
 
     def shoot(base_moment):
         p = np.zeros(3)
         rot = np.eye(3)
         m = base_moment.copy()
-        integrate_segment(p, rot, force.copy(), m, length, steps, inv_kse, inv_kbt, points, 0)
+        integrate_segment(p, rot, force.copy(), m, length, steps, inv_kse, inv_kbt, points, 0,
+                          scratch)
         return (m - moment) / moment_scale, rot
 
     base = moment + np.cross([0.0, 0.0, length], force)  # rigid-rod guess

@@ -103,7 +103,8 @@ def _segment_end(rot, n, m, length):
     inv_kse, inv_kbt = rod.inverse_stiffness(88.4e9, 33.2e9, 1.2e-3)
     p, rot, m = np.array([0.01, -0.02, 0.005]), rot.copy(), m.copy()
     start = p.copy()
-    rod.integrate_segment(p, rot, n.copy(), m, length, 8, inv_kse, inv_kbt, np.empty((0, 3)), 0)
+    rod.integrate_segment(p, rot, n.copy(), m, length, 8, inv_kse, inv_kbt, np.empty((0, 3)), 0,
+                          np.empty(rod.SEGMENT_SCRATCH))
     return np.concatenate([p - start, rot.ravel(), m])
 
 
