@@ -49,8 +49,9 @@ from numpy.typing import ArrayLike
 from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
-from .kernels import coupled_iterations, coupled_step, FAR, NO_STEP, platform_residual, REBUILD
-from .kernels import shoot_legs, turn_and_move, within
+from .kernels import chord_verdict, coupled_iterations, coupled_step, FAR, NO_STEP
+from .kernels import platform_residual, REBUILD, secant_update, shoot_legs, turn_and_move
+from .kernels import within
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult, LegResults, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
@@ -210,14 +211,11 @@ class _Secants:
         Return ``correction`` (H r for some r, before the update) after it: H_{i+1} r. Once
         MAX_SECANTS are gathered H stays as it is (a rebuild starts afresh).
         """
-        denominator = float(step @ change)
-        if self.count >= MAX_SECANTS or denominator == 0.0 or not math.isfinite(denominator):
-            return correction
-        update = (step - change) / denominator
-        self.updates[self.count] = update
-        self.steps[self.count] = step
-        self.count += 1
-        return correction + update * float(step @ correction)
+        updated = np.array(correction, dtype=float)
+        self.count = int(secant_update(self.updates, self.steps, self.count,
+                                       np.ascontiguousarray(step, dtype=float),
+                                       np.ascontiguousarray(change, dtype=float), updated))
+        return updated
 
 
 @dataclass
@@ -675,15 +673,10 @@ class DeltaRobot:
             if fresh:
                 chord_steps, chord_log = 0, 0.0
             else:
-                # chord steps contract erratically (the iteration matrix is far from normal:
-                # 0.15, 0.01, 0.35 in a row is typical along the slider circle): judge their
-                # geometric mean, and only a single step that barely contracts on its own
-                chord_steps += 1
-                chord_log += math.log(max(contraction, 1e-300))
-                slow = contraction > SLOW_CHORD or \
-                    chord_log > chord_steps * math.log(CHORD_RATE)
-                if (slow and contraction * step_size > CHORD_FLOOR) \
-                        or chord_steps >= CHORD_LIMIT:
+                chord_steps, chord_log, rebuild = chord_verdict(
+                    contraction, step_size, chord_steps, chord_log, SLOW_CHORD, CHORD_RATE,
+                    CHORD_FLOOR, CHORD_LIMIT)
+                if rebuild:
                     factorization, step = None, None  # chord steps converge too slowly
             fresh = False
             if not coupled and step_size * contraction < COUPLE_WITHIN \

@@ -270,6 +270,49 @@ def turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale, 
 
 
 @jit
+def secant_update(updates, steps, count, taken, change, correction):
+    """
+    Add the good-Broyden update of step ``taken`` whose residual change y has H y = ``change``.
+
+    (robot/delta.py _Secants.) ``correction`` (H r for some r) becomes H+ r in place; the
+    new count is returned. Once ``updates`` is full, or for a degenerate step, nothing is
+    added and ``correction`` stays as it is.
+    """
+    denominator = 0.0
+    for i in range(taken.shape[0]):
+        denominator += taken[i] * change[i]
+    if count >= updates.shape[0] or denominator == 0.0 or not math.isfinite(denominator):
+        return count
+    dot = 0.0
+    for i in range(taken.shape[0]):
+        updates[count, i] = (taken[i] - change[i]) / denominator
+        steps[count, i] = taken[i]
+        dot += taken[i] * correction[i]
+    for i in range(taken.shape[0]):
+        correction[i] += updates[count, i] * dot
+    return count + 1
+
+
+@jit
+def chord_verdict(contraction, step_size, chord_steps, chord_log, slow_chord, chord_rate,
+                  chord_floor, chord_limit):
+    """
+    Count a chord step that contracted by ``contraction``; say whether to rebuild.
+
+    Chord steps contract erratically (the iteration matrix is far from normal: 0.15, 0.01,
+    0.35 in a row is typical along the slider circle): their geometric mean is judged, and
+    a single step only when it barely contracts on its own; not so close to the solution
+    that the contractions are the shots' rounding (``chord_floor``), and not more than
+    ``chord_limit`` steps. Returns (chord steps, sum of log contractions, rebuild).
+    """
+    chord_steps += 1
+    chord_log += math.log(max(contraction, 1e-300))
+    slow = contraction > slow_chord or chord_log > chord_steps * math.log(chord_rate)
+    rebuild = (slow and contraction * step_size > chord_floor) or chord_steps >= chord_limit
+    return chord_steps, chord_log, rebuild
+
+
+@jit
 def _copy_state(source, target):
     """Copy the arrays of a state tuple (see ``coupled_iterations``) into another's."""
     target[0][:] = source[0]
@@ -314,6 +357,8 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
     equilibrium_tolerance, position_tolerance, rotation_tolerance, leg_tolerance = tolerances
     slow_chord, chord_rate, chord_floor, chord_limit, allowed = controls
     simplified = np.empty(step.shape[0])
+    taken = np.empty(step.shape[0])
+    change = np.empty(step.shape[0])
     shots = 0
     moved = False
     for done in range(allowed):
@@ -351,21 +396,11 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
                              simplified)
                 contraction = norm(simplified) / step_size
                 if contraction < 1.0 - 0.25 * scale:
-                    # H y = H r_trial - H r = step - simplified (robot/delta.py _Secants.add)
-                    denominator = 0.0
+                    # H y = H r_trial - H r = step - simplified
                     for i in range(step.shape[0]):
-                        denominator += scale * step[i] * (step[i] - simplified[i])
-                    if count < updates.shape[0] and denominator != 0.0 and \
-                            math.isfinite(denominator):
-                        dot = 0.0
-                        for i in range(step.shape[0]):
-                            taken = scale * step[i]
-                            updates[count, i] = (taken - (step[i] - simplified[i])) / denominator
-                            steps[count, i] = taken
-                            dot += taken * simplified[i]
-                        for i in range(step.shape[0]):
-                            simplified[i] += updates[count, i] * dot
-                        count += 1
+                        taken[i] = scale * step[i]
+                        change[i] = step[i] - simplified[i]
+                    count = secant_update(updates, steps, count, taken, change, simplified)
                     accepted, has_step = True, True
                     break
             scale *= 0.5
@@ -381,10 +416,10 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
         if fresh:
             chord_steps, chord_log = 0, 0.0
         else:
-            chord_steps += 1
-            chord_log += math.log(max(contraction, 1e-300))
-            slow = contraction > slow_chord or chord_log > chord_steps * math.log(chord_rate)
-            if (slow and contraction * step_size > chord_floor) or chord_steps >= chord_limit:
+            chord_steps, chord_log, rebuild = chord_verdict(
+                contraction, step_size, chord_steps, chord_log, slow_chord, chord_rate,
+                chord_floor, chord_limit)
+            if rebuild:
                 return (REBUILD, done + 1, shots, leg_error, count, chord_steps, chord_log,
                         False, False, moved)
         fresh = False
