@@ -135,7 +135,11 @@ def main() -> int:
         began = time.monotonic()
         code = node.stop(signal.SIGINT)
         stopped_s = time.monotonic() - began
-    rows = [('wrenches played', f'{len(stamps)} (and a handshake before them)')]
+    handshakes = len(client.handshake_stamps)
+    rows = [('wrenches played', f'{len(stamps)} (and {handshakes} handshake '
+             f'wrench{"es" if handshakes > 1 else ""} before them)'),
+            ('played wrenches answered', f'{len(latencies_ms)} of {len(stamps)} '
+             '(a wrench that arrives before the solver took the previous one replaces it)')]
     rows += summary(args.out, latencies_ms)
     rows.append(('last wrench answered', 'yes' if answered else 'NO'))
     rows.append(('node exit (SIGINT)', f'code {code} after {stopped_s:.2f} s'))

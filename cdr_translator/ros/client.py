@@ -113,6 +113,7 @@ class TranslatorClient:
         self.publisher = self.node.create_publisher(WrenchStamped, messages.WRENCH_TOPIC,
                                                     qos_profile_sensor_data)
         self.received: Dict[str, List[Tuple[Any, int]]] = {topic: [] for topic in topics}
+        self.handshake_stamps: List[dict] = []
         self._condition = threading.Condition()
         reliable = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         self.subscriptions = [
@@ -159,11 +160,13 @@ class TranslatorClient:
 
         Matching is not symmetric: the publisher may see the node's subscription before the
         node's reader accepts its samples, so the first best-effort wrenches can be lost.
+        A slow node may also answer late, after a second one was sent: ``handshake_stamps``
+        lists every wrench sent, so that callers can account for the node's counts.
         """
         deadline = time.monotonic() + timeout_s
         if not self.wait_connected(timeout_s):
             return False
-        sent: List[dict] = []
+        sent = self.handshake_stamps
         while time.monotonic() < deadline:
             sent.append(self.publish((0.0, 0.0, 0.0)))
             if self.wait_for(lambda: any(self.messages_stamped(messages.DIAGNOSTICS_TOPIC, stamp)

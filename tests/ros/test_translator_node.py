@@ -9,6 +9,7 @@ bounded; none of the assertions depends on timing.
 
 import math
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
@@ -249,16 +250,26 @@ def test_demo_script_plays_a_bag_and_summarizes(tmp_path, ros_env):
          str(ROOT / 'bags' / 'paper_cases.mcap'), '--out', str(out)],
         capture_output=True, text=True, timeout=START_TIMEOUT_S + 60.0, env=ros_env)
     assert process.returncode == 0, process.stdout + process.stderr
-    assert 'wrenches played                         2 ' in process.stdout
-    assert 'node solved                             3' in process.stdout  # + the handshake
-    assert 'last wrench answered                    yes' in process.stdout
+    rows = dict(re.split(r'\s{2,}', line, maxsplit=1) for line in process.stdout.splitlines()
+                if re.search(r'\S\s{2,}\S', line))
+    assert rows['wrenches played'].startswith('2 '), process.stdout
+    assert rows['last wrench answered'] == 'yes', process.stdout
+    # Latest wins: on a slow machine the 12 N wrench, 10 ms before the 20 N one, may be
+    # replaced before the solver takes it, and a late handshake answer means a second
+    # handshake wrench; the node's counts must account for every wrench either way.
+    counts = {key: int(rows[f'node {key}'])
+              for key in ('received', 'solved', 'rejected', 'not_converged', 'skipped')}
+    assert counts['rejected'] == counts['not_converged'] == 0, process.stdout
+    assert counts['solved'] + counts['skipped'] == counts['received'], process.stdout
+    answered = int(rows['played wrenches answered'].split()[0])
+    assert answered + counts['skipped'] >= 2 and counts['solved'] >= answered + 1, process.stdout
     largest = math.degrees(TranslatorSolver().solve((20.0, 0.0, 0.0)).pj_bending[0])
-    assert f'pj_bending deg min..max                 0.000 .. {largest:.3f}' in process.stdout
+    assert rows['pj_bending deg min..max'] == f'0.000 .. {largest:.3f}', process.stdout
     # live/offline parity on this very recording: replay it without ROS, same poses
     live = _poses(out)
     replay(out, tmp_path / 'offline.mcap', compliance=False)
     offline = _poses(tmp_path / 'offline.mcap')
-    assert len(live) == 3 and set(live) <= set(offline)
+    assert len(live) == counts['solved'] and set(live) <= set(offline)
     assert max(np.abs(live[stamp] - offline[stamp]).max() for stamp in live) < 1e-9
 
 
