@@ -74,7 +74,7 @@ def stamp_from_ns(time_ns: int) -> dict:
 
 def _get(message: Any, name: str) -> Any:
     """Return field ``name`` of a message given as a dict or as an object with attributes."""
-    if isinstance(message, Mapping):
+    if type(message) is dict or isinstance(message, Mapping):  # a dict: no ABC check
         return message[name]
     return getattr(message, name)
 

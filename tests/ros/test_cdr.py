@@ -19,7 +19,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Float64MultiArray
 
 STAMP = {'sec': 1_700_000_000, 'nanosec': 123_456_789}
@@ -69,6 +69,19 @@ def test_missing_fields_take_their_defaults_and_odd_sizes_align():
     layout = {'layout': {'dim': [{'label': 'l' * 3, 'size': 2, 'stride': 2}]}, 'data': [1.5]}
     assert deserialize_message(cdr.encode(Float64MultiArray, layout), Float64MultiArray) \
         == fill_message(Float64MultiArray(), layout)
+
+
+def test_runs_of_primitives_keep_their_padding():
+    """A PointField (uint32, uint8, uint32) packs with 3 padding bytes, as rclpy aligns it."""
+    for name in ('', 'x', 'xyz', 'rgba'):
+        values = {'header': {'stamp': STAMP, 'frame_id': name}, 'height': 1, 'width': 2,
+                  'fields': [{'name': name, 'offset': 0, 'datatype': 7, 'count': 1},
+                             {'name': 'yz', 'offset': 4, 'datatype': 8, 'count': 2}],
+                  'is_bigendian': False, 'point_step': 12, 'row_step': 24,
+                  'data': bytes(range(24)), 'is_dense': True}
+        data = cdr.encode(PointCloud2, values)
+        assert deserialize_message(data, PointCloud2) == fill_message(PointCloud2(), values)
+        assert cdr.decode(PointCloud2, data)['fields'] == values['fields']
 
 
 def test_decode_reads_rclpy_bytes_and_refuses_damaged_ones():
