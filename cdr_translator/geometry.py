@@ -16,6 +16,15 @@ PROJECTION_RANGE = 1e-3
 PROJECTION_STEPS = 4
 
 
+@jit
+def _bending_of_axis(x: float, y: float, z: float) -> Tuple[float, float]:
+    """Bending angle and direction of a joint whose distal z axis is (x, y, z) (rad)."""
+    sideways = math.hypot(x, y)
+    theta = math.atan2(sideways, z)
+    delta = math.atan2(y, x) if sideways > _STRAIGHT_TILT else 0.0
+    return theta, delta
+
+
 def bending_angle_and_direction(rotation: np.ndarray) -> Tuple[float, float]:
     """
     Bending angle theta and bending-plane direction delta of a joint (rad).
@@ -24,11 +33,27 @@ def bending_angle_and_direction(rotation: np.ndarray) -> Tuple[float, float]:
     of that tilt about the proximal z axis, measured from x (the standard continuum-joint
     parameterization, R = Rz(delta) Ry(theta) Rz(-delta) for a joint without twist).
     """
-    z_axis = rotation[:, 2]
-    sideways = math.hypot(z_axis[0], z_axis[1])
-    theta = math.atan2(sideways, z_axis[2])
-    delta = math.atan2(z_axis[1], z_axis[0]) if sideways > _STRAIGHT_TILT else 0.0
-    return theta, delta
+    x, y, z = np.asarray(rotation, dtype=float)[:, 2].tolist()
+    return _bending_of_axis(x, y, z)
+
+
+@jit
+def _bending_between_frames(frame_a: np.ndarray, frame_b: np.ndarray) -> Tuple[float, float]:
+    """``bending_between``'s work: the z axis of R_a^T R_b is R_a^T times b's z axis."""
+    axis = [frame_a[0, row] * frame_b[0, 2] + frame_a[1, row] * frame_b[1, 2]
+            + frame_a[2, row] * frame_b[2, 2] for row in range(3)]
+    return _bending_of_axis(axis[0], axis[1], axis[2])
+
+
+def bending_between(frame_a: np.ndarray, frame_b: np.ndarray) -> Tuple[float, float]:
+    """
+    Bending angle and direction of frame b relative to frame a (4x4 or 3x3; rad).
+
+    ``bending_angle_and_direction(relative_rotation(frame_a, frame_b))`` in one compiled
+    call: a SolveResult's joint angles are read once per wrench on the node's path.
+    """
+    return _bending_between_frames(np.ascontiguousarray(frame_a, dtype=float),
+                                   np.ascontiguousarray(frame_b, dtype=float))
 
 
 def rotation_angle(rotation: np.ndarray) -> float:

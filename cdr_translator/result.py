@@ -111,14 +111,12 @@ class SolveResult:
     @cached_property
     def pj_bending(self) -> tuple:
         """(bending angle, bending-plane direction) of the PJ: {pm} relative to {pe} (rad)."""
-        return geometry.bending_angle_and_direction(
-            geometry.relative_rotation(self.frames['pe'], self.frames['pm']))
+        return geometry.bending_between(self.frames['pe'], self.frames['pm'])
 
     @cached_property
     def dj_bending(self) -> tuple:
         """(bending angle, bending-plane direction) of the DJ: {de} relative to {dm} (rad)."""
-        return geometry.bending_angle_and_direction(
-            geometry.relative_rotation(self.frames['dm'], self.frames['de']))
+        return geometry.bending_between(self.frames['dm'], self.frames['de'])
 
     @property
     def end_disk_rotation(self) -> float:

@@ -11,8 +11,9 @@ type works, and turned into the Python source of a writer and a reader for that 
 (``_Source``; rosbags' serializers are generated the same way): a PoseStamped encodes in
 about 2 us and a WrenchStamped decodes in about 3 us, where walking the layout field by
 field took 5-9 and 10-19 us, and rclpy's ``deserialize_message`` 0.15-0.3 ms. Fields
-missing from a dict take their default (the .msg file's), as ``fill_message`` leaves them. Only padding bytes can differ from rclpy's output (rclpy
-leaves them uninitialized and may add a few at the end): decoded, the messages are equal.
+missing from a dict take their default (the .msg file's), as ``fill_message`` leaves them.
+Only padding bytes can differ from rclpy's output (rclpy leaves them uninitialized and may
+add a few at the end): decoded, the messages are equal.
 """
 
 import importlib
