@@ -275,17 +275,18 @@ class Problem:
         return self.inverse_apply(lu, rhs)
 
     def extrapolate(self, lu: tuple, path_xs: np.ndarray, path_wrenches: np.ndarray,
-                    wrench: np.ndarray, miss_limit: float) -> Optional[np.ndarray]:
+                    count: int, wrench: np.ndarray,
+                    miss_limit: float) -> Optional[np.ndarray]:
         """
-        Return the unknowns at ``wrench`` extrapolated from three solutions, or None.
+        Return the unknowns at ``wrench`` extrapolated from ``count`` solutions, or None.
 
-        chord.extrapolate: ``path_xs`` (3, size; nondimensional) and ``path_wrenches``
-        (3, 6; SI) along a path, oldest first, extrapolated quadratically in its length; the
-        miss corrected to first order with ``lu`` and its Broyden updates. None when
-        ``wrench`` does not continue the path.
+        chord.extrapolate: the first ``count`` (3 to chord.PATH_LENGTH) rows of ``path_xs``
+        (nondimensional) and ``path_wrenches`` (SI) along a path, oldest first, extrapolated
+        by a polynomial in its length; the miss corrected to first order with ``lu`` and its
+        Broyden updates. None when ``wrench`` does not continue the path.
         """
         out = np.empty(self.size)
-        if not chord.extrapolate(path_xs, path_wrenches, wrench, self.wrench_scale,
+        if not chord.extrapolate(path_xs, path_wrenches, count, wrench, self.wrench_scale,
                                  self._wrench_gain, self.wrench_rows, lu[0], lu[1],
                                  self._secant_updates, self._secant_steps,
                                  self._secant_count(lu), miss_limit, out):

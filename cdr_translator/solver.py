@@ -78,10 +78,11 @@ LIFT_FROM_SPACERS: Optional[int] = 2
 #: round on the same step instead of a halved step (it is converging, only slowly).
 NEARLY_CONVERGED = 1e-6
 
-#: A warm solve's whole-step predictor extrapolates the last three solutions of a sequence
-#: when their wrenches' quadratic reaches the new wrench within this fraction of the step
-#: (else: the first-order predictor alone). Along bench.speed_vs_error's sequence it cut the
-#: corrector iterations from 5.06 to 3.31 per solve.
+#: A warm solve's whole-step predictor extrapolates the last solutions of a sequence (three
+#: to chord.PATH_LENGTH) when their wrenches' polynomial reaches the new wrench within this
+#: fraction of the step (else: the first-order predictor alone). Along
+#: bench.speed_vs_error's sequence the quadratic cut the corrector iterations from 5.06 to
+#: 3.31 per solve.
 EXTRAPOLATION_MISS = 0.5
 
 
@@ -245,10 +246,10 @@ class TranslatorSolver:
                         else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
         #: the last solutions of consecutive warm solves, oldest first (unknowns, wrenches),
-        #: how many (at most 3) and the unknowns of the last (``_previous``'s while the
-        #: chain holds): the whole-step predictor extrapolates them
-        self._path_xs = np.empty((3, self.problem.size))
-        self._path_wrenches = np.empty((3, 6))
+        #: how many (at most chord.PATH_LENGTH) and the unknowns of the last
+        #: (``_previous``'s while the chain holds): the whole-step predictor extrapolates them
+        self._path_xs = np.empty((chord.PATH_LENGTH, self.problem.size))
+        self._path_wrenches = np.empty((chord.PATH_LENGTH, 6))
         self._path_count = 0
         self._path_last: Optional[np.ndarray] = None
         self._lu: Optional[tuple] = None
@@ -788,10 +789,10 @@ class TranslatorSolver:
     def _extend_path(self, xs: np.ndarray, wrench: np.ndarray, chained: bool) -> None:
         """Append a solution to the path of warm solves; without ``chained`` start a new one."""
         count = self._path_count if chained else 0
-        if count == 3:
-            self._path_xs[:2] = self._path_xs[1:]
-            self._path_wrenches[:2] = self._path_wrenches[1:]
-            count = 2
+        if count == chord.PATH_LENGTH:
+            self._path_xs[:-1] = self._path_xs[1:]
+            self._path_wrenches[:-1] = self._path_wrenches[1:]
+            count -= 1
         self._path_xs[count] = xs
         self._path_wrenches[count] = wrench
         self._path_count, self._path_last = count + 1, xs
@@ -799,17 +800,17 @@ class TranslatorSolver:
     def _extrapolated(self, xs: np.ndarray, wrench: np.ndarray,
                       lu: tuple) -> Optional[np.ndarray]:
         """
-        Predict the solution at ``wrench`` from the last three of a warm sequence, or None.
+        Predict the solution at ``wrench`` from the last solutions of a warm sequence, or None.
 
         Problem.extrapolate (chord.extrapolate) from the path of warm solves when it holds
-        three solutions and ends at ``xs``; None else or when ``wrench`` does not continue
-        the path (its quadratic misses ``wrench`` by more than EXTRAPOLATION_MISS of the
-        step).
+        three solutions or more and ends at ``xs``; None else or when ``wrench`` does not
+        continue the path (its polynomial misses ``wrench`` by more than EXTRAPOLATION_MISS
+        of the step).
         """
         if self._path_count < 3 or self._path_last is not xs:
             return None
-        return self.problem.extrapolate(lu, self._path_xs, self._path_wrenches, wrench,
-                                        EXTRAPOLATION_MISS)
+        return self.problem.extrapolate(lu, self._path_xs, self._path_wrenches,
+                                        self._path_count, wrench, EXTRAPOLATION_MISS)
 
     def _track(self, stalled: _Outcome, wrench: np.ndarray, deadline: float) -> _Outcome:
         """

@@ -96,10 +96,48 @@ def test_extrapolation_is_exact_on_a_quadratic_path(factorized):
     path_xs = np.array([a + b * t + c * t * t for t in times])
     path_wrenches = np.array([start + t * direction for t in times])
     out = np.empty(40)
-    assert chord.extrapolate(path_xs, path_wrenches, start + 0.5 * direction, scale,
+    assert chord.extrapolate(path_xs, path_wrenches, 3, start + 0.5 * direction, scale,
                              np.ones(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
                              np.empty((1, 40)), 0, 0.5, out)
     assert np.allclose(out, a + 0.5 * b + 0.25 * c, rtol=0, atol=1e-12)
+
+
+def test_five_solutions_extrapolate_a_quartic_path_exactly(factorized):
+    """A straight path lands every degree on the wrench: the highest (4) is used, exact."""
+    _, (lu, pivots) = factorized
+    rng = np.random.default_rng(12)
+    coefficients = rng.normal(size=(5, 40))
+    start, direction = rng.normal(size=6), rng.normal(size=6)
+    scale = np.array([2.0, 2.0, 2.0, 0.5, 0.5, 0.5])
+    direction /= np.linalg.norm(direction / scale)
+    times = np.array([-1.3, -0.9, -0.7, -0.3, 0.0])
+    path_xs = np.array([sum(c * t ** power for power, c in enumerate(coefficients))
+                        for t in times])
+    path_wrenches = np.array([start + t * direction for t in times])
+    out = np.empty(40)
+    assert chord.extrapolate(path_xs, path_wrenches, 5, start + 0.4 * direction, scale,
+                             np.ones(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
+                             np.empty((1, 40)), 0, 0.5, out)
+    expected = sum(c * 0.4 ** power for power, c in enumerate(coefficients))
+    assert np.allclose(out, expected, rtol=0, atol=1e-10)
+
+
+def test_scattered_older_wrenches_fall_back_to_a_lower_degree(factorized):
+    """Older solutions off the path miss the wrench: the quadratic of the last three is used."""
+    _, (lu, pivots) = factorized
+    rng = np.random.default_rng(13)
+    a, b, c = rng.normal(size=(3, 40))
+    direction = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    times = np.array([-1.2, -0.9, -0.6, -0.3, 0.0])
+    path_wrenches = np.array([t * direction for t in times])
+    path_wrenches[0, 1], path_wrenches[1, 1] = 0.2, -0.15  # the two oldest off the line
+    path_xs = np.array([a + b * t + c * t * t for t in times])
+    path_xs[:2] += 5.0  # and their unknowns: using them would show
+    out = np.empty(40)
+    assert chord.extrapolate(path_xs, path_wrenches, 5, 0.3 * direction, np.ones(6),
+                             np.zeros(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
+                             np.empty((1, 40)), 0, 10.0, out)
+    assert np.allclose(out, a + 0.3 * b + 0.09 * c, rtol=0, atol=1e-12)
 
 
 def test_a_wrench_off_the_path_is_not_extrapolated(factorized):
@@ -110,10 +148,11 @@ def test_a_wrench_off_the_path_is_not_extrapolated(factorized):
     out = np.empty(40)
     arguments = (np.ones(6), np.ones(6), np.arange(34, 40), lu, pivots, np.empty((1, 40)),
                  np.empty((1, 40)), 0, 0.5, out)
-    assert chord.extrapolate(path_xs, path_wrenches, np.array([3.0] + [0.0] * 5), *arguments)
-    assert not chord.extrapolate(path_xs, path_wrenches, np.array([2.0, 1.0, 0, 0, 0, 0]),
+    assert chord.extrapolate(path_xs, path_wrenches, 3, np.array([3.0] + [0.0] * 5),
+                             *arguments)
+    assert not chord.extrapolate(path_xs, path_wrenches, 3, np.array([2.0, 1.0, 0, 0, 0, 0]),
                                  *arguments)  # turned by 90 degrees: misses by the step
-    assert not chord.extrapolate(path_xs, path_wrenches, np.array([7.0] + [0.0] * 5),
+    assert not chord.extrapolate(path_xs, path_wrenches, 3, np.array([7.0] + [0.0] * 5),
                                  *arguments)  # more than twice the path's length ahead
 
 
