@@ -35,7 +35,7 @@ import signal
 import sys
 import tempfile
 import time
-from typing import List
+from typing import List, Tuple
 
 from cdr_translator.interface import messages
 from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, MODULE_COMMAND
@@ -93,7 +93,7 @@ def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) 
     stamps = stream(client, rate_hz, seconds)
     last = stamps[-1]
     answered = client.wait_for(
-        lambda: client.messages_stamped(messages.DIAGNOSTICS_TOPIC, last), 30.0)
+        lambda: bool(client.messages_stamped(messages.DIAGNOSTICS_TOPIC, last)), 30.0)
     time.sleep(0.2)
     cpu = cpu_seconds(pid) - cpu_before
     poses = client.received[messages.END_DISK_POSE_TOPIC][before:]
@@ -124,7 +124,8 @@ def main() -> None:
     args = parser.parse_args()
     env = isolated_ros_env()
     os.environ.update(env)
-    node_env, command, checkout = dict(env), MODULE_COMMAND, None
+    node_env, checkout = dict(env), None
+    command: Tuple[str, ...] = MODULE_COMMAND
     if args.node_python:
         node_env.pop('PYTHONPATH', None)
         command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout

@@ -22,7 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from typing import Dict, List, Sequence, Tuple
+from typing import Any, Dict, List, Sequence, Tuple
 
 from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
@@ -75,7 +75,7 @@ def main() -> None:
                         help='every N-th wrench is solvable, the others rejected; default 100')
     args = parser.parse_args()
     work = Path(args.work or tempfile.mkdtemp(prefix='replay_memory_'))
-    rows: List[Dict[str, object]] = []
+    rows: List[Dict[str, Any]] = []
     for count in args.counts:
         source = work / f'wrenches_{count}.mcap'
         started = time.perf_counter()
@@ -107,7 +107,7 @@ def main() -> None:
         lines.append(f'| {row["tool"]} | {row["count"]:,} | {int(row["size"]) / 1e6:.1f} | '
                      f'{row["rss"]:.1f} | {row["wall"]:.1f} | {row["code"]} |')
     for tool in ('info', 'replay'):
-        measured = sorted((int(row['count']), float(row['rss'])) for row in rows  # type: ignore
+        measured = sorted((int(row['count']), float(row['rss'])) for row in rows
                           if row['tool'] == tool)
         if len(measured) >= 2:
             growth = measured[-1][1] - measured[0][1]

@@ -19,6 +19,7 @@ reads; ``--skip-validation`` keeps the file as it is).
 import argparse
 from dataclasses import dataclass, field
 import datetime
+import functools
 import json
 import math
 import os
@@ -28,12 +29,14 @@ import signal
 import statistics
 import tempfile
 import time
-from typing import Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional
 
 from cdr_translator import TranslatorParams, TranslatorSolver
+from cdr_translator.compliance import ComplianceAnalysis
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
 from cdr_translator.fidelity import validation
 from cdr_translator.fidelity.reduced import ROD_STEPS
+from cdr_translator.result import SolveResult
 from cdr_translator.studies import fidelity_validation
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 from matplotlib.figure import Figure
@@ -73,12 +76,17 @@ class Row:
     level: str
     setting: str
     unknowns: str
-    make: Callable[[], object]
-    sequence_setup: Optional[Callable[[object, np.ndarray], None]] = None
+    make: Callable[[], FidelitySolver]
+    sequence_setup: Optional[Callable[[FidelitySolver, np.ndarray], object]] = None
     spacers: int = 1  # the structure whose reference the errors are measured against
     label: str = ''  # short name on the plot
     static: Dict[str, dict] = field(default_factory=dict)
     sequence: dict = field(default_factory=dict)
+
+
+def _maker(params: TranslatorParams, **options: Any) -> Callable[[], FidelitySolver]:
+    """Return a factory of ``FidelitySolver(params, **options)``."""
+    return functools.partial(FidelitySolver, params, **options)
 
 
 def rows(params: TranslatorParams) -> List[Row]:
@@ -86,33 +94,31 @@ def rows(params: TranslatorParams) -> List[Row]:
     result = []
     for steps in (2, 4, 8, 16):
         result.append(Row('full', f'{steps} steps' + (' (default)' if steps == 8 else ''), '90',
-                          lambda s=steps: FidelitySolver(
-                              params.with_changes(steps_per_segment=s), fidelity='full'),
+                          _maker(params.with_changes(steps_per_segment=steps), fidelity='full'),
                           label=f'full {steps}'))
     result.append(Row('full', "8 steps, tolerance 1e-6 (about the paper's)", '90',
-                      lambda: FidelitySolver(params, fidelity='full', tolerance=1e-6),
+                      _maker(params, fidelity='full', tolerance=1e-6),
                       label='full 8, tol 1e-6'))
     for spacers in (2, 3):
         result.append(Row('full', f'{spacers} spacer disks per joint, 8 steps (longer joints: '
                           'errors against its own reference)', str(30 + 20 * (2 * spacers + 1)),
-                          lambda n=spacers: FidelitySolver(
-                              params.with_changes(spacers_per_joint=n), fidelity='full'),
+                          _maker(params.with_changes(spacers_per_joint=spacers),
+                                 fidelity='full'),
                           spacers=spacers, label=f'full S={spacers}'))
     for steps in (1, 2, 4):
         result.append(Row('rod', f'{steps} steps per interval' + (
             ' (default)' if steps == ROD_STEPS else ''), '7',
-            lambda s=steps: FidelitySolver(params, fidelity='rod', rod_steps=s),
-            label=f'rod {steps}'))
-    result.append(Row('cc', 'one arc per joint', '8',
-                      lambda: FidelitySolver(params, fidelity='cc'), label='cc'))
+            _maker(params, fidelity='rod', rod_steps=steps), label=f'rod {steps}'))
+    result.append(Row('cc', 'one arc per joint', '8', _maker(params, fidelity='cc'),
+                      label='cc'))
     result.append(Row('linear', "about the unloaded state / the sequence's first sample",
                       '0', _linear_solver(params),
                       lambda solver, first: solver.cache_full_solution(first),
                       label='linear'))
     for position, angle in BUDGETS:
         result.append(Row('auto', f'budget {1e3 * position:g} mm, {angle:g} deg', '-',
-                          lambda p=position, a=angle: FidelitySolver(
-                              params, max_position_error=p, max_angle_error_deg=a),
+                          _maker(params, max_position_error=position,
+                                 max_angle_error_deg=angle),
                           label=f'auto {1e3 * position:g} mm'))
     return result
 
@@ -146,8 +152,8 @@ def timed_solve(solver, wrench: np.ndarray, **options):
 def measure_static(row: Row, references: dict, repeats: int) -> None:
     """Cold solves of every scene: median time and errors."""
     solver = row.make()
-    for name, wrench in SCENES.items():
-        wrench = np.array(wrench)
+    for name, scene in SCENES.items():
+        wrench = np.array(scene)
         times = []
         for _ in range(repeats):
             if row.level != 'linear':
@@ -165,7 +171,8 @@ def measure_sequence(row: Row, sequence: np.ndarray, expected: list) -> None:
     solver = row.make()
     if row.sequence_setup is not None:
         row.sequence_setup(solver, sequence[0])
-    times, positions, angles, used = [], [], [], {}
+    times, positions, angles = [], [], []
+    used: Dict[str, int] = {}
     for wrench, reference in zip(sequence, expected):
         result, elapsed = timed_solve(solver, wrench)
         times.append(elapsed)
@@ -197,6 +204,13 @@ def paper_baseline(params: TranslatorParams, references: dict) -> dict:
     return measured
 
 
+def _compliance(result: SolveResult) -> ComplianceAnalysis:
+    """Return the compliance a solve with ``compliance=True`` computed (RuntimeError if none)."""
+    if result.compliance is None:
+        raise RuntimeError(f'no compliance: {result.message}')
+    return result.compliance
+
+
 def compliance_costs(params: TranslatorParams, sequence: np.ndarray) -> dict:
     """Cost of C: implicit after a cold and along warm solves, finite differences, reduced."""
     solver = TranslatorSolver(params)
@@ -217,7 +231,7 @@ def compliance_costs(params: TranslatorParams, sequence: np.ndarray) -> dict:
     reduced = {}
     for level in ('cc', 'rod'):
         model = FidelitySolver(params, fidelity=level)
-        times = [model.solve(w[:3], w[3:], compliance=True).compliance.time_s
+        times = [_compliance(model.solve(w[:3], w[3:], compliance=True)).time_s
                  for w in sequence[:100]]
         reduced[level] = statistics.median(times)
     tangent = FidelitySolver(params, fidelity='linear')
@@ -250,7 +264,7 @@ def node_rate(seconds: float = 3.0, rate_hz: float = 1000.0) -> dict:
             try:
                 if not client.handshake(120.0):
                     return {'error': f'node did not answer: {node.text()[-500:]}'}
-                row = measure(client, rate_hz, seconds)
+                row = measure(client, rate_hz, seconds, node.process.pid)
                 node.stop(signal.SIGINT)
             finally:
                 client.close()
@@ -471,10 +485,11 @@ def main() -> None:
     args = parser.parse_args()
     started = time.perf_counter()
     params = TranslatorParams.from_yaml()
-    report = {'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
-              'machine': f'{platform.machine()}, {os.cpu_count()} cores, Python '
-                         f'{platform.python_version()}',
-              'load_before': ', '.join(f'{v:.1f}' for v in os.getloadavg())}
+    report: Dict[str, Any] = {
+        'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
+        'machine': f'{platform.machine()}, {os.cpu_count()} cores, Python '
+                   f'{platform.python_version()}',
+        'load_before': ', '.join(f'{v:.1f}' for v in os.getloadavg())}
     if not args.skip_validation:
         print('validating the reduced levels against the reference ...', flush=True)
         data = fidelity_validation.validate(params, FidelitySolver(params).rod_steps)

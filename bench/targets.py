@@ -31,7 +31,7 @@ from pathlib import Path
 import platform
 import statistics
 import time
-from typing import Callable, Dict, List
+from typing import Any, Callable, Dict, List
 
 from bench.delta_statics import COLD_CASES, cold_solves, warm_solves
 from bench.speed_vs_error import wrench_sequence
@@ -245,9 +245,10 @@ def main() -> None:
     warm = warm_sequences(solvers, sequence)
     cold = cold_cases(solvers)
     three = spacers(params, 3, sequence)
-    rows = {name: {'warm': warm[name], 'cold': cold[name],
-                   'compliance': compliance_time(solver, sequence),
-                   'spacers3': three[name]} for name, solver in solvers.items()}
+    rows: Dict[str, Dict[str, Any]] = {
+        name: {'warm': warm[name], 'cold': cold[name],
+               'compliance': compliance_time(solver, sequence), 'spacers3': three[name]}
+        for name, solver in solvers.items()}
     cdr = cdr_times()
     paper = None if args.skip_paper else paper_baseline(params)
     slope = spacer_slope(params) if args.spacers_slope else None

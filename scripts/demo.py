@@ -20,7 +20,7 @@ from pathlib import Path
 import signal
 import sys
 import time
-from typing import List, Sequence, Tuple
+from typing import Any, Dict, List, Sequence, Tuple
 
 from cdr_translator.interface import messages
 from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
@@ -74,7 +74,7 @@ def percentiles_ms(values_ms: Sequence[float]) -> str:
 
 def summary(recorded: Path, latencies_ms: Sequence[float]) -> List[Tuple[str, str]]:
     """Return the (name, value) rows describing the recorded run."""
-    by_topic = {}
+    by_topic: Dict[str, List[Any]] = {}
     for message in read_ros2_messages(str(recorded)):
         by_topic.setdefault(message.channel.topic, []).append(message.ros_msg)
     rows = [(f'messages {topic}', str(len(found))) for topic, found in sorted(by_topic.items())]
@@ -124,8 +124,8 @@ def main() -> int:
                 print(f'playing {bag.name}: {len(wrenches)} wrenches over '
                       f'{(wrenches[-1][0] - wrenches[0][0]) * 1e-9 / args.speed:.2f} s')
                 stamps += play(client, wrenches, args.speed)
-            answered = client.wait_for(lambda: client.messages_stamped(
-                messages.DIAGNOSTICS_TOPIC, stamps[-1]), ANSWER_TIMEOUT_S)
+            answered = client.wait_for(lambda: bool(client.messages_stamped(
+                messages.DIAGNOSTICS_TOPIC, stamps[-1])), ANSWER_TIMEOUT_S)
             played = {(stamp['sec'], stamp['nanosec']) for stamp in stamps}
             latencies_ms = [1e-6 * (received - messages.stamp_to_ns(pose.header.stamp))
                             for pose, received in client.received[messages.END_DISK_POSE_TOPIC]
