@@ -60,6 +60,10 @@ LOG_CHECK_PERIOD_S = 1.0
 #: (s): a count costs 10-15 us, and a node publishes several outputs per input at 1 kHz.
 SUBSCRIBERS_REFRESH_S = 0.05
 
+#: How long a thread that wants the GIL waits before the running one is asked to drop it
+#: (CPython's default is 5 ms): the executor's wrench callback behind a busy solver thread.
+GIL_SWITCH_INTERVAL_S = 0.0005
+
 
 class SubscriberCounts:
     """
@@ -350,6 +354,7 @@ def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] =
         rclpy.try_shutdown()
         return 2
     freeze_heap()
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     executor = EventsExecutor()
     executor.add_node(node)
     try:

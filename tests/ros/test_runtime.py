@@ -2,6 +2,7 @@
 
 import gc
 import os
+import sys
 import threading
 import time
 import weakref
@@ -19,6 +20,8 @@ from mcap_ros2.reader import read_ros2_messages
 from msg_tools.errors import LogFileBusyError, LogFileExistsError
 from msg_tools.reader import McapSource
 import pytest
+import rclpy
+from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from visualization_msgs.msg import MarkerArray
 
@@ -176,3 +179,44 @@ def test_freeze_heap_keeps_later_garbage_collectable():
         assert probe() is None
     finally:
         gc.unfreeze()
+
+
+def test_run_spins_with_a_short_gil_switch_interval(monkeypatch):
+    """
+    run() lowers CPython's GIL switch interval (5 ms) before it spins.
+
+    Behind a busy solver thread the executor's wrench callback waits that long for the GIL.
+    """
+    seen = []
+
+    class Executor:
+        """Records the interval at the first spin, then ends the run as SIGINT would."""
+
+        def add_node(self, node):
+            pass
+
+        def spin_once(self, timeout_sec):
+            seen.append(sys.getswitchinterval())
+            rclpy.try_shutdown()
+
+        def shutdown(self):
+            pass
+
+    class QuietNode(Node):
+        """A node with the close() that run() calls."""
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(runtime, 'EventsExecutor', Executor)
+    monkeypatch.setattr(runtime, 'freeze_heap', lambda: None)
+    monkeypatch.setattr(runtime.signal, 'signal', lambda *_: None)
+    before = sys.getswitchinterval()
+    try:
+        code = runtime.run(lambda ros_arguments: QuietNode('switch_interval_probe'), 'probe',
+                           [])
+    finally:
+        sys.setswitchinterval(before)
+    assert code == 0
+    assert seen == [pytest.approx(runtime.GIL_SWITCH_INTERVAL_S)]
+    assert runtime.GIL_SWITCH_INTERVAL_S < before
