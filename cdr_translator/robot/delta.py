@@ -693,14 +693,11 @@ class DeltaRobot:
                 iteration += 1
                 continue
             state, residual, contraction, step = trial
-            if fresh:
-                chord_steps, chord_log = 0, 0.0
-            else:
-                chord_steps, chord_log, rebuild = chord_verdict(
-                    contraction, step_size, chord_steps, chord_log, SLOW_CHORD, CHORD_RATE,
-                    CHORD_FLOOR, CHORD_LIMIT)
-                if rebuild:
-                    factorization, step = None, None  # chord steps converge too slowly
+            chord_steps, chord_log, rebuild = chord_verdict(
+                fresh, contraction, step_size, chord_steps, chord_log, SLOW_CHORD, CHORD_RATE,
+                CHORD_FLOOR, CHORD_LIMIT)
+            if rebuild:
+                factorization, step = None, None  # chord steps converge too slowly
             fresh = False
             if not coupled and step_size * contraction < COUPLE_WITHIN \
                     and not self._converged(residual, state):

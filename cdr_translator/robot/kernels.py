@@ -294,10 +294,12 @@ def secant_update(updates, steps, count, taken, change, correction):
 
 
 @jit
-def chord_verdict(contraction, step_size, chord_steps, chord_log, slow_chord, chord_rate,
-                  chord_floor, chord_limit):
+def chord_verdict(fresh, contraction, step_size, chord_steps, chord_log, slow_chord,
+                  chord_rate, chord_floor, chord_limit):
     """
     Count a chord step that contracted by ``contraction``; say whether to rebuild.
+
+    A step on a ``fresh`` factorization starts the count over (and never rebuilds).
 
     Chord steps contract erratically (the iteration matrix is far from normal: 0.15, 0.01,
     0.35 in a row is typical along the slider circle): their geometric mean is judged, and
@@ -305,6 +307,8 @@ def chord_verdict(contraction, step_size, chord_steps, chord_log, slow_chord, ch
     that the contractions are the shots' rounding (``chord_floor``), and not more than
     ``chord_limit`` steps. Returns (chord steps, sum of log contractions, rebuild).
     """
+    if fresh:
+        return 0, 0.0, False
     chord_steps += 1
     chord_log += math.log(max(contraction, 1e-300))
     slow = contraction > slow_chord or chord_log > chord_steps * math.log(chord_rate)
@@ -413,15 +417,12 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
         leg_error = trial_error
         if has_step:
             step[:] = simplified
-        if fresh:
-            chord_steps, chord_log = 0, 0.0
-        else:
-            chord_steps, chord_log, rebuild = chord_verdict(
-                contraction, step_size, chord_steps, chord_log, slow_chord, chord_rate,
-                chord_floor, chord_limit)
-            if rebuild:
-                return (REBUILD, done + 1, shots, leg_error, count, chord_steps, chord_log,
-                        False, False, moved)
+        chord_steps, chord_log, rebuild = chord_verdict(
+            fresh, contraction, step_size, chord_steps, chord_log, slow_chord, chord_rate,
+            chord_floor, chord_limit)
+        if rebuild:
+            return (REBUILD, done + 1, shots, leg_error, count, chord_steps, chord_log,
+                    False, False, moved)
         fresh = False
     return (OUT_OF_BUDGET, allowed, shots, leg_error, count, chord_steps, chord_log, has_step,
             fresh, moved)

@@ -16,6 +16,7 @@ Only padding bytes can differ from rclpy's output (rclpy leaves them uninitializ
 add a few at the end): decoded, the messages are equal.
 """
 
+import abc
 import importlib
 import struct
 from typing import Any, Callable, Dict, List, Mapping, Tuple
@@ -146,7 +147,7 @@ def _read_bytes(data: bytes, offset: int) -> Tuple[bytes, int]:
     return bytes(data[offset:offset + count]), offset + count
 
 
-class _Source:
+class _Source(abc.ABC):
     """
     The Python source of one message type's writer or reader, built from its plan.
 
@@ -195,9 +196,9 @@ class _Source:
                           [payload for code, payload in self._run if code[-1] != 'x'])
             self._run = []
 
+    @abc.abstractmethod
     def emit_run(self, alignment: int, size: int, packer: str, payloads: List[str]) -> None:
         """Emit the statements of one run (the writer's or the reader's)."""
-        raise NotImplementedError
 
     def function(self, name: str, arguments: str, result: str) -> Callable:
         """Compile the collected lines into a function returning ``result``."""
