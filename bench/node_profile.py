@@ -143,6 +143,10 @@ def install(out: Path) -> None:
     if hasattr(translator_node, 'cdr'):
         make_encoder = cdr.encoder
         cdr.encoder = lambda message_class: timed('encode', make_encoder(message_class))
+    if hasattr(cdr, 'decoder'):  # a decoder bound at start (wrapped above: cdr.decode)
+        make_decoder = cdr.decoder
+        setattr(cdr, 'decoder',  # noqa: B010 - replaced for the profile
+                lambda message_class: timed('decode', make_decoder(message_class)))
     for name in ('pose_message', 'joint_state_message', 'diagnostics_message',
                  'solve_diagnostic_values', 'compliance_eigenvalues_message',
                  'compliance_message'):

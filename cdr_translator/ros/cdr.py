@@ -360,8 +360,17 @@ def encoder(message_class: type) -> Callable[[Mapping[str, Any]], bytes]:
     return encode_one
 
 
+def decoder(message_class: type) -> Callable[[bytes], Dict[str, Any]]:
+    """Return ``decode`` bound to one message class (its layout read and its reader built now)."""
+    read = _reader(plan(message_class))
+
+    def decode_one(data: bytes) -> Dict[str, Any]:
+        if len(data) < 4 or data[:2] != HEADER[:2]:
+            raise ValueError(f'not little-endian plain CDR: header {bytes(data[:4])!r}')
+        return read(data, 4)[0]
+    return decode_one
+
+
 def decode(message_class: type, data: bytes) -> Dict[str, Any]:
     """Return the nested dict of a ``message_class`` message from its CDR bytes."""
-    if len(data) < 4 or data[:2] != HEADER[:2]:
-        raise ValueError(f'not little-endian plain CDR: header {bytes(data[:4])!r}')
-    return _reader(plan(message_class))(data, 4)[0]
+    return decoder(message_class)(data)
