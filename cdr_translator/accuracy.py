@@ -65,12 +65,12 @@ def estimate(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarra
 
     ``lu`` and ``pose`` (the solve's factorization and end-disk pose derivative) add the
     solution's end-disk pose change; without them only the fixed-x part is estimated.
-    One compiled call (``_estimate``): the comparison shot and both measures.
+    One compiled call (``estimate_kernel``): the comparison shot and both measures.
     """
     steps = problem.params.steps_per_segment
     with_solution = lu is not None and pose is not None
     factors, pivots = lu if lu is not None else (_NO_FACTORS, _NO_PIVOTS)
-    position, angle, other = _estimate(
+    position, angle, other = estimate_kernel(
         xs, wrench, problem.x_scale, problem.residual_scale, problem.residual_kind,
         problem.model_args, rs, frames, factors, pivots,
         pose if pose is not None else _NO_POSE, with_solution)
@@ -84,8 +84,8 @@ _NO_POSE = np.empty((12, 0))
 
 
 @jit
-def _estimate(xs, wrench, x_scale, residual_scale, kind, model_args, rs, frames, factors,
-              pivots, pose, with_solution):
+def estimate_kernel(xs, wrench, x_scale, residual_scale, kind, model_args, rs, frames,
+                    factors, pivots, pose, with_solution):
     """Return (position, angle, comparison steps) of ``estimate`` (see the module docstring)."""
     pitch_radius, spacing, tube_length, spacers, steps, inv_kse, inv_kbt = model_args
     size = xs.shape[0]

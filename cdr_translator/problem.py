@@ -89,6 +89,10 @@ class Problem:
         self.wrench_sensitivity[self.wrench_rows, np.arange(6)] = \
             1.0 / self.residual_scale[self.wrench_rows]
         self._wrench_gain = self.wrench_sensitivity[self.wrench_rows, np.arange(6)]
+        #: x_scale over residual_scale, and wrench_scale over the wrench's gain on its rows
+        #: (the diagonal of wrench_sensitivity there): as compiled callers take them
+        self.scales = np.stack([self.x_scale, self.residual_scale])
+        self.wrench_factors = np.stack([self.wrench_scale, self._wrench_gain])
         #: node states of multiple shooting (lifted.py): one per disk interval after the first
         self.node_count = model.interval_count(spacers) - 1
         node_scale = np.empty(model.STATE_SIZE)
@@ -115,12 +119,12 @@ class Problem:
         self.pose_jacobian: Optional[np.ndarray] = None
         rows = model.grid_points_per_rod(spacers, params.steps_per_segment)
         #: two shape buffers (centre lines, frames) that chord_newton's shots alternate on
-        self._shape_points = np.empty((2, model.N_RODS, rows, 3))
-        self._shape_frames = np.empty((2, 4, 4, 4))
+        self.shape_points = np.empty((2, model.N_RODS, rows, 3))
+        self.shape_frames = np.empty((2, 4, 4, 4))
         #: Broyden updates (chord.broyden_apply's u_i and s_i) on the factorization they
         #: were gathered on, and how many: (factorization or None, count)
-        self._secant_updates = np.empty((MAX_SECANT_UPDATES, self.size))
-        self._secant_steps = np.empty((MAX_SECANT_UPDATES, self.size))
+        self.secant_updates = np.empty((MAX_SECANT_UPDATES, self.size))
+        self.secant_steps = np.empty((MAX_SECANT_UPDATES, self.size))
         self._secant: Tuple[Optional[tuple], int] = (None, 0)
 
     @property
@@ -237,7 +241,7 @@ class Problem:
         """Nondimensional residual at ``xs``; its shape goes to slot 0 (``recorded_shape``)."""
         out = np.empty(self.size)
         self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
-                                        self._shape_points[0], self._shape_frames[0])
+                                        self.shape_points[0], self.shape_frames[0])
         return out / self.residual_scale
 
     def chord_newton(self, xs: np.ndarray, rs: np.ndarray, wrench: np.ndarray, lu: tuple,
@@ -254,12 +258,12 @@ class Problem:
         are kept for the next call on the same factorization (``inverse_apply``). Returns
         (status, iterations, residual norm, slot); status is one of chord's codes.
         """
-        count = self._secant_count(lu)
+        count = self.secant_count(lu)
         status, done, norm, slot, count = chord.chord_iterations(
             xs, rs, wrench, self.x_scale, self.residual_scale, self._args, lu[0], lu[1],
-            self._secant_updates, self._secant_steps, count, fresh, tolerance, max_iterations,
-            chord_rate, self._shape_points, self._shape_frames, slot, shoot)
-        self._secant = (lu, int(count))
+            self.secant_updates, self.secant_steps, count, fresh, tolerance, max_iterations,
+            chord_rate, self.shape_points, self.shape_frames, slot, shoot)
+        self.keep_secant_count(lu, int(count))
         return int(status), int(done), float(norm), int(slot)
 
     def wrench_response(self, lu: tuple, change: np.ndarray) -> np.ndarray:
@@ -288,26 +292,30 @@ class Problem:
         out = np.empty(self.size)
         if not chord.extrapolate(path_xs, path_wrenches, count, wrench, self.wrench_scale,
                                  self._wrench_gain, self.wrench_rows, lu[0], lu[1],
-                                 self._secant_updates, self._secant_steps,
-                                 self._secant_count(lu), miss_limit, out):
+                                 self.secant_updates, self.secant_steps,
+                                 self.secant_count(lu), miss_limit, out):
             return None
         return out
 
     def inverse_apply(self, lu: tuple, rhs: np.ndarray) -> np.ndarray:
         """Return J^-1 rhs for the factorization ``lu`` and its Broyden updates so far."""
         out = np.empty(self.size)
-        chord.broyden_apply(lu[0], lu[1], self._secant_updates, self._secant_steps,
-                            self._secant_count(lu), np.ascontiguousarray(rhs, dtype=float), out)
+        chord.broyden_apply(lu[0], lu[1], self.secant_updates, self.secant_steps,
+                            self.secant_count(lu), np.ascontiguousarray(rhs, dtype=float), out)
         return out
 
-    def _secant_count(self, lu: tuple) -> int:
+    def secant_count(self, lu: tuple) -> int:
         """Return the Broyden updates valid on ``lu``: none for another factorization."""
         bound, count = self._secant
         return count if bound is lu else 0
 
+    def keep_secant_count(self, lu: tuple, count: int) -> None:
+        """Record that the first ``count`` rows of the Broyden updates belong to ``lu``."""
+        self._secant = (lu, count)
+
     def recorded_shape(self, slot: int) -> Tuple[np.ndarray, np.ndarray]:
         """Return copies of the centre lines (5, rows, 3) and frames (4, 4, 4) in ``slot``."""
-        return self._shape_points[slot].copy(), self._shape_frames[slot].copy()
+        return self.shape_points[slot].copy(), self.shape_frames[slot].copy()
 
     def shot_with_steps(self, xs: np.ndarray, wrench: np.ndarray,
                         steps: int) -> Tuple[np.ndarray, np.ndarray]:

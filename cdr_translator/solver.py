@@ -31,6 +31,7 @@ from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
 from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
 from .verify import verify as verify_result
+from .warm_step import settings_array as warm_step_settings, warm_step
 
 METHODS = ('fast', 'paper')
 
@@ -103,6 +104,10 @@ class _Outcome:
     reached: Optional[Tuple[np.ndarray, np.ndarray]] = None
     #: (the unknowns it belongs to, centre lines, frames) recorded by the last shot, if any
     shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+    #: the error estimate and largest residuals by kind, when the iteration made them
+    #: (warm_step.py); None: computed from the rest
+    estimate: Optional[ErrorEstimate] = None
+    residual_by_kind: Optional[dict] = None
 
 
 #: A lifted Newton state: unknowns, their nodes (SI), a factorization made on the way (or
@@ -279,6 +284,9 @@ class TranslatorSolver:
         #: the refinement of an earlier one; None: this solver's own (``_solve_kept``)
         self._kept: Optional[int] = None
         self._last_estimate: Optional[ErrorEstimate] = None
+        #: warm_step's settings array and the (tolerance, max_iterations) it was made for
+        self._warm_settings_array = np.empty(0)
+        self._warm_settings_for: Optional[Tuple[float, int]] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -401,10 +409,16 @@ class TranslatorSolver:
         warm = warm_start and self._previous is not None and bool(self._previous[1].any())
         begin = self._previous[0] if warm and self._previous is not None else None
         with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
-            if self.path == 'tracking' and self.method == 'fast':
+            usual, spent = (self._warm_step(wrench, deadline)
+                            if warm and self.method == 'fast' and self.path != 'tracking'
+                            else (None, 0))
+            if usual is not None:
+                outcome = usual
+            elif self.path == 'tracking' and self.method == 'fast':
                 outcome = self._track_only(wrench, warm, deadline)
             else:
                 outcome = self._continuation(wrench, warm_start, deadline, corrector)
+            outcome.iterations += spent
             # a warm sequence the default continuation followed (the paper's baseline and
             # the tracking path keep their first-order predictor): the path extrapolated
             continued = outcome.converged and self.path != 'tracking' and self.method == 'fast'
@@ -468,16 +482,24 @@ class TranslatorSolver:
     def _estimate_error(self, result: SolveResult, outcome: _Outcome,
                         wrench: np.ndarray) -> None:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
-        pose = outcome.pose[0] if outcome.pose is not None else None
-        frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
-                  else np.stack([result.frames[name] for name in FRAME_NAMES]))
-        estimate = estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
-                                  outcome.lu, pose)
+        if outcome.estimate is not None:
+            estimate = outcome.estimate
+        else:
+            estimate = self._estimate_at(outcome, result, wrench)
         result.error_estimate_m = estimate.position_m
         result.error_estimate_deg = estimate.angle_deg
         target = self.accuracy
         result.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
         self._last_estimate = estimate
+
+    def _estimate_at(self, outcome: _Outcome, result: SolveResult,
+                     wrench: np.ndarray) -> ErrorEstimate:
+        """Estimate the error of a converged outcome (accuracy.estimate)."""
+        pose = outcome.pose[0] if outcome.pose is not None else None
+        frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
+                  else np.stack([result.frames[name] for name in FRAME_NAMES]))
+        return estimate_error(self.problem, outcome.xs, wrench, outcome.rs, frames,
+                              outcome.lu, pose)
 
     def _refine(self, result: SolveResult, estimate: ErrorEstimate,
                 source: 'TranslatorSolver', wrench: np.ndarray, deadline: float,
@@ -661,6 +683,7 @@ class TranslatorSolver:
             warnings.simplefilter('ignore', LinAlgWarning)
             lu = lu_factor(jac, check_finite=False)
         outcome.lu, outcome.pose = lu, (pose.copy(), wrench.copy())
+        outcome.estimate = None  # made on the stale factorization: redone on this one
         self._lu, self._pose = outcome.lu, outcome.pose
         self._exact_at = outcome.xs
         return stability.assess(lu, pose, rotation, problem.wrench_sensitivity, self._origin())
@@ -785,6 +808,51 @@ class TranslatorSolver:
             raise RuntimeError('continuation made no step')
         outcome.iterations = iterations
         return outcome
+
+    def _warm_step(self, wrench: np.ndarray, deadline: float) -> Tuple[Optional[_Outcome], int]:
+        """
+        Solve the usual warm case in one compiled call (warm_step.py); None if not usual.
+
+        Applies when the previous solution ends a path of at least three warm solves and has
+        a stored exact factorization: then the path's extrapolation, the chord steps on that
+        factorization and the error estimate are one call. When the chord steps stall it
+        goes on as ``_newton`` would (a fresh Jacobian at the iterate); when that fails too,
+        or the wrench does not continue the path or lies too far ahead, it returns None with
+        the iterations spent, and ``_continuation`` solves from the previous solution, as
+        it would have without this call.
+        """
+        previous, lu, pose = self._previous, self._lu, self._pose
+        if (previous is None or lu is None or pose is None or pose[0] is None
+                or self._path_count < 3 or self._path_last is not previous[0]):
+            return None, 0
+        step, xs, rs = warm_step(self.problem, previous[0],
+                                 (self._path_xs, self._path_wrenches, self._path_count),
+                                 wrench, lu, pose[0], self._warm_settings())
+        if step.status == chord.CONVERGED:
+            outcome = _Outcome(xs, rs, step.iterations, True, 'converged', lu, pose,
+                               estimate=step.estimate, residual_by_kind=step.residual_by_kind)
+            outcome.shape = (xs, *self.problem.recorded_shape(step.slot))
+            return outcome, 0
+        if step.status == chord.REFACTOR and time.perf_counter() <= deadline:
+            outcome = self._newton(xs, wrench, deadline, None,
+                                   self.max_iterations - step.iterations, pose,
+                                   known=(rs, step.slot))
+            if outcome.converged:
+                self._lu, self._pose = outcome.lu, outcome.pose
+                outcome.iterations += step.iterations
+                return outcome, 0
+            return None, step.iterations + outcome.iterations
+        return None, step.iterations
+
+    def _warm_settings(self) -> np.ndarray:
+        """Return the settings warm_step takes (made again when tolerance or iterations change)."""
+        key = (self.tolerance, self.max_iterations)
+        if self._warm_settings_for != key:
+            self._warm_settings_array = warm_step_settings(
+                self.tolerance, self.max_iterations, CHORD_RATE, EXTRAPOLATION_MISS,
+                PREDICTOR_REACH)
+            self._warm_settings_for = key
+        return self._warm_settings_array
 
     def _extend_path(self, xs: np.ndarray, wrench: np.ndarray, chained: bool) -> None:
         """Append a solution to the path of warm solves; without ``chained`` start a new one."""
@@ -949,7 +1017,8 @@ class TranslatorSolver:
 
     def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
                 lu: Optional[tuple], max_iterations: int,
-                pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None) -> _Outcome:
+                pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None,
+                known: Optional[Tuple[np.ndarray, int]] = None) -> _Outcome:
         """
         Damped Newton; given ``lu`` it starts with chord steps on that factorization.
 
@@ -957,17 +1026,22 @@ class TranslatorSolver:
         chord step that shrinks the residual by less than CHORD_RATE discards the
         factorization); Python only refactors, between those calls, and checks the deadline.
         Given ``lu`` (a warm solve's usual case) the residual at ``xs`` is the first shot of
-        the first compiled call.
+        the first compiled call. ``known`` = (residual at ``xs``, the slot of the problem's
+        shape buffers that holds its shape), when a call before this one shot there.
         """
         problem = self.problem
         xs = np.array(xs, dtype=float)
-        shoot = lu is not None and time.perf_counter() <= deadline
+        shoot = lu is not None and known is None and time.perf_counter() <= deadline
+        slot = 0
         if shoot:
             rs, norm = np.empty(problem.size), math.nan  # chord_newton's first shot sets both
+        elif known is not None:
+            rs, slot = known[0].copy(), known[1]
+            norm = _norm(rs)
         else:
             rs = problem.residual_and_shape(xs, wrench)
             norm = _norm(rs)
-        slot, done, fresh, pose = 0, 0, False, pose_in
+        done, fresh, pose = 0, False, pose_in
 
         def ended(converged: bool, message: str) -> _Outcome:
             outcome = _Outcome(xs, rs, done, converged, message, lu, pose)
@@ -1053,7 +1127,8 @@ class TranslatorSolver:
         return SolveResult(
             converged=outcome.converged, message=outcome.message,
             iterations=outcome.iterations, residual_norm=_norm(outcome.rs),
-            residual_by_type=problem.residual_by_kind(outcome.rs),
+            residual_by_type=(outcome.residual_by_kind if outcome.residual_by_kind is not None
+                              else problem.residual_by_kind(outcome.rs)),
             force=wrench[:3].copy(), moment=wrench[3:].copy(),
             frames=dict(zip(FRAME_NAMES, frames)),  # views of a copy no one else keeps
             backbones=points, solve_time_s=elapsed, method=self.method,

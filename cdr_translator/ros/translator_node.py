@@ -46,6 +46,10 @@ from ..result import SolveResult
 from ..solver import check_wrench
 
 
+#: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.
+WARM_UP_FORCES = (1.0, 1.5, 2.0, 2.5)
+
+
 class TranslatorNode(Node):
     """The translator as a ROS 2 node; ``close()`` stops it and finalizes the MCAP log."""
 
@@ -112,8 +116,15 @@ class TranslatorNode(Node):
 
     # start-up --------------------------------------------------------------------------------
     def _warm_up(self) -> None:
-        """Solve once (compiles or loads the kernels) and build every output, then forget."""
-        result = self.solver.solve([1.0, 0.0, 0.0], compliance=True)
+        """
+        Solve along a short path and build every output (compiles or loads the kernels).
+
+        Four solves: the fourth is the usual warm solve of a stream (warm_step.py), whose
+        kernel would otherwise load while a wrench waits. Then the solver forgets them.
+        """
+        for force in WARM_UP_FORCES[:-1]:
+            self.solver.solve([force, 0.0, 0.0])
+        result = self.solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
         for topic, _, values in messages.output_messages(
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
                 backbones_params=self.solver.params, extra_values=self._counts()):

@@ -1,0 +1,85 @@
+"""The one-call warm solve (cdr_translator/warm_step.py) against its parts made one by one."""
+
+from cdr_translator import chord, TranslatorSolver
+from cdr_translator.accuracy import estimate
+from cdr_translator.warm_step import NO_PREDICTION, settings_array, TOO_FAR, warm_step
+import numpy as np
+import pytest
+from scipy.linalg import lu_factor
+
+#: A straight wrench path (N, N m) and the next wrench along it.
+PATH = [np.array([10.0 + 0.2 * k, 1.0 - 0.1 * k, -2.0, 0.05, 0.0, 0.02 * k]) for k in range(4)]
+
+
+@pytest.fixture(scope='module')
+def along_a_path(params):
+    """Solutions of PATH[:3] and the factorization at the last one (problem, path, lu, pose)."""
+    solver = TranslatorSolver(params)
+    problem = solver.problem
+    xs = np.array([solver.solve(wrench[:3], wrench[3:]).unknowns / problem.x_scale
+                   for wrench in PATH[:3]])
+    _, jacobian, pose = problem.exact_jacobian(xs[-1], PATH[2])
+    path_xs = np.zeros((chord.PATH_LENGTH, problem.size))
+    path_wrenches = np.zeros((chord.PATH_LENGTH, 6))
+    path_xs[:3], path_wrenches[:3] = xs, PATH[:3]
+    return problem, (path_xs, path_wrenches, 3), lu_factor(jacobian), pose.copy()
+
+
+def _settings(reach=0.3):
+    return settings_array(1e-10, 12, 0.5, 0.5, reach)
+
+
+def test_converges_with_the_estimate_and_residuals_of_the_parts(along_a_path):
+    """The solution meets the tolerance; its estimate is accuracy.estimate's at that point."""
+    problem, path, lu, pose = along_a_path
+    step, xs, rs = warm_step(problem, path[0][2], path, PATH[3], lu, pose, _settings())
+    assert step.status == chord.CONVERGED and step.iterations >= 1
+    residual = problem.residual(xs, PATH[3])
+    assert np.allclose(rs, residual, rtol=0, atol=1e-14)
+    assert np.abs(residual).max() <= 1e-10
+    assert step.residual_by_kind == pytest.approx(problem.residual_by_kind(rs), rel=1e-12)
+    frames = problem.recorded_shape(step.slot)[1]
+    assert np.allclose(frames, problem.shape(xs, PATH[3])[1], rtol=0, atol=1e-15)
+    parts = estimate(problem, xs, PATH[3], rs, frames, lu, pose)
+    assert step.estimate == parts
+
+
+def test_says_no_prediction_when_the_wrench_leaves_the_path(along_a_path):
+    """A wrench off the path's line: no shot, the unknowns unchanged, the solver goes on."""
+    problem, path, lu, pose = along_a_path
+    off = PATH[3] + np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    step, xs, _ = warm_step(problem, path[0][2], path, off, lu, pose, _settings())
+    assert step.status == NO_PREDICTION and step.iterations == 0
+    assert np.array_equal(xs, path[0][2])
+
+
+def test_says_too_far_beyond_the_reach(along_a_path):
+    """A prediction moving an unknown further than the reach: no whole step is tried."""
+    problem, path, lu, pose = along_a_path
+    step, xs, _ = warm_step(problem, path[0][2], path, PATH[3], lu, pose, _settings(1e-9))
+    assert step.status == TOO_FAR and step.iterations == 0
+    assert np.array_equal(xs, path[0][2])
+
+
+def test_solver_results_match_the_general_path(params):
+    """Along a smooth sequence the one-call solves agree with the general path's."""
+    fused, general = TranslatorSolver(params), TranslatorSolver(params)
+    calls = []
+    general_step = general._warm_step
+    general._warm_step = lambda wrench, deadline: (None, 0)
+    fused_step = fused._warm_step
+
+    def counted(wrench, deadline):
+        outcome, spent = fused_step(wrench, deadline)
+        calls.append(outcome is not None)
+        return outcome, spent
+    fused._warm_step = counted
+    assert general_step is not None
+    for t in np.linspace(0.0, 1.0, 40):
+        wrench = np.array([10.0 + 4.0 * np.sin(3 * t), 3.0 * t, -2.0, 0.1 * t, 0.0, 0.05])
+        one, other = fused.solve(wrench[:3], wrench[3:]), general.solve(wrench[:3], wrench[3:])
+        assert one.converged and other.converged and one.stable and other.stable
+        assert one.accuracy_met and other.accuracy_met
+        assert np.allclose(one.frames['de'], other.frames['de'], rtol=0, atol=1e-9)
+        assert one.error_estimate_m == pytest.approx(other.error_estimate_m, rel=0.3)
+    assert sum(calls) >= 30  # the usual case: the one call solved it
