@@ -110,6 +110,25 @@ class Reference:
     determinant_sign: int
 
 
+def load_scale(origin: Reference) -> float:
+    """
+    Return w* = H lambda_min(sym K~0) (N): the load whose geometric stiffness matches K~0.
+
+    The margin falls by about |dw| / w* per wrench change dw (``wrench_size``) at small loads:
+    a dead load's geometric stiffness is proportional to it, over the stack height. For the
+    shipped translator w* is 31.4 N and the margin falls at 1 / 29.4 N along pure axial
+    compression (buckling at 29.3 N), the steepest of the directions measured (lateral
+    force, moments about x and z fall 5-30 times slower).
+    """
+    return origin.length * origin.smallest_stiffness
+
+
+def wrench_size(wrench: np.ndarray, length: float) -> float:
+    """Return sqrt(|f|^2 + |m / H|^2) (N): moments as the force that makes them at H."""
+    force, moment = wrench[:3], wrench[3:] / length
+    return math.sqrt(float(force @ force) + float(moment @ moment))
+
+
 def _scaled_stiffness(compliance: np.ndarray, length: float) -> np.ndarray:
     """sym(S^-1 K S^-1) = inverse of sym-free S C S, symmetrized (N/m)."""
     scale = np.repeat([1.0, length], 3)

@@ -2,9 +2,10 @@
 
 import json
 
-from cdr_translator import cli, solver as solver_module, TranslatorSolver
+from cdr_translator import cli, solver as solver_module, stability, TranslatorSolver
 import numpy as np
 import pytest
+from scipy.linalg import lu_factor
 
 
 def test_unloaded_margin_is_one_and_lateral_load_is_stable(solver):
@@ -79,3 +80,42 @@ def test_warm_compression_ramp_buckles_onto_the_stable_branch(params):
             assert lateral < 1e-9
     assert margins[0] == pytest.approx(1.0 - 10.0 / 29.3, abs=0.02)
     assert margins[1] == pytest.approx(1.0 - 20.0 / 29.3, abs=0.02)
+
+
+def _exact_jacobians(monkeypatch, solver):
+    """Count the solver's exact Jacobians; return the list that grows by one per Jacobian."""
+    made = []
+    original = solver.problem.exact_jacobian
+
+    def counted(*args):
+        made.append(1)
+        return original(*args)
+    monkeypatch.setattr(solver.problem, 'exact_jacobian', counted)
+    return made
+
+
+def test_sensor_noise_at_rest_keeps_the_verdict(params, monkeypatch):
+    """0.05 N of noise around no load: the verdict is reused, not rebuilt every solve."""
+    solver = TranslatorSolver(params)
+    rng = np.random.default_rng(5)
+    solver.solve(rng.normal(scale=0.05, size=3))
+    made = _exact_jacobians(monkeypatch, solver)
+    for _ in range(100):
+        result = solver.solve(rng.normal(scale=0.05, size=3), rng.normal(scale=1e-3, size=3))
+        assert result.converged and result.stable
+        assert result.stability_margin == pytest.approx(1.0, abs=0.01)
+    assert len(made) <= 10  # drift measured against |w| alone: one Jacobian per solve
+
+
+def test_reused_verdicts_stay_within_half_the_margin_of_fresh_ones(params):
+    """Warm compression from no load to 90 % of the buckling load: the rule's promise."""
+    warm = TranslatorSolver(params)
+    problem = warm.problem
+    for force in np.linspace(0.0, 26.5, 120)[1:]:
+        wrench = np.array([0.02 * force, 0.0, -force, 0.0, 0.0, 0.0])
+        result = warm.solve(wrench[:3])
+        _, jacobian, pose = problem.exact_jacobian(result.unknowns / problem.x_scale, wrench)
+        truth = stability.assess(lu_factor(jacobian), pose, result.frames['de'][:3, :3],
+                                 problem.wrench_sensitivity, warm._origin())
+        assert result.stable and truth.stable
+        assert abs(result.stability_margin - truth.margin) <= 0.5 * truth.margin

@@ -59,7 +59,7 @@ def test_leg_results_built_on_access_match_full_leg_solves(robot):
         assert np.abs(leg.backbones - full.backbones).max() <= 1e-9
         assert np.allclose(leg.unknowns, full.unknowns, rtol=1e-6, atol=1e-9)
         assert leg.stable is full.stable is True
-        assert leg.stability_margin == pytest.approx(full.stability_margin, rel=1e-2)
+        assert leg.stability_margin == pytest.approx(full.stability_margin, rel=5e-2)
         assert leg.error_estimate_m == pytest.approx(full.error_estimate_m, rel=5e-2)
         assert leg.error_estimate_deg == pytest.approx(full.error_estimate_deg, rel=5e-2)
     assert legs == tuple(legs)  # compares as the tuple of its results
