@@ -825,20 +825,20 @@ class TranslatorSolver:
         """
         Solve the usual warm case in one compiled call (warm_step.py); None if not usual.
 
-        Applies when the previous solution ends a path of at least three warm solves and has
-        a stored exact factorization: then the path's extrapolation, the chord steps on that
+        Applies when the previous solution has a stored exact factorization: then the
+        prediction (the path's extrapolation, else first order), the chord steps on that
         factorization and the error estimate are one call. When the chord steps stall it
         goes on as ``_newton`` would (a fresh Jacobian at the iterate); when that fails too,
-        or the wrench does not continue the path or lies too far ahead, it returns None with
-        the iterations spent, and ``_continuation`` solves from the previous solution, as
-        it would have without this call.
+        or the prediction reaches too far for one step, it returns None with the iterations
+        spent, and ``_continuation`` solves from the previous solution, as it would have
+        without this call.
         """
         previous, lu, pose = self._previous, self._lu, self._pose
-        if (previous is None or lu is None or pose is None or pose[0] is None
-                or self._path_count < 3 or self._path_last is not previous[0]):
+        if previous is None or lu is None or pose is None or pose[0] is None:
             return None, 0
-        step, xs, rs = warm_step(self.problem, previous[0],
-                                 (self._path_xs, self._path_wrenches, self._path_count),
+        count = self._path_count if self._path_last is previous[0] else 0
+        step, xs, rs = warm_step(self.problem, previous,
+                                 (self._path_xs, self._path_wrenches, count),
                                  wrench, lu, pose[0], self._warm_settings())
         if step.status == chord.CONVERGED:
             outcome = _Outcome(xs, rs, step.iterations, True, 'converged', lu, pose,

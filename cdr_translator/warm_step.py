@@ -9,12 +9,13 @@ between the kernels (the continuation loop, the corrector, argument checks, smal
 than in the kernels themselves: about 110 of 240 us of a warm solve. ``warm_step`` makes
 them one compiled call and hands back only what the solver keeps.
 
-It covers the usual case only and says when it does not apply, so that the solver then
-takes its general path (TranslatorSolver._continuation): before any shot when the path does
-not predict the wrench (NO_PREDICTION) or the prediction reaches too far for a whole step
-(TOO_FAR); after the shots when the chord steps did not converge on the stored
-factorization (one of chord's codes), leaving the last iterate for the general path to
-continue from.
+A wrench that does not continue the path (sensor noise around a load, a jump, a path of
+fewer than three solutions) is predicted to first order from the last solution, as the
+general path does. It covers the usual case only and says when it does not apply, so that
+the solver then takes its general path (TranslatorSolver._continuation): before any shot
+when the prediction reaches too far for a whole step (TOO_FAR); after the shots when the
+chord steps did not converge on the stored factorization (one of chord's codes), leaving
+the last iterate for the general path to continue from.
 """
 
 from typing import NamedTuple, Optional, Tuple
@@ -23,11 +24,9 @@ import numpy as np
 
 from ._jit import jit
 from .accuracy import ErrorEstimate, estimate_kernel
-from .chord import chord_iterations, CONVERGED, extrapolate
+from .chord import broyden_apply, chord_iterations, CONVERGED, extrapolate
 from .problem import Problem, RESIDUAL_KINDS
 
-#: ``warm_step`` status: the wrench does not continue the path of solutions (no shot made).
-NO_PREDICTION = -1
 #: ``warm_step`` status: the prediction moves an unknown by more than the reach allowed for
 #: a whole step (no shot made): the general continuation sizes smaller steps.
 TOO_FAR = -2
@@ -54,13 +53,14 @@ class WarmStep(NamedTuple):
 
 
 @jit
-def _warm_step(path_xs, path_wrenches, count, wrench, scales, wrench_factors, kind,
+def _warm_step(path_xs, path_wrenches, count, wrenches, scales, wrench_factors, kind,
                model_args, lu, pivots, updates, taken, secant_count, settings, pose, points,
                frames, state, report):
     """
     Predict, iterate and estimate (``warm_step``) in one call: 19 arguments, no more.
 
-    ``scales`` stacks x_scale and residual_scale, ``wrench_factors`` the wrench scale and
+    ``wrenches`` stacks the wrench to solve at and the previous solution's; ``scales`` stacks
+    x_scale and residual_scale, ``wrench_factors`` the wrench scale and
     the wrench's gain on its residual rows (the last six), ``state`` the unknowns the
     previous solution ends at (row 0; the iterate on return) and the residual (row 1).
     Returns (status, iterations, slot, Broyden update count); ``report`` gets _NORM and,
@@ -69,12 +69,20 @@ def _warm_step(path_xs, path_wrenches, count, wrench, scales, wrench_factors, ki
     size = state.shape[1]
     xs = state[0]
     rs = state[1]
+    wrench = wrenches[0]
     rows = np.arange(size - 6, size)
     guess = np.empty(size)
-    if not extrapolate(path_xs, path_wrenches, count, wrench, wrench_factors[0],
-                       wrench_factors[1], rows, lu, pivots, updates, taken, secant_count,
-                       settings[_MISS_LIMIT], guess):
-        return NO_PREDICTION, 0, 0, secant_count
+    if not (count >= 3 and extrapolate(path_xs, path_wrenches, count, wrench,
+                                       wrench_factors[0], wrench_factors[1], rows, lu, pivots,
+                                       updates, taken, secant_count, settings[_MISS_LIMIT],
+                                       guess)):
+        # first order: x - J^-1 (dr/dw) dw (TranslatorSolver._continuation's predictor)
+        change = np.zeros(size)
+        for j in range(6):
+            change[rows[j]] = wrench_factors[1, j] * (wrench[j] - wrenches[1, j])
+        broyden_apply(lu, pivots, updates, taken, secant_count, change, guess)
+        for i in range(size):
+            guess[i] = xs[i] - guess[i]
     for i in range(size):  # TranslatorSolver._first_step: a whole step within the reach
         if not abs(xs[i] - guess[i]) <= settings[_REACH]:
             return TOO_FAR, 0, 0, secant_count
@@ -101,24 +109,27 @@ def _warm_step(path_xs, path_wrenches, count, wrench, scales, wrench_factors, ki
     return status, done, slot, secant_count
 
 
-def warm_step(problem: Problem, xs: np.ndarray, path: Tuple[np.ndarray, np.ndarray, int],
-              wrench: np.ndarray, lu: tuple, pose: np.ndarray,
+def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
+              path: Tuple[np.ndarray, np.ndarray, int], wrench: np.ndarray, lu: tuple,
+              pose: np.ndarray,
               settings: np.ndarray) -> Tuple[WarmStep, np.ndarray, np.ndarray]:
     """
-    Solve at ``wrench`` from the last solution ``xs`` of a warm sequence, if it is usual.
+    Solve at ``wrench`` from the last solution of a warm sequence, if it is usual.
 
-    ``path`` = (unknowns, wrenches, count) of the sequence's last solutions, oldest first,
-    the last being ``xs``; ``lu`` the stored factorization (and the Broyden updates the
-    problem keeps on it), ``pose`` its end-disk pose derivative; ``settings`` from
-    ``settings_array``. Returns what happened, the unknowns and the residual: the solution
-    when converged, else the last iterate (NO_PREDICTION, TOO_FAR: ``xs`` unchanged).
+    ``previous`` = (unknowns, wrench) of that solution; ``path`` = (unknowns, wrenches,
+    count) of the sequence's last solutions, oldest first, the last being ``previous``'s
+    (count 0: no path, a first-order prediction); ``lu`` the stored factorization (and the
+    Broyden updates the problem keeps on it), ``pose`` its end-disk pose derivative;
+    ``settings`` from ``settings_array``. Returns what happened, the unknowns and the residual: the solution
+    when converged, else the last iterate (TOO_FAR: the previous unknowns).
     """
     state = np.empty((2, problem.size))
-    state[0] = xs
+    state[0] = previous[0]
+    wrenches = np.stack([wrench, previous[1]])
     report = np.empty(_REPORT_SIZE)
     count = problem.secant_count(lu)
     status, done, slot, count = _warm_step(
-        path[0], path[1], path[2], wrench, problem.scales, problem.wrench_factors,
+        path[0], path[1], path[2], wrenches, problem.scales, problem.wrench_factors,
         problem.residual_kind, problem.model_args, lu[0], lu[1], problem.secant_updates,
         problem.secant_steps, count, settings, pose, problem.shape_points,
         problem.shape_frames, state, report)

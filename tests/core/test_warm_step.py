@@ -2,7 +2,7 @@
 
 from cdr_translator import chord, TranslatorSolver
 from cdr_translator.accuracy import estimate
-from cdr_translator.warm_step import NO_PREDICTION, settings_array, TOO_FAR, warm_step
+from cdr_translator.warm_step import settings_array, TOO_FAR, warm_step
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor
@@ -25,14 +25,15 @@ def along_a_path(params):
     return problem, (path_xs, path_wrenches, 3), lu_factor(jacobian), pose.copy()
 
 
-def _settings(reach=0.3):
-    return settings_array(1e-10, 12, 0.5, 0.5, reach)
+def _settings(reach=0.3, max_iterations=12):
+    return settings_array(1e-10, max_iterations, 0.5, 0.5, reach)
 
 
 def test_converges_with_the_estimate_and_residuals_of_the_parts(along_a_path):
     """The solution meets the tolerance; its estimate is accuracy.estimate's at that point."""
     problem, path, lu, pose = along_a_path
-    step, xs, rs = warm_step(problem, path[0][2], path, PATH[3], lu, pose, _settings())
+    step, xs, rs = warm_step(problem, (path[0][2], PATH[2]), path, PATH[3], lu, pose,
+                             _settings())
     assert step.status == chord.CONVERGED and step.iterations >= 1
     residual = problem.residual(xs, PATH[3])
     assert np.allclose(rs, residual, rtol=0, atol=1e-14)
@@ -44,25 +45,35 @@ def test_converges_with_the_estimate_and_residuals_of_the_parts(along_a_path):
     assert step.estimate == parts
 
 
-def test_says_no_prediction_when_the_wrench_leaves_the_path(along_a_path):
-    """A wrench off the path's line: no shot, the unknowns unchanged, the solver goes on."""
+@pytest.mark.parametrize('count', [3, 0])
+def test_predicts_to_first_order_off_the_path(along_a_path, count):
+    """A wrench off the path's line (or no path): first order, the guess of the solver's."""
     problem, path, lu, pose = along_a_path
-    off = PATH[3] + np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
-    step, xs, _ = warm_step(problem, path[0][2], path, off, lu, pose, _settings())
-    assert step.status == NO_PREDICTION and step.iterations == 0
-    assert np.array_equal(xs, path[0][2])
+    problem.keep_secant_count(lu, 0)  # the exact factorization alone, no Broyden updates
+    off = PATH[2] + np.array([0.0, 0.3, -0.2, 0.0, 0.0, 0.0])
+    step, xs, _ = warm_step(problem, (path[0][2], PATH[2]), (path[0], path[1], count), off,
+                            lu, pose, _settings(max_iterations=0))
+    assert step.status == chord.OUT_OF_ITERATIONS and step.iterations == 0  # the guess
+    first_order = path[0][2] - problem.wrench_response(lu, off - PATH[2])
+    assert np.allclose(xs, first_order, rtol=0, atol=1e-13)
+    step, xs, _ = warm_step(problem, (path[0][2], PATH[2]), (path[0], path[1], count), off,
+                            lu, pose, _settings())
+    assert step.status == chord.CONVERGED
+    assert np.abs(problem.residual(xs, off)).max() <= 1e-10
 
 
 def test_says_too_far_beyond_the_reach(along_a_path):
     """A prediction moving an unknown further than the reach: no whole step is tried."""
     problem, path, lu, pose = along_a_path
-    step, xs, _ = warm_step(problem, path[0][2], path, PATH[3], lu, pose, _settings(1e-9))
+    step, xs, _ = warm_step(problem, (path[0][2], PATH[2]), path, PATH[3], lu, pose,
+                            _settings(1e-9))
     assert step.status == TOO_FAR and step.iterations == 0
     assert np.array_equal(xs, path[0][2])
 
 
-def test_solver_results_match_the_general_path(params):
-    """Along a smooth sequence the one-call solves agree with the general path's."""
+@pytest.mark.parametrize('noise', [0.0, 0.05])
+def test_solver_results_match_the_general_path(params, noise):
+    """Along a smooth (or noisy: N) sequence the one-call solves agree with the general path."""
     fused, general = TranslatorSolver(params), TranslatorSolver(params)
     calls = []
     general_step = general._warm_step
@@ -75,8 +86,10 @@ def test_solver_results_match_the_general_path(params):
         return outcome, spent
     fused._warm_step = counted
     assert general_step is not None
+    rng = np.random.default_rng(11)
     for t in np.linspace(0.0, 1.0, 40):
         wrench = np.array([10.0 + 4.0 * np.sin(3 * t), 3.0 * t, -2.0, 0.1 * t, 0.0, 0.05])
+        wrench[:3] += rng.normal(scale=noise, size=3) if noise else 0.0
         one, other = fused.solve(wrench[:3], wrench[3:]), general.solve(wrench[:3], wrench[3:])
         assert one.converged and other.converged and one.stable and other.stable
         assert one.accuracy_met and other.accuracy_met
