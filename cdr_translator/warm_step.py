@@ -120,8 +120,9 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
     count) of the sequence's last solutions, oldest first, the last being ``previous``'s
     (count 0: no path, a first-order prediction); ``lu`` the stored factorization (and the
     Broyden updates the problem keeps on it), ``pose`` its end-disk pose derivative;
-    ``settings`` from ``settings_array``. Returns what happened, the unknowns and the residual: the solution
-    when converged, else the last iterate (TOO_FAR: the previous unknowns).
+    ``settings`` from ``settings_array``. Returns what happened, the unknowns and the
+    residual: the solution when converged, else the last iterate (TOO_FAR: the previous
+    unknowns).
     """
     state = np.empty((2, problem.size))
     state[0] = previous[0]
