@@ -125,8 +125,8 @@ def load_scale(origin: Reference) -> float:
 
 def wrench_size(wrench: np.ndarray, length: float) -> float:
     """Return sqrt(|f|^2 + |m / H|^2) (N): moments as the force that makes them at H."""
-    force, moment = wrench[:3], wrench[3:] / length
-    return math.sqrt(float(force @ force) + float(moment @ moment))
+    fx, fy, fz, mx, my, mz = wrench.tolist()  # floats: a tenth of numpy's time on 6 values
+    return math.sqrt(fx * fx + fy * fy + fz * fz + (mx * mx + my * my + mz * mz) / length ** 2)
 
 
 def _scaled_stiffness(compliance: np.ndarray, length: float) -> np.ndarray:
