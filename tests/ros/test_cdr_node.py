@@ -247,6 +247,18 @@ def test_node_round_trip(tmp_path, solved):
             ANSWER_TIMEOUT_S)
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and "'elsewhere' is not the world frame" in text
+        # malformed bytes: an ERROR (stamp zero), and the node goes on answering
+        zero = {'sec': 0, 'nanosec': 0}
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while not client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, zero):
+            assert time.monotonic() < deadline, 'malformed sliders not answered'
+            client.sliders.publish(b'\x00\x01\x00\x00\x07')
+            client.executor.spin_once(timeout_sec=0.25)
+        level, text, _ = diagnostic(client, zero)
+        assert level == messages.ERROR and 'sliders rejected: malformed message' in text
+        again = client.send_until_answered(
+            lambda stamp: client.publish_wrench((1.0, 0.5, -9.81), stamp), ANSWER_TIMEOUT_S)
+        assert diagnostic(client, again)[0] == messages.OK
         assert node.stop(signal.SIGINT) == 0, node.text()
     by_topic = topic_counts(mcap)
     assert {'/sliders', '/platform_wrench', '/platform_pose', '/leg_bending_angles',
