@@ -19,6 +19,7 @@ solve. Only cdr_translator.ros imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
+import struct
 import sys
 import threading
 import time
@@ -170,8 +171,12 @@ class TranslatorNode(Node):
                 return
             stamp = {'sec': 0, 'nanosec': 0}
             try:
-                force, moment, frame_id, stamp = messages.wrench_from_message(
-                    self._decode_wrench(data))
+                try:
+                    wrench = self._decode_wrench(data)
+                except (ValueError, struct.error) as error:
+                    self._reject(stamp, f'malformed message: {error}')
+                    continue
+                force, moment, frame_id, stamp = messages.wrench_from_message(wrench)
                 end_disk = self._checked(force, moment, frame_id, stamp)
                 if end_disk is not None:
                     self._process(stamp, force, moment, end_disk)
@@ -190,11 +195,15 @@ class TranslatorNode(Node):
             check_magnitude(force, moment, settings.max_force, settings.max_moment)
             return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
         except ValueError as error:
-            self.rejected += 1
-            self.get_logger().warning(f'wrench rejected: {error}', throttle_duration_sec=1.0)
-            self._publish_all(self._serialized(messages.rejection_messages(
-                stamp, f'rejected: {error}', self._counts())))
+            self._reject(stamp, str(error))
             return None
+
+    def _reject(self, stamp: dict, reason: str) -> None:
+        """Count a rejected wrench, warn (throttled) and publish the ERROR diagnostic."""
+        self.rejected += 1
+        self.get_logger().warning(f'wrench rejected: {reason}', throttle_duration_sec=1.0)
+        self._publish_all(self._serialized(messages.rejection_messages(
+            stamp, f'rejected: {reason}', self._counts())))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
                  end_disk: bool) -> None:

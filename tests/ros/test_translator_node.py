@@ -81,7 +81,7 @@ def test_round_trip_equals_library(tmp_path, ros_env):
 
 
 def test_bad_input_rejected_then_next_answered(tmp_path, ros_env):
-    """NaN, infinite, absurd and unknown-frame wrenches: an ERROR diagnostic and no pose."""
+    """NaN, infinite, absurd, unknown-frame, malformed wrenches: an ERROR diagnostic, no pose."""
     with Running(tmp_path, ros_env) as run:
         bad = [((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0), '', 'force x component is nan'),
                ((0.0, 0.0, 0.0), (0.0, math.inf, 0.0), '', 'moment y component is inf'),
@@ -94,13 +94,17 @@ def test_bad_input_rejected_then_next_answered(tmp_path, ros_env):
             status = run.answer(DIAGNOSTICS, stamp).status[0]
             assert status.level == bytes([messages.ERROR])
             assert reason in status.message
+        run.client.publisher.publish(b'\x00\x01\x00\x00\x07')  # malformed: answered at stamp 0
+        status = run.answer(DIAGNOSTICS, {'sec': 0, 'nanosec': 0}).status[0]
+        assert status.level == bytes([messages.ERROR])
+        assert 'rejected: malformed message' in status.message
         valid = run.client.publish((5.0, 1.0, 0.0))
         run.answer(POSE, valid)
         assert run.answer(DIAGNOSTICS, valid).status[0].level == bytes([messages.OK])
         assert not any(run.client.messages_stamped(POSE, stamp) for stamp in stamps)
         assert run.node.process.poll() is None
         values = diagnostic_values(run.answer(DIAGNOSTICS, valid))
-        assert int(values['rejected']) == len(bad)
+        assert int(values['rejected']) == len(bad) + 1
 
 
 def test_burst_latest_wins(tmp_path, ros_env):
