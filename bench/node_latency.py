@@ -3,10 +3,11 @@ Latency and throughput of translator_node over DDS (localhost, its own domain).
 
 Usage: python -m bench.node_latency [--rates 100 200 500 1000 2000] [--seconds 3] [--no-log]
                                      [--compliance] [--node-python PY] [--label TEXT]
-                                     [--markdown FILE] [--profile OUT.md]
+                                     [--markdown FILE] [--profile OUT.md] [--rest-noise N]
 
 Starts the node, streams a smooth wrench sequence (a 0.5 Hz sweep of 0-12 N lateral force,
-the kind a force sensor sends) at each rate, and reports per rate: wrenches sent, received
+the kind a force sensor sends; with ``--rest-noise N`` instead a sensor at rest: Gaussian
+noise of N newtons on each force component around zero, seeded) at each rate, and reports per rate: wrenches sent, received
 by the node, answered with a pose, skipped (latest wins), and the latency from the wrench's
 header stamp to the pose's arrival at the client (same clock): median, 95th and 99th
 percentile and maximum. "No backlog" means every received wrench was answered (none
@@ -43,15 +44,20 @@ from cdr_translator.ros.client import NodeProcess, TranslatorClient
 import numpy as np
 
 
-def stream(client: TranslatorClient, rate_hz: float, seconds: float) -> list:
-    """Publish the sweep at ``rate_hz`` for ``seconds``; return the stamps sent."""
+def stream(client: TranslatorClient, rate_hz: float, seconds: float,
+           rest_noise: float = 0.0) -> list:
+    """Publish the sweep (or noise at rest) at ``rate_hz`` for ``seconds``; return the stamps."""
     count = int(rate_hz * seconds)
+    noise = np.random.default_rng(int(rate_hz)).normal(scale=rest_noise, size=(count, 3))
     started = time.monotonic()
     stamps = []
     for index in range(count):
         delay = started + index / rate_hz - time.monotonic()
         if delay > 0.0:
             time.sleep(delay)
+        if rest_noise > 0.0:
+            stamps.append(client.publish(tuple(noise[index])))
+            continue
         force = 6.0 - 6.0 * math.cos(math.pi * index / rate_hz)
         stamps.append(client.publish((force, 0.5 * force, 0.0)))
     return stamps
@@ -86,11 +92,12 @@ def child_pids(pid: int) -> List[int]:
     return found
 
 
-def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int) -> dict:
+def measure(client: TranslatorClient, rate_hz: float, seconds: float, pid: int,
+            rest_noise: float = 0.0) -> dict:
     """Stream at one rate and return the counts, latencies (ms) and the node's CPU time (s)."""
     before = len(client.received[messages.END_DISK_POSE_TOPIC])
     cpu_before = cpu_seconds(pid)
-    stamps = stream(client, rate_hz, seconds)
+    stamps = stream(client, rate_hz, seconds, rest_noise)
     last = stamps[-1]
     answered = client.wait_for(
         lambda: bool(client.messages_stamped(messages.DIAGNOSTICS_TOPIC, last)), 30.0)
@@ -121,6 +128,9 @@ def main() -> None:
                         help='append the table to this markdown file')
     parser.add_argument('--profile', type=Path, default=None,
                         help="write the node's CPU account (bench.node_profile) to this file")
+    parser.add_argument('--rest-noise', type=float, default=0.0,
+                        help='stream a sensor at rest: this much Gaussian noise (N) per force '
+                             'component around zero, instead of the sweep')
     args = parser.parse_args()
     env = isolated_ros_env()
     os.environ.update(env)
@@ -159,7 +169,8 @@ def main() -> None:
                 table: List[str] = []
                 received = skipped = 0
                 for rate in args.rates:
-                    row = measure(client, rate, args.seconds, node.process.pid)
+                    row = measure(client, rate, args.seconds, node.process.pid,
+                                  args.rest_noise)
                     p50, p95, p99 = np.percentile(row['latencies_ms'], [50, 95, 99])
                     count = row['received'] - received
                     # counts come from the diagnostic of the last wrench; '*': it never came
@@ -187,7 +198,8 @@ def _append_markdown(path: Path, args: argparse.Namespace, table: List[str]) -> 
     load = ', '.join(f'{value:.1f}' for value in os.getloadavg())
     when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
     setup = ('no MCAP log' if args.no_log else 'MCAP log on') + (
-        ', compliance subscribed' if args.compliance else '')
+        ', compliance subscribed' if args.compliance else '') + (
+        f', at rest with {args.rest_noise:g} N noise' if args.rest_noise > 0.0 else '')
     with open(path, 'a') as stream:
         stream.write(f'\n### {args.label} ({when}, {setup}, {args.seconds:g} s per rate, '
                      f'load average {load})\n\n'
