@@ -126,7 +126,9 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
     """
     state = np.empty((2, problem.size))
     state[0] = previous[0]
-    wrenches = np.stack([wrench, previous[1]])
+    wrenches = np.empty((2, 6))  # np.stack took several times as long
+    wrenches[0] = wrench
+    wrenches[1] = previous[1]
     report = np.empty(_REPORT_SIZE)
     count = problem.secant_count(lu)
     status, done, slot, count = _warm_step(
