@@ -8,12 +8,12 @@ Usage: python -m bench.node_latency [--rates 100 200 500 1000 2000] [--seconds 3
 Starts the node, streams a smooth wrench sequence (a 0.5 Hz sweep of 0-12 N lateral force,
 the kind a force sensor sends; with ``--rest-noise N`` instead a sensor at rest: Gaussian
 noise of N newtons on each force component around zero, seeded) at each rate, and reports
-per rate: wrenches sent, received by the node, answered with a pose, skipped (latest
-wins), and the latency from the wrench's header stamp to the pose's arrival at the client
-(same clock): median, 95th and 99th percentile and maximum. "No backlog" means every received wrench was answered (none
-skipped) and the latency did not grow. ``--no-log`` runs without the MCAP log, to see
-what logging costs; ``--compliance`` subscribes to the compliance eigenvalues too.
-``--node-python`` runs the node with another checkout's interpreter (``-m
+per rate: wrenches sent, received by the node, answered with a pose, skipped (latest wins),
+and the latency from the wrench's header stamp to the pose's arrival at the client (same
+clock): median, 95th and 99th percentile and maximum. "No backlog" means every received
+wrench was answered (none skipped) and the latency did not grow. ``--no-log`` runs without
+the MCAP log, to see what logging costs; ``--compliance`` subscribes to the compliance
+eigenvalues too. ``--node-python`` runs the node with another checkout's interpreter (``-m
 cdr_translator.node`` of that venv, without this checkout on PYTHONPATH), so an old and a
 new node can be measured with the same client in the same minutes; ``--markdown`` appends
 the table to a file (bench/results/node_rate.md). ``--profile`` runs this checkout's node
