@@ -85,6 +85,7 @@ FASTMATH = frozenset({'contract', 'reassoc', 'arcp', 'nsz'})
 #: numba's options for every kernel. ``nogil`` stays False: releasing the GIL in every kernel
 #: let translator_node's callback run during a solve but cost the solver the GIL back after
 #: each kernel; at 1-2 kHz it answered 30-50 % fewer wrenches (bench/results/node_rate.md).
+#: The one exception is ``jit_releasing_gil``: a single call per solve (warm_step.py).
 JIT_OPTIONS: Dict[str, Any] = {'cache': True, 'error_model': 'numpy', 'fastmath': FASTMATH,
                                'nogil': False}
 
@@ -130,9 +131,25 @@ def _clear_if_compiled_otherwise(folder: Path) -> None:
 
 def jit(func: Callable) -> Callable:
     """Compile ``func`` with numba (cached on disk), or leave it as Python while copying."""
+    return _compiled(func, {})
+
+
+def jit_releasing_gil(func: Callable) -> Callable:
+    """
+    ``jit`` for a kernel that does a whole solve's work in one call: it runs without the GIL.
+
+    Other threads (a node's subscription callback, its executor) then run beside it instead
+    of waiting for the switch interval. Every kernel releasing it cost more than it gave
+    (JIT_OPTIONS): the solver took the GIL back after each short call.
+    """
+    return _compiled(func, {'nogil': True})
+
+
+def _compiled(func: Callable, overrides: Dict[str, Any]) -> Callable:
+    """Compile ``func`` with JIT_OPTIONS and ``overrides``; register it in KERNELS."""
     if _interpreting:
         return func
-    kernel = numba.njit(**_numba_options())(func)
+    kernel = numba.njit(**{**_numba_options(), **overrides})(func)
     if kernel.stats.cache_path:
         _clear_if_compiled_otherwise(Path(kernel.stats.cache_path))
     KERNELS.append(kernel)

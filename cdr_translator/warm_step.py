@@ -22,7 +22,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from ._jit import jit
+from ._jit import jit_releasing_gil
 from .accuracy import ErrorEstimate, estimate_kernel
 from .chord import broyden_apply, chord_iterations, CONVERGED, extrapolate
 from .problem import Problem, RESIDUAL_KINDS
@@ -52,7 +52,7 @@ class WarmStep(NamedTuple):
     residual_by_kind: Optional[dict]
 
 
-@jit
+@jit_releasing_gil
 def _warm_step(path_xs, path_wrenches, count, wrenches, scales, wrench_factors, kind,
                model_args, lu, pivots, updates, taken, secant_count, settings, pose, points,
                frames, state, report):

@@ -2,7 +2,7 @@
 
 from cdr_translator import chord, TranslatorSolver
 from cdr_translator.accuracy import estimate
-from cdr_translator.warm_step import settings_array, TOO_FAR, warm_step
+from cdr_translator.warm_step import _warm_step, settings_array, TOO_FAR, warm_step
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor
@@ -94,3 +94,9 @@ def test_solver_results_match_the_general_path(params, noise):
         assert np.allclose(one.frames['de'], other.frames['de'], rtol=0, atol=1e-9)
         assert one.error_estimate_m == pytest.approx(other.error_estimate_m, rel=0.3)
     assert sum(calls) >= 30  # the usual case: the one call solved it
+
+
+def test_the_one_call_runs_without_the_gil():
+    """Its kernel releases the GIL (jit_releasing_gil); the short kernels keep it."""
+    assert _warm_step.targetoptions['nogil'] is True
+    assert chord.chord_iterations.targetoptions['nogil'] is False
