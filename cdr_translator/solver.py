@@ -293,7 +293,7 @@ class TranslatorSolver:
         self._last_estimate: Optional[ErrorEstimate] = None
         #: warm_step's settings array and the (tolerance, max_iterations) it was made for
         self._warm_settings_array = np.empty(0)
-        self._warm_settings_for: Optional[Tuple[float, int]] = None
+        self._warm_settings_for: Optional[Tuple[float, int, bool]] = None
         if method == 'fast':
             self._unloaded()  # loads the compiled kernels now, not inside the first solve
 
@@ -857,12 +857,12 @@ class TranslatorSolver:
         return None, step.iterations
 
     def _warm_settings(self) -> np.ndarray:
-        """Return the settings warm_step takes (made again when tolerance or iterations change)."""
-        key = (self.tolerance, self.max_iterations)
+        """Return the settings warm_step takes (made again when one it depends on changes)."""
+        key = (self.tolerance, self.max_iterations, self.judge)
         if self._warm_settings_for != key:
             self._warm_settings_array = warm_step_settings(
                 self.tolerance, self.max_iterations, CHORD_RATE, EXTRAPOLATION_MISS,
-                PREDICTOR_REACH)
+                PREDICTOR_REACH, estimate=self.judge)
             self._warm_settings_for = key
         return self._warm_settings_array
 

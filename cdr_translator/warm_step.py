@@ -37,7 +37,7 @@ _NORM, _POSITION, _ANGLE, _OTHER_STEPS, _BY_KIND = 0, 1, 2, 3, 4
 _REPORT_SIZE = _BY_KIND + len(RESIDUAL_KINDS)
 
 #: Layout of ``warm_step``'s settings array.
-_TOLERANCE, _MAX_ITERATIONS, _CHORD_RATE, _MISS_LIMIT, _REACH = 0, 1, 2, 3, 4
+_TOLERANCE, _MAX_ITERATIONS, _CHORD_RATE, _MISS_LIMIT, _REACH, _ESTIMATE = 0, 1, 2, 3, 4, 5
 
 
 class WarmStep(NamedTuple):
@@ -64,7 +64,8 @@ def _warm_step(path_xs, path_wrenches, count, wrenches, scales, wrench_factors, 
     the wrench's gain on its residual rows (the last six), ``state`` the unknowns the
     previous solution ends at (row 0; the iterate on return) and the residual (row 1).
     Returns (status, iterations, slot, Broyden update count); ``report`` gets _NORM and,
-    when converged, the estimate and the residuals by kind.
+    when converged and the settings ask for it (_ESTIMATE), the estimate and the residuals
+    by kind.
     """
     size = state.shape[1]
     xs = state[0]
@@ -93,7 +94,7 @@ def _warm_step(path_xs, path_wrenches, count, wrenches, scales, wrench_factors, 
         secant_count, False, settings[_TOLERANCE], int(settings[_MAX_ITERATIONS]),
         settings[_CHORD_RATE], points, frames, 0, True)
     report[_NORM] = norm
-    if status != CONVERGED:
+    if status != CONVERGED or settings[_ESTIMATE] == 0.0:
         return status, done, slot, secant_count
     position, angle, other = estimate_kernel(xs, wrench, scales[0], scales[1], kind,
                                              model_args, rs, frames[slot], lu, pivots, pose,
@@ -138,7 +139,7 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
         problem.shape_frames, state, report)
     problem.keep_secant_count(lu, int(count))
     estimate = by_kind = None
-    if status == CONVERGED:
+    if status == CONVERGED and settings[_ESTIMATE] != 0.0:
         estimate = ErrorEstimate(float(report[_POSITION]), float(report[_ANGLE]),
                                  problem.params.steps_per_segment, int(report[_OTHER_STEPS]))
         by_kind = dict(zip(RESIDUAL_KINDS, report[_BY_KIND:].tolist()))
@@ -147,12 +148,18 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
 
 
 def settings_array(tolerance: float, max_iterations: int, chord_rate: float,
-                   miss_limit: float, reach: float) -> np.ndarray:
-    """Return the solver settings ``warm_step`` takes, as its compiled part reads them."""
-    settings = np.empty(5)
+                   miss_limit: float, reach: float, estimate: bool = True) -> np.ndarray:
+    """
+    Return the solver settings ``warm_step`` takes, as its compiled part reads them.
+
+    Without ``estimate`` a converged step makes no error estimate (nor residuals by kind):
+    for a solver that does not judge its solves (TranslatorSolver(judge=False)).
+    """
+    settings = np.empty(6)
     settings[_TOLERANCE] = tolerance
     settings[_MAX_ITERATIONS] = max_iterations
     settings[_CHORD_RATE] = chord_rate
     settings[_MISS_LIMIT] = miss_limit
     settings[_REACH] = reach
+    settings[_ESTIMATE] = 1.0 if estimate else 0.0
     return settings

@@ -16,7 +16,6 @@ solver thread pattern, message filling, MCAP log thread and ``run`` loop (runtim
 parameters are CdrSettings' (cdr_translator.interface.settings).
 """
 
-import struct
 import sys
 import threading
 import time
@@ -220,7 +219,7 @@ class CdrNode(Node):
         """
         try:
             return self._decoders[message_class](data)
-        except (ValueError, struct.error) as error:
+        except ValueError as error:  # cdr's readers raise nothing else on bad bytes
             self._reject({'sec': 0, 'nanosec': 0}, what,
                          ValueError(f'malformed message: {error}'))
             return None

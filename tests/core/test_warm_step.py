@@ -25,8 +25,8 @@ def along_a_path(params):
     return problem, (path_xs, path_wrenches, 3), lu_factor(jacobian), pose.copy()
 
 
-def _settings(reach=0.3, max_iterations=12):
-    return settings_array(1e-10, max_iterations, 0.5, 0.5, reach)
+def _settings(reach=0.3, max_iterations=12, estimate=True):
+    return settings_array(1e-10, max_iterations, 0.5, 0.5, reach, estimate)
 
 
 def test_converges_with_the_estimate_and_residuals_of_the_parts(along_a_path):
@@ -100,3 +100,14 @@ def test_the_one_call_runs_without_the_gil():
     """Its kernel releases the GIL (jit_releasing_gil); the short kernels keep it."""
     assert _warm_step.targetoptions['nogil'] is True
     assert chord.chord_iterations.targetoptions['nogil'] is False
+
+
+def test_no_estimate_when_not_asked(along_a_path):
+    """Settings without the estimate (a solver that does not judge): converged, no estimate."""
+    problem, path, lu, pose = along_a_path
+    problem.keep_secant_count(lu, 0)  # the exact factorization alone, no Broyden updates
+    step, xs, _ = warm_step(problem, (path[0][2], PATH[2]), path, PATH[3], lu, pose,
+                            _settings(estimate=False))
+    assert step.status == chord.CONVERGED
+    assert step.estimate is None and step.residual_by_kind is None
+    assert np.abs(problem.residual(xs, PATH[3])).max() <= 1e-10
