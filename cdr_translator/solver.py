@@ -291,7 +291,7 @@ class TranslatorSolver:
         #: the refinement of an earlier one; None: this solver's own (``_solve_kept``)
         self._kept: Optional[int] = None
         self._last_estimate: Optional[ErrorEstimate] = None
-        #: warm_step's settings array and the (tolerance, max_iterations) it was made for
+        #: warm_step's settings array and the (tolerance, max_iterations, judge) it was made for
         self._warm_settings_array = np.empty(0)
         self._warm_settings_for: Optional[Tuple[float, int, bool]] = None
         if method == 'fast':
