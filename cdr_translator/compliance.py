@@ -21,13 +21,12 @@ from dataclasses import dataclass
 import math
 import time
 from typing import Any, Optional, Tuple
-import warnings
 
 import numpy as np
-from scipy.linalg import LinAlgWarning, lu_factor
 from scipy.linalg.lapack import dgeev, dgesv, dsyevd
 
 from . import stability
+from ._jit import jit
 from .problem import Problem
 
 #: Human-readable names of the six twist/wrench axes, in the order of C's rows.
@@ -129,9 +128,7 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
 def _factorization(jacobian: np.ndarray) -> tuple:
     if not np.all(np.isfinite(jacobian)):
         raise ArithmeticError('the Jacobian at the solution is not finite')
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore', LinAlgWarning)
-        return lu_factor(jacobian, check_finite=False)
+    return stability.factorize(jacobian)
 
 
 def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -173,38 +170,93 @@ def analyse(compliance: np.ndarray, characteristic_length: float,
         raise ValueError(f'mobility_ratio must lie in (0, 1], got {mobility_ratio}')
     if not characteristic_length > 0.0:
         raise ValueError(f'characteristic_length must be positive, got {characteristic_length}')
-    diagonal = np.sqrt(np.abs(compliance.diagonal()))
-    bound = sparsity_threshold * (diagonal[:, None] * diagonal)
-    np.fill_diagonal(bound, 0.0)  # the diagonal is never zeroed
-    sparse = np.where(np.abs(compliance) < bound, 0.0, compliance)
+    sparse = np.empty((6, 6))
+    _sparsify(np.ascontiguousarray(compliance, dtype=float), float(sparsity_threshold), sparse)
     values, vectors = _real_eigen(sparse)
-    scale = _SCALE_UNIT * characteristic_length + _SCALE_ONE  # diag(S): 1 m, then L
-    magnitudes = np.abs(vectors)
-    dominant = (magnitudes * scale[:, None]).argmax(axis=0)
-    order = np.lexsort((-values, dominant))
-    values, vectors, dominant = values[order], vectors[:, order], dominant[order]
-    # unit length, the dominant component positive
-    vectors *= np.copysign(1.0 / np.sqrt(np.einsum('ij,ij->j', vectors, vectors)),
-                           vectors[dominant, _COLUMNS])
-    scaled = vectors / scale[:, None]
-    in_length_units = values / np.einsum('ij,ij->j', scaled, scaled)
-    mobile = (in_length_units >= mobility_ratio * in_length_units.max()).tolist()
+    dominant = np.empty(6, dtype=np.int64)
+    mobile = np.empty(6, dtype=np.bool_)
+    values, vectors = _arrange(values, np.asfortranarray(vectors), float(characteristic_length),
+                               float(mobility_ratio), dominant, mobile)
     labels = tuple(AXIS_LABELS[axis] for axis in dominant.tolist())
+    roles = tuple('mobility' if flag else 'constraint' for flag in mobile.tolist())
     smallest = _smallest_stiffness_eigenvalue(compliance)
     return ComplianceAnalysis(
         matrix=compliance, sparse_matrix=sparse, eigenvalues=values, eigenvectors=vectors,
-        labels=labels, roles=tuple('mobility' if m else 'constraint' for m in mobile),
-        primary_mobility=tuple(label for label, m in zip(labels, mobile) if m),
+        labels=labels, roles=roles,
+        primary_mobility=tuple(label for label, role in zip(labels, roles)
+                               if role == 'mobility'),
         stable=smallest > 0.0, smallest_stiffness_eigenvalue=smallest,
         sparsity_threshold=sparsity_threshold, mobility_ratio=mobility_ratio,
         characteristic_length=characteristic_length, method=method, time_s=time_s,
         estimated_error=estimated_error)
 
 
-# the six axes' weights in S = diag(1, 1, 1, L, L, L), and the column indices
-_SCALE_UNIT = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
-_SCALE_ONE = 1.0 - _SCALE_UNIT
-_COLUMNS = np.arange(6)
+@jit
+def _sparsify(compliance, threshold, out):
+    """C_s into ``out``: off-diagonal terms below threshold sqrt(|C_ii C_jj|) zeroed."""
+    for i in range(6):
+        for j in range(6):
+            bound = threshold * math.sqrt(abs(compliance[i, i])) * math.sqrt(
+                abs(compliance[j, j]))
+            small = i != j and abs(compliance[i, j]) < bound  # NaN is never small
+            out[i, j] = 0.0 if small else compliance[i, j]
+
+
+@jit
+def _arrange(values, vectors, length, ratio, dominant, mobile):
+    """
+    Order, scale and classify the eigen-pairs of C_s (``analyse``); return them.
+
+    Each vector's dominant axis is its largest entry in scaled units (S = diag(1, 1, 1, L,
+    L, L): rotations times ``length``); the pairs are sorted by dominant axis, then by
+    decreasing eigenvalue (a stable sort); each vector gets unit length and a positive
+    dominant entry. ``dominant`` and ``mobile`` (compliance in length units at least
+    ``ratio`` times the largest; none if one is NaN) receive their flags in that order.
+    """
+    axis = np.empty(6, dtype=np.int64)
+    for j in range(6):
+        best, axis[j] = -1.0, 0
+        for i in range(6):
+            size = abs(vectors[i, j]) * (length if i >= 3 else 1.0)
+            if size > best:
+                best, axis[j] = size, i
+    order = np.arange(6)
+    for k in range(1, 6):  # insertion sort: stable, as numpy.lexsort
+        current = order[k]
+        m = k
+        while m > 0 and (axis[order[m - 1]] > axis[current] or (
+                axis[order[m - 1]] == axis[current] and values[order[m - 1]] < values[current])):
+            order[m] = order[m - 1]
+            m -= 1
+        order[m] = current
+    sorted_values = np.empty(6)
+    sorted_vectors = np.empty((6, 6))
+    in_length_units = np.empty(6)
+    largest = -np.inf
+    for k in range(6):
+        j = order[k]
+        dominant[k] = axis[j]
+        sorted_values[k] = values[j]
+        norm = 0.0
+        for i in range(6):
+            norm += vectors[i, j] * vectors[i, j]
+        factor = math.copysign(1.0 / math.sqrt(norm), vectors[axis[j], j])
+        scaled = 0.0
+        for i in range(6):
+            entry = factor * vectors[i, j]
+            sorted_vectors[i, k] = entry
+            entry /= length if i >= 3 else 1.0
+            scaled += entry * entry
+        in_length_units[k] = values[j] / scaled
+        if np.isnan(in_length_units[k]) or np.isnan(largest):
+            largest = np.nan
+        else:
+            largest = max(largest, in_length_units[k])
+    for k in range(6):
+        mobile[k] = in_length_units[k] >= ratio * largest
+    return sorted_values, sorted_vectors
+
+
 _IDENTITY = np.eye(6)
 
 

@@ -32,13 +32,13 @@ from dataclasses import dataclass
 import math
 import time
 from typing import Optional
-import warnings
 
 import numpy as np
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import lu_solve
 
 from .path_following import rounding_floor
 from .problem import Problem
+from .stability import factorize
 
 #: Iterations in a row (after the first, which raises the defects from zero) whose
 #: residuals and defects grow end the iteration as not contracting.
@@ -116,9 +116,7 @@ def newton(problem: Problem, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarr
         rs, ds, jac, lifted = problem.lifted_jacobian(xs, nodes, wrench)
         pose, tangents = problem.pose_jacobian, problem.node_tangents
         floor = rounding_floor(jac, xs)
-        with warnings.catch_warnings():  # a singular J shows as a non-finite step
-            warnings.simplefilter('ignore', LinAlgWarning)
-            lu = lu_factor(jac, check_finite=False)
+        lu = factorize(jac)  # a singular J shows as a non-finite step
         step = -lu_solve(lu, rs + lifted, check_finite=False)
         done += 1
         if not np.all(np.isfinite(step)):

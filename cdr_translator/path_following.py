@@ -27,12 +27,12 @@ path failed, so the results of solves that converge by the default path are unch
 from dataclasses import dataclass
 import time
 from typing import List, Optional, Tuple
-import warnings
 
 import numpy as np
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import lu_solve
 
 from .problem import Problem
+from .stability import factorize
 
 #: Converged points the Hermite predictor interpolates (value and tangent at each).
 HISTORY = 3
@@ -108,9 +108,7 @@ def correct(problem: Problem, xs: np.ndarray, wrench: np.ndarray, tolerance: flo
         if not (np.isfinite(rs).all() and np.isfinite(jac).all()):
             return _Corrected(xs, rs, iteration, False, 'residual became non-finite')
         floor = rounding_floor(jac, xs)
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore', LinAlgWarning)
-            lu = lu_factor(jac, check_finite=False)
+        lu = factorize(jac)
         if np.abs(rs).max() <= max(tolerance, floor):
             return _Corrected(xs, rs, iteration, True, 'converged', floor, lu, pose.copy())
         if iteration == max_iterations:

@@ -16,11 +16,9 @@ import functools
 import math
 import time
 from typing import Any, Callable, Dict, Optional, Tuple
-import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg import LinAlgWarning, lu_factor
 
 from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
@@ -691,9 +689,7 @@ class TranslatorSolver:
                     drift <= min(STALE_WRENCH, 0.5 * verdict.margin):
                 return verdict
         _, jac, pose = problem.exact_jacobian(outcome.xs, wrench)
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore', LinAlgWarning)
-            lu = lu_factor(jac, check_finite=False)
+        lu = stability.factorize(jac)
         outcome.lu, outcome.pose = lu, (pose.copy(), wrench.copy())
         outcome.estimate = None  # made on the stale factorization: redone on this one
         self._lu, self._pose = outcome.lu, outcome.pose
@@ -962,7 +958,7 @@ class TranslatorSolver:
         if self._unloaded_lu is None:
             zero = np.zeros(6)
             xs = self.problem.straight_guess(zero)
-            self._unloaded_lu = lu_factor(
+            self._unloaded_lu = stability.factorize(
                 self.problem.jacobian(xs, zero, self.problem.residual(xs, zero)))
             self._unloaded_pose = (self.problem.pose_jacobian, zero)
         return (self.problem.straight_guess(np.zeros(6)), np.zeros(6)), self._unloaded_lu
@@ -1071,9 +1067,8 @@ class TranslatorSolver:
                 if time.perf_counter() > deadline:
                     return ended(False, f'time limit of {self.time_limit_s} s reached')
             if lu is None:
-                with warnings.catch_warnings():  # a singular J shows as a non-finite step
-                    warnings.simplefilter('ignore', LinAlgWarning)
-                    lu = lu_factor(problem.jacobian(xs, wrench, rs), check_finite=False)
+                # a singular J shows as a non-finite step
+                lu = stability.factorize(problem.jacobian(xs, wrench, rs))
                 pose = (problem.pose_jacobian, wrench.copy())
                 fresh = True
             status, used, norm, slot = problem.chord_newton(

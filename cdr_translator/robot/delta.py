@@ -46,7 +46,6 @@ from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg import lu_factor
 
 from .inverse import InverseResult, InverseSolver
 from .kernels import chord_verdict, coupled_iterations, coupled_step, FAR, NO_STEP
@@ -57,7 +56,7 @@ from .result import DeltaResult, LegResults, rotation_vector
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, one_blas_thread, TranslatorSolver
-from ..stability import pose_twist, solve_lu
+from ..stability import factorize, pose_twist, solve_lu
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).
 SIZE = 24
@@ -895,7 +894,7 @@ class DeltaRobot:
         for k, solver in enumerate(self.leg_solvers):
             problem = solver.problem
             _, jacobian, pose = problem.exact_jacobian(state.unknowns[k], state.wrenches[k])
-            lu = lu_factor(jacobian, check_finite=False)
+            lu = factorize(jacobian)
             gain = solve_lu(lu, problem.wrench_sensitivity)
             rotation = state.frames[k, :3, :3].copy()
             twist = pose_twist(pose, rotation)
@@ -906,8 +905,7 @@ class DeltaRobot:
                                           state.wrenches[k].copy()))
         self._counts['leg_jacobians'] += 3
         jacobian = self._jacobian(state, inputs, [leg.compliance for leg in legs])
-        platform = lu_factor(jacobian / self._r_scale[:, None] * self._x_scale[None, :],
-                             check_finite=False)
+        platform = factorize(jacobian / self._r_scale[:, None] * self._x_scale[None, :])
         if not np.all(np.isfinite(platform[0])) or np.any(np.diag(platform[0]) == 0.0):
             raise ArithmeticError('the platform Jacobian is singular')
         return _Factorization(platform, tuple(legs), state)

@@ -1,6 +1,6 @@
 """BLAS runs on one thread inside a solve (its LAPACK factorizations) and as before after it."""
 
-from cdr_translator import solver as solver_module
+from cdr_translator import solver as solver_module, stability
 from threadpoolctl import threadpool_info, threadpool_limits
 
 
@@ -10,16 +10,16 @@ def _blas_threads():
             if library['user_api'] == 'blas']
 
 
-def test_lu_factor_runs_on_one_blas_thread_and_the_limit_is_restored(solver, monkeypatch):
+def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver, monkeypatch):
     """A cold 12 N solve factors Jacobians with one BLAS thread; two are set again after."""
     seen = []
-    factor = solver_module.lu_factor
+    factor = stability.factorize
 
     def recording(*args, **kwargs):
         seen.append(_blas_threads())
         return factor(*args, **kwargs)
 
-    monkeypatch.setattr(solver_module, 'lu_factor', recording)
+    monkeypatch.setattr(stability, 'factorize', recording)
     with threadpool_limits(limits=2, user_api='blas'):
         before = _blas_threads()
         solver.reset()

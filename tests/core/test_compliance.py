@@ -7,7 +7,7 @@ Tolerances are relative to max |C| unless stated; C is in SI units (m/N, rad/(N 
 import json
 
 from cdr_translator import cli, TranslatorSolver
-from cdr_translator.compliance import analyse, frame_twist
+from cdr_translator.compliance import analyse, AXIS_LABELS, frame_twist
 from cdr_translator.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
@@ -225,3 +225,41 @@ def test_analysis_of_a_singular_compliance_is_not_stable():
     analysis = analyse(np.diag([1.0, 1.0, 1.0, 1.0, 1.0, 0.0]), 0.1)
     assert analysis.smallest_stiffness_eigenvalue == -np.inf and not analysis.stable
     assert analyse(np.eye(6), 0.1).smallest_stiffness_eigenvalue == pytest.approx(1.0)
+
+
+def _reference_arrangement(matrix, length, threshold, ratio):
+    """The analysis as its docstring defines it, in plain numpy (no compiled parts)."""
+    diagonal = np.sqrt(np.abs(np.diag(matrix)))
+    bound = threshold * np.outer(diagonal, diagonal)
+    np.fill_diagonal(bound, 0.0)
+    sparse = np.where(np.abs(matrix) < bound, 0.0, matrix)
+    values, vectors = np.linalg.eig(sparse)
+    values, vectors = values.real, vectors.real
+    scale = np.array([1.0, 1.0, 1.0, length, length, length])
+    dominant = np.argmax(np.abs(vectors) * scale[:, None], axis=0)
+    order = np.lexsort((-values, dominant))
+    values, vectors, dominant = values[order], vectors[:, order], dominant[order]
+    vectors = vectors / np.linalg.norm(vectors, axis=0)
+    vectors *= np.sign(vectors[dominant, np.arange(6)])
+    in_length_units = values / np.sum((vectors / scale[:, None]) ** 2, axis=0)
+    return sparse, values, vectors, dominant, in_length_units >= ratio * in_length_units.max()
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_analysis_orders_scales_and_classifies_as_defined(seed):
+    """C_s, the order (dominant axis, then decreasing xi), unit vectors and roles."""
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        root = rng.standard_normal((6, 6)) * np.repeat([1e-3, 3e-2], 3)
+        matrix = root @ root.T
+        if rng.random() < 0.3:  # repeated eigenvalues: the order among equals is kept
+            matrix = np.diag(rng.choice([1e-6, 2e-6], 6))
+        threshold, ratio = rng.uniform(0.0, 0.5), rng.uniform(0.05, 1.0)
+        analysis = analyse(matrix, 0.1, sparsity_threshold=threshold, mobility_ratio=ratio)
+        sparse, values, vectors, dominant, mobile = _reference_arrangement(
+            matrix, 0.1, threshold, ratio)
+        assert np.array_equal(analysis.sparse_matrix, sparse)
+        assert np.allclose(analysis.eigenvalues, values, rtol=1e-10, atol=0.0)
+        assert np.allclose(analysis.eigenvectors, vectors, atol=1e-9)
+        assert analysis.labels == tuple(AXIS_LABELS[axis] for axis in dominant)
+        assert analysis.roles == tuple('mobility' if m else 'constraint' for m in mobile)

@@ -119,3 +119,33 @@ def test_reused_verdicts_stay_within_half_the_margin_of_fresh_ones(params):
                                  problem.wrench_sensitivity, warm._origin())
         assert result.stable and truth.stable
         assert abs(result.stability_margin - truth.margin) <= 0.5 * truth.margin
+
+
+def test_factorize_equals_scipy_lu_factor_and_flags_a_singular_matrix():
+    """getrf directly gives lu_factor's factors; an exactly singular J has sign 0."""
+    rng = np.random.default_rng(5)
+    matrix = rng.standard_normal((90, 90))
+    lu, pivots = stability.factorize(matrix)
+    expected_lu, expected_pivots = lu_factor(matrix)
+    assert np.array_equal(pivots, expected_pivots)
+    assert np.allclose(lu, expected_lu, rtol=0.0, atol=1e-12)
+    assert stability.determinant_sign((lu, pivots)) == np.sign(np.linalg.det(matrix))
+    singular = matrix.copy()
+    singular[:, 3] = 0.0  # a zero pivot
+    assert stability.determinant_sign(stability.factorize(singular)) == 0
+
+
+def test_pose_twist_is_the_spatial_angular_velocity():
+    """A frame turning as R(t) = exp(t [w]) R moving at v gives the twist [v; w]."""
+    rng = np.random.default_rng(6)
+    rotation = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    twists = rng.standard_normal((6, 4))
+    changes = np.empty((12, 4))
+    for column, (velocity, spin) in enumerate(zip(twists[:3].T, twists[3:].T)):
+        skew = np.array([[0.0, -spin[2], spin[1]], [spin[2], 0.0, -spin[0]],
+                         [-spin[1], spin[0], 0.0]])
+        changes[:3, column] = velocity
+        changes[3:, column] = (skew @ rotation).ravel()  # dR/dt at t = 0, row-major
+    assert np.allclose(stability.pose_twist(changes, rotation), twists, atol=1e-14)
+    assert np.allclose(stability.pose_twist(changes[:, 2], rotation), twists[:, 2],
+                       atol=1e-14)
