@@ -228,7 +228,7 @@ def test_analysis_of_a_singular_compliance_is_not_stable():
 
 
 def _reference_arrangement(matrix, length, threshold, ratio):
-    """The analysis as its docstring defines it, in plain numpy (no compiled parts)."""
+    """Analyse as its docstring defines it, in plain numpy (no compiled parts)."""
     diagonal = np.sqrt(np.abs(np.diag(matrix)))
     bound = threshold * np.outer(diagonal, diagonal)
     np.fill_diagonal(bound, 0.0)

@@ -122,7 +122,7 @@ def test_reused_verdicts_stay_within_half_the_margin_of_fresh_ones(params):
 
 
 def test_factorize_equals_scipy_lu_factor_and_flags_a_singular_matrix():
-    """getrf directly gives lu_factor's factors; an exactly singular J has sign 0."""
+    """LAPACK getrf directly gives lu_factor's factors; an exactly singular J has sign 0."""
     rng = np.random.default_rng(5)
     matrix = rng.standard_normal((90, 90))
     lu, pivots = stability.factorize(matrix)
