@@ -4,6 +4,7 @@ Latency and throughput of translator_node over DDS (localhost, its own domain).
 Usage: python -m bench.node_latency [--rates 100 200 500 1000 2000] [--seconds 3] [--no-log]
                                      [--compliance] [--node-python PY] [--label TEXT]
                                      [--markdown FILE] [--profile OUT.md] [--rest-noise N]
+                                     [--param NAME:=VALUE]...
 
 Starts the node, streams a smooth wrench sequence (a 0.5 Hz sweep of 0-12 N lateral force,
 the kind a force sensor sends; with ``--rest-noise N`` instead a sensor at rest: Gaussian
@@ -19,6 +20,7 @@ new node can be measured with the same client in the same minutes; ``--markdown`
 the table to a file (bench/results/node_rate.md). ``--profile`` runs this checkout's node
 under bench.node_profile (timers around its stages, every thread's CPU time), which writes
 its account to OUT.md when the node stops (use one rate per run to see that rate's split).
+``--param`` sets one of the node's parameters (``-p NAME:=VALUE``, e.g. pending_wrenches:=1).
 
 The publisher sleeps between wrenches (no busy spin); the client runs without the cyclic
 garbage collector (a collection over the messages it keeps stalled it by 0.2-0.3 s). The
@@ -128,6 +130,9 @@ def main() -> None:
                         help='append the table to this markdown file')
     parser.add_argument('--profile', type=Path, default=None,
                         help="write the node's CPU account (bench.node_profile) to this file")
+    parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help="a parameter of the node's (-p NAME:=VALUE), e.g. "
+                             'pending_wrenches:=1; repeatable')
     parser.add_argument('--rest-noise', type=float, default=0.0,
                         help='stream a sensor at rest: this much Gaussian noise (N) per force '
                              'component around zero, instead of the sweep')
@@ -150,6 +155,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         ros_args = ['-p', 'log_to_mcap:=false'] if args.no_log else [
             '-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
+        for assignment in args.param:
+            ros_args += ['-p', assignment]
         topics = [messages.END_DISK_POSE_TOPIC, messages.DIAGNOSTICS_TOPIC]
         if args.compliance:
             topics.append(messages.COMPLIANCE_EIGENVALUES_TOPIC)
@@ -199,7 +206,8 @@ def _append_markdown(path: Path, args: argparse.Namespace, table: List[str]) -> 
     when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
     setup = ('no MCAP log' if args.no_log else 'MCAP log on') + (
         ', compliance subscribed' if args.compliance else '') + (
-        f', at rest with {args.rest_noise:g} N noise' if args.rest_noise > 0.0 else '')
+        f', at rest with {args.rest_noise:g} N noise' if args.rest_noise > 0.0 else '') + ''.join(
+        f', {assignment}' for assignment in args.param)
     with open(path, 'a') as stream:
         stream.write(f'\n### {args.label} ({when}, {setup}, {args.seconds:g} s per rate, '
                      f'load average {load})\n\n'

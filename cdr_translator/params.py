@@ -51,7 +51,7 @@ MAX_REFINED_STEPS = 256
 NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
     'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
-    'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth'))
+    'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth', 'pending_wrenches'))
 
 #: Keys of the same params file that choose the fidelity level and its error budget
 #: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).

@@ -91,6 +91,10 @@ _NODE = (
     ParameterSpec('wrench_queue_depth', 'wrenches the subscription holds while the node is '
                   'busy (best effort, keep last); 100 absorbs a 0.1 s stall at 1 kHz',
                   read_only=True, bounds=(1, 100_000)),
+    ParameterSpec('pending_wrenches', 'received wrenches that may wait for the solver; when '
+                  'one more arrives the oldest waiting one is skipped. 1: latest wins (only '
+                  'the newest waits); 2: two wrenches arriving within one solve are both '
+                  'answered', read_only=True, bounds=(1, 1000)),
 )
 
 _FIDELITY = (
@@ -210,6 +214,7 @@ class TranslatorSettings:
     mcap_flush_messages: int
     mcap_flush_s: float
     wrench_queue_depth: int
+    pending_wrenches: int
     fidelity: str
     max_position_error: float
     max_angle_error: float

@@ -7,6 +7,7 @@ checks and the solve of one wrench are cdr_translator.interface.processing's, sh
 the offline replay.
 """
 
+from collections import deque
 import datetime
 from functools import lru_cache
 import gc
@@ -18,7 +19,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Sequence
+from typing import Any, Callable, Deque, Dict, FrozenSet, List, Mapping, Optional, Sequence
 from typing import Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -102,42 +103,49 @@ def sensor_qos(depth: int) -> QoSProfile:
 
 class LatestMailbox:
     """
-    One-slot, thread-safe mailbox: ``put`` replaces an untaken item (counted as skipped).
+    Bounded, thread-safe mailbox, first in first out: beyond ``capacity`` the oldest goes.
 
-    The consumer always gets the newest item; nothing ever queues up behind it.
+    ``put`` adds an item; when more than ``capacity`` items wait, the oldest waiting one is
+    dropped (counted as skipped), so the newest item always waits and at most
+    ``capacity - 1`` older ones before it. Capacity 1: the consumer always gets the newest
+    (latest wins); 2 also keeps an item that arrived while the one before it was taken and
+    being worked on, so two items arriving within one piece of work are both taken.
     """
 
-    def __init__(self) -> None:
-        """Start empty and open."""
+    def __init__(self, capacity: int = 1) -> None:
+        """Start empty and open; ``capacity`` >= 1 items may wait."""
+        if capacity < 1:
+            raise ValueError(f'a mailbox holds at least 1 item, got capacity {capacity}')
         self._condition = threading.Condition()
-        self._item: Any = None
-        self._full = False
+        self._items: Deque[Any] = deque()
+        self.capacity = capacity
         self._closed = False
         self.skipped = 0
 
     def put(self, item: Any) -> bool:
-        """Leave ``item``; return True if it replaced one nobody had taken yet."""
+        """Leave ``item``; return True if it pushed out an older one nobody had taken yet."""
         with self._condition:
-            replaced = self._full
-            if replaced:
+            self._items.append(item)
+            dropped = len(self._items) > self.capacity
+            if dropped:
+                self._items.popleft()
                 self.skipped += 1
-            self._item, self._full = item, True
             self._condition.notify()
-            return replaced
+            return dropped
 
     def take(self, timeout: Optional[float] = None) -> Any:
-        """Wait for an item and return it; None once closed (or after ``timeout`` s)."""
+        """Wait for an item and return the oldest; None once closed (or after ``timeout`` s)."""
         with self._condition:
-            self._condition.wait_for(lambda: self._full or self._closed, timeout)
-            if self._closed or not self._full:
+            self._condition.wait_for(lambda: bool(self._items) or self._closed, timeout)
+            if self._closed or not self._items:
                 return None
-            item, self._item, self._full = self._item, None, False
-            return item
+            return self._items.popleft()
 
     def close(self) -> None:
-        """Wake the consumer for good; an untaken item is dropped."""
+        """Wake the consumer for good; untaken items are dropped."""
         with self._condition:
             self._closed = True
+            self._items.clear()
             self._condition.notify_all()
 
 

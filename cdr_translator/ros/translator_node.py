@@ -5,10 +5,12 @@ Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publish
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
 ``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
 defines their content). The subscription callback only counts and logs a wrench and hands
-its bytes to a solver thread through a one-slot mailbox: when they arrive faster than the
-solver, the newest wins and the others are counted as skipped. The solver thread decodes
-(cdr.decoder) and checks the wrench it takes (cdr_translator.interface.processing: the same
-checks, frames and follower-load solve as the offline replay). The subscription's queue is
+its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
+one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
+one solve are both answered and, when they keep arriving faster than the solver, the newest
+wins. The solver thread decodes (cdr.decoder) and checks the wrench it takes
+(cdr_translator.interface.processing: the same checks, frames and follower-load solve as the
+offline replay). The subscription's queue is
 ``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
 one by one with the pose first (it is published before the others are built), encoded
@@ -87,7 +89,7 @@ class TranslatorNode(Node):
         self._decode_wrench = cdr.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in OUTPUTS.items()}
-        self._mailbox = LatestMailbox()
+        self._mailbox = LatestMailbox(self._settings.pending_wrenches)
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._log_watch = LogWatch(self._log) if self._log is not None else None

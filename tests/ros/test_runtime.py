@@ -220,3 +220,16 @@ def test_run_spins_with_a_short_gil_switch_interval(monkeypatch):
     assert code == 0
     assert seen == [pytest.approx(runtime.GIL_SWITCH_INTERVAL_S)]
     assert runtime.GIL_SWITCH_INTERVAL_S < before
+
+
+def test_mailbox_with_room_for_two_answers_a_burst_and_drops_the_oldest_beyond():
+    """FIFO within the capacity; one more item pushes out the oldest waiting, counted."""
+    mailbox = LatestMailbox(capacity=2)
+    assert mailbox.put(1) is False and mailbox.put(2) is False
+    assert mailbox.take() == 1  # a burst of two: both are taken, oldest first
+    assert mailbox.put(3) is False
+    assert mailbox.put(4) is True  # 2 goes: the newest always waits
+    assert [mailbox.take(), mailbox.take()] == [3, 4] and mailbox.skipped == 1
+    assert mailbox.take(timeout=0.01) is None
+    with pytest.raises(ValueError, match='capacity 0'):
+        LatestMailbox(capacity=0)
