@@ -121,6 +121,14 @@ def test_killed_atlas_resumes_missing_chunks_only(tmp_path, capsys):
     assert str(out) in capsys.readouterr().err
 
 
+def _parsed(path: Path):
+    """Return the JSON document at ``path``, or None while it is missing or incomplete."""
+    try:
+        return json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return None
+
+
 def test_scheduler_path_with_separate_processes(tmp_path, capsys):
     """`dask scheduler` and `dask worker` as processes on 127.0.0.1; the atlas uses them."""
     scheduler_file = tmp_path / 'scheduler.json'
@@ -133,12 +141,11 @@ def test_scheduler_path_with_separate_processes(tmp_path, capsys):
             env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL))
         deadline = time.monotonic() + 60.0
-        while not scheduler_file.exists() or not scheduler_file.read_text().strip():
-            assert time.monotonic() < deadline, 'no scheduler file in 60 s'
+        while (scheduler := _parsed(scheduler_file)) is None:   # complete once it parses
+            assert time.monotonic() < deadline, 'no complete scheduler file in 60 s'
             assert processes[0].poll() is None, 'the scheduler exited'
             time.sleep(0.1)
-        time.sleep(0.2)  # the file is complete once it parses
-        address = json.loads(scheduler_file.read_text())['address']
+        address = scheduler['address']
         assert address.startswith('tcp://127.0.0.1:')
         processes.append(subprocess.Popen(
             [sys.executable, '-m', 'distributed.cli.dask_worker', address, '--nworkers', '1',

@@ -23,8 +23,12 @@ from msg_tools.reader import McapSource
 from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
 
 LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'
-#: Bound on the wait for the log's next try (every 1 s) to be reported.
+#: Bound on each wait for the log's state (checked every 1 s) to be reported.
 RESUME_TIMEOUT_S = 30.0
+#: Pause between wrenches once the log has failed: the 400 kB file of the limited node
+#: holds about 110 of them (3.5 kB each), so a fresh one lasts over 2 s: more than the
+#: 1 s log check.
+RESUMED_PACE_S = 0.02
 CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost')
 
 #: The node under RLIMIT_FSIZE (the kernel's EFBIG once a file reaches the limit; SIGXFSZ
@@ -78,10 +82,14 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
     ros_args = ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
                 '-p', 'mcap_flush_messages:=20']
     with Running(tmp_path, ros_env, ros_args, command=LIMITED_COMMAND, mcap=path) as run:
-        stamps = []
-        for index in range(1500):
-            stamps.append(run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0)))
-            assert run.answered(POSE, stamps[-1]), run.node.text()
+        # The node checks its log once a second: every wait here is bounded by time, not by
+        # a count of wrenches (a fast machine answers a thousand within that second).
+        deadline = time.monotonic() + RESUME_TIMEOUT_S
+        index = 0
+        while time.monotonic() < deadline:
+            stamp = run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0))
+            index += 1
+            assert run.answered(POSE, stamp), run.node.text()
             if any(status.level == bytes([messages.ERROR]) for status in log_diagnostics(run)):
                 break
         errors = [status for status in log_diagnostics(run)
@@ -90,15 +98,16 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
         assert 'File too large' in errors[0].message
         values = {pair.key: pair.value for pair in errors[0].values}
         assert int(values['records_lost']) > 0 and int(values['received']) > 0
-        # still solving and publishing; the log tries a new file once 1 s has passed, so the
-        # wait is bounded by time, not by a count of wrenches (a fast machine answers 1000
-        # within that second)
+        # Still solving and publishing; the log tries a new file once 1 s has passed. Paced,
+        # so that the new file takes longer than the node's 1 s log check to reach the limit
+        # again, on any machine: otherwise the resumption may never be seen.
         deadline = time.monotonic() + RESUME_TIMEOUT_S
         index = 0
         while time.monotonic() < deadline:
             stamp = run.client.publish((3.0 + 0.01 * (index % 100), 0.0, 0.0))
             index += 1
             assert run.answered(POSE, stamp), run.node.text()
+            time.sleep(RESUMED_PACE_S)
             if any('resumed in' in status.message for status in log_diagnostics(run)):
                 break
         assert any(status.level == bytes([messages.WARN]) and 'resumed in' in status.message
