@@ -229,7 +229,9 @@ for index in range(int(sys.argv[4])):
     log.write('wrench', messages.WRENCH_TYPE,
               messages.wrench_message([index, 0, 0], [0, 0, 0], '', {'sec': index, 'nanosec': 0}),
               log_time_ns=index)
-time.sleep(float(sys.argv[5]))
+deadline = time.monotonic() + float(sys.argv[5])  # wait (bounded) for the flush timer
+while log.status().pending and time.monotonic() < deadline:
+    time.sleep(0.01)
 os.kill(os.getpid(), signal.SIGKILL)
 """
 
@@ -248,7 +250,7 @@ def _stream_messages(path):
 
 @pytest.mark.parametrize('every_n, every_s, count, wait, expected', [
     (10, 0.0, 25, 0.0, 20),      # two full chunks by count; the last 5 are lost
-    (0, 0.2, 3, 1.0, 3),         # nothing by count, the timer flushed all three
+    (0, 0.2, 3, 30.0, 3),        # nothing by count, the timer flushed all three
 ])
 def test_killed_writer_leaves_complete_chunks(tmp_path, every_n, every_s, count, wait,
                                               expected):
