@@ -11,10 +11,11 @@ read was replayed; 2 bad arguments, unusable input or an output that cannot be w
 (checked before reading; message on stderr, no traceback); 3 nothing could be decoded or
 solved (until issue 14 such a replay exited 0); 130 interrupted by Ctrl-C (the output MCAP
 is finalized all the same). info and synth: 0 done (info also for a damaged file, which it
-reports), 2 bad arguments or unusable input.
+reports), 2 bad arguments or unusable input. All: 141 when stdout was closed early (``| head``).
 """
 
 import argparse
+import os
 import sys
 from typing import Optional, Sequence
 
@@ -22,6 +23,10 @@ from msg_tools import synth
 from msg_tools.info import describe
 from msg_tools.replay import main_replay
 from msg_tools.synth import PROFILES
+
+#: Exit code when stdout is closed early (``| head``): 128 + SIGPIPE, as a shell reports a
+#: process that SIGPIPE ended.
+EXIT_BROKEN_PIPE = 141
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -70,7 +75,18 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the command line; return the exit code."""
+    """Run the command line; return the exit code (EXIT_BROKEN_PIPE: stdout was closed)."""
+    try:
+        return _run(argv)
+    except BrokenPipeError:
+        # the reader of stdout went away (`| head -1`): what was printed stands, the outputs
+        # are finished; later writes to stdout (the interpreter's last flush) go nowhere
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+
+
+def _run(argv: Optional[Sequence[str]]) -> int:
+    """Parse ``argv`` and run the subcommand; return the exit code."""
     args = _parser().parse_args(argv)
     if args.command == 'info':
         try:

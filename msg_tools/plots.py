@@ -68,6 +68,21 @@ def choose_samples(indices: Sequence[int], samples: Optional[Sequence[int]]) -> 
     return sorted(set(np.linspace(0, len(indices) - 1, count).round().astype(int).tolist()))
 
 
+def check_plot_path(path: Union[str, Path]) -> None:
+    """
+    Raise ValueError unless ``path`` ends in a format matplotlib writes (.png, .pdf, .svg...).
+
+    Without the check a missing suffix gets '.png' appended behind the caller's back, and
+    an unknown one fails only once the replay is done.
+    """
+    formats = sorted(plt.figure().canvas.get_supported_filetypes())
+    plt.close('all')
+    suffix = Path(path).suffix.lower().lstrip('.')
+    if suffix not in formats:
+        raise ValueError(f'plot file {path}: its suffix must name an image format, one of '
+                         f'{", ".join(formats)}')
+
+
 def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, None] = None,
                 samples: Optional[Sequence[int]] = None) -> List[int]:
     """

@@ -177,9 +177,11 @@ class McapSource:
     """
     The messages of one MCAP file, read by index or salvaged by streaming.
 
-    ``messages()`` may be iterated once; ``report`` is complete when it ends. ``topics``
-    (optional) keeps only those channels; ``check_data_crc`` also checks the data-section
-    CRC.
+    ``messages()`` may be iterated once (a second call is a ValueError, not an empty
+    read); ``report`` is complete when it ends. ``channel_overview`` reads the messages too
+    when the summary cannot serve it (a damaged file, or ``verify``), and then fills
+    ``report``. ``topics`` (optional) keeps only those channels; ``check_data_crc`` also
+    checks the data-section CRC.
     """
 
     def __init__(self, path: Union[str, Path], topics: Optional[List[str]] = None,
@@ -197,10 +199,20 @@ class McapSource:
         #: After ``messages()`` with ``check_data_crc``: 'valid', 'mismatch', 'absent' (the
         #: writer stored none) or 'unchecked' (the data section could not be read through).
         self.data_crc = 'unchecked'
+        self._read = False
 
     # public -------------------------------------------------------------------------------
     def messages(self) -> Iterator[RawMessage]:
-        """Yield every readable message in file order; fill ``report`` on the way."""
+        """
+        Yield every readable message in file order; fill ``report`` on the way.
+
+        ValueError when this source has been read before: its duplicate filter and report
+        already hold that read, so a second one would yield nothing and count duplicates.
+        """
+        if self._read:
+            raise ValueError(f'{self.path} has been read through this McapSource already '
+                             '(channel_overview reads a damaged file): make a new McapSource')
+        self._read = True
         with open(self.path, 'rb') as stream:
             summary, reason = self._summary(stream)
             if summary is not None:

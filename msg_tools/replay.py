@@ -30,7 +30,7 @@ from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.mcap_log import LogStatus, McapLog
-from msg_tools.plots import plot_replay
+from msg_tools.plots import check_plot_path, plot_replay
 from msg_tools.reader import Decoders, McapSource, ReadReport
 import numpy as np
 
@@ -165,6 +165,20 @@ class ReplaySummary:
     position_range: Optional[np.ndarray] = None
     output_status: Optional[LogStatus] = None
     output_error: str = ''
+    #: Messages of the replayed topics the input's summary lists (None: no summary).
+    total: Optional[int] = None
+
+    @property
+    def stopped_early(self) -> bool:
+        """Tell whether the replay ended before the input did (Ctrl-C or a write error)."""
+        return self.interrupted or bool(self.output_error) or bool(
+            self.output_status is not None and self.output_status.lost)
+
+    def not_replayed(self) -> str:
+        """Return how much of the input a replay that stopped early left (for the table)."""
+        if self.total is None:
+            return 'the rest of the input (its summary gives no count)'
+        return f'{max(self.total - self.messages, 0)} of {self.total} messages'
 
     @property
     def throughput(self) -> float:
@@ -202,7 +216,10 @@ class ReplaySummary:
 
     def table(self) -> str:
         """Return the summary table printed at the end of a replay."""
-        rows = [('input', self.input_report.describe()),
+        read = self.input_report.describe()
+        if self.stopped_early:
+            read += ' up to where the replay stopped'
+        rows = [('input', read),
                 ('wrench topics', ', '.join(self.topics)),
                 ('messages', str(self.messages)),
                 ('solved (converged)', str(self.solved)),
@@ -231,6 +248,8 @@ class ReplaySummary:
                                            f'{self.output_status.lost} lost'))
         if self.interrupted:
             rows.append(('interrupted', 'yes (Ctrl-C): the output holds what was done'))
+        if self.stopped_early:
+            rows.append(('not replayed', self.not_replayed()))
         width = max(len(name) for name, _ in rows)
         return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
 
@@ -269,14 +288,16 @@ class Progress:
 
 
 def output_topic(input_topic: str, name: str) -> str:
-    """Return the node's output topic ``name`` in the namespace of ``input_topic``."""
+    """
+    Return the node's output topic ``name`` in the namespace of ``input_topic``.
+
+    The namespace is everything before the topic's last name: '/robot/wrench' and
+    '/robot/wrench_filtered' both give '/robot/' (a remapped input, as the node would have
+    been started in that namespace), '/wrench' gives '/'.
+    """
     if name.startswith('/'):
         return name
-    namespace = input_topic[:-len(messages.WRENCH_TOPIC)] if input_topic.endswith(
-        messages.WRENCH_TOPIC) else '/'
-    if not namespace.endswith('/'):
-        namespace = '/'
-    return namespace + name
+    return input_topic.rsplit('/', 1)[0] + '/' + name
 
 
 def select_topics(source: McapSource, requested: Optional[Sequence[str]]
@@ -309,14 +330,32 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
         chosen = sorted(topic for topic, type_name in types.items()
                         if type_name == messages.WRENCH_TYPE)
     if not chosen:
+        damage = ('' if source.report.complete
+                  else f'; the file is damaged: {source.report.describe()}')
         raise ReplayError('; '.join(warnings + [
             f'no {messages.WRENCH_TYPE} topic to replay in {source.path}; it holds: '
-            f'{available or "no channels"}']))
+            f'{available or "no channels"}{damage}']))
+    shared = _sharing_a_namespace(chosen)
+    if shared:
+        raise ReplayError(f'the wrench topics {" and ".join(shared)} are in one namespace, so '
+                          'their outputs would be mixed on the same topics; replay one at a '
+                          'time with --topic')
     total = None
     if counts is not None:
         total = sum(count for channel_id, count in counts.items()
                     if channel_id in channels and channels[channel_id].topic in chosen)
     return chosen, warnings, total
+
+
+def _sharing_a_namespace(topics: Sequence[str]) -> List[str]:
+    """Return the first two of ``topics`` whose outputs would land on the same topics."""
+    seen: Dict[str, str] = {}
+    for topic in topics:
+        namespace = output_topic(topic, '')
+        if namespace in seen:
+            return [seen[namespace], topic]
+        seen[namespace] = topic
+    return []
 
 
 def _csv_row(index: int, raw, force, moment, frame_id, stamp_ns, outcome) -> list:
@@ -360,12 +399,41 @@ def check_output(path: Union[str, Path], what: str) -> None:
         raise OutputError(f'cannot write the {what} {target}: {reason}{where}') from None
 
 
+def _same_file(first: Path, second: Path) -> bool:
+    """Tell whether two paths name one file: the same path, a symbolic or a hard link."""
+    if first.resolve() == second.resolve():
+        return True
+    try:
+        return os.path.samefile(first, second)
+    except OSError:   # one of them does not exist (yet): then they are not one file
+        return False
+
+
+def check_distinct(input_path: Union[str, Path],
+                   outputs: Sequence[Tuple[str, Union[str, Path, None]]]) -> None:
+    """
+    Raise OutputError when an output is the input file or another output (links included).
+
+    ``outputs``: (what, path) pairs, a None or empty path being no output. Opening an
+    output for writing truncates it: the input would be destroyed before it is read, two
+    outputs would overwrite each other.
+    """
+    named = [('input', Path(input_path))]
+    named += [(what, Path(path)) for what, path in outputs if path]
+    for position, (what, path) in enumerate(named):
+        for other_what, other in named[:position]:
+            if _same_file(path, other):
+                raise OutputError(f'the {what} {path} is the same file as the {other_what} '
+                                  f'{other}: give each output its own path')
+
+
 def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
            topics: Optional[Sequence[str]] = None,
            params_path: Union[str, Path, None] = None, compliance: bool = True,
            backbones: bool = False, csv_path: Union[str, Path, None] = None,
            progress: Optional[IO[str]] = None, flush_every_messages: int = 1000,
-           flush_every_s: float = 2.0, plot_samples: Collection[int] = ()) -> ReplaySummary:
+           flush_every_s: float = 2.0, plot_samples: Collection[int] = (),
+           other_outputs: Sequence[Tuple[str, Union[str, Path]]] = ()) -> ReplaySummary:
     """
     Replay ``input_path`` into ``output_path``; return the summary.
 
@@ -375,23 +443,34 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     in the main thread it is taken between two messages, see ``interrupts``) or a
     KeyboardInterrupt stops the replay early: the output MCAP (and CSV) are still
     finalized, and ``summary.interrupted`` is True. ``plot_samples``: message indices kept
-    in ``summary.series`` whatever its thinning.
+    in ``summary.series`` whatever its thinning (ValueError when one is negative, or
+    beyond the input's messages). ``other_outputs``: (what, path) of files the caller
+    writes afterwards (the plot), checked with the others before the input is read.
     """
+    if Path(input_path).is_dir():
+        raise ReplayError(f'{input_path} is a folder, not an MCAP file')
     if not Path(input_path).is_file():
         raise ReplayError(f'no such MCAP file: {input_path}')
-    if Path(output_path).resolve() == Path(input_path).resolve():
-        raise OutputError('the output file must not be the input file')
-    check_output(output_path, 'output MCAP')
-    if csv_path:
-        check_output(csv_path, 'CSV')
+    outputs = [('output MCAP', output_path), ('CSV', csv_path), *other_outputs]
+    check_distinct(input_path, outputs)
+    for what, path in outputs:
+        if path:
+            check_output(path, what)
+    negative = sorted(index for index in plot_samples if index < 0)
+    if negative:
+        raise ValueError(f'plot samples are message indices >= 0, got {negative}')
     source = McapSource(input_path)
     chosen, warnings, total = select_topics(source, topics)
+    if total is not None and any(index >= total for index in plot_samples):
+        beyond = sorted(index for index in plot_samples if index >= total)
+        raise ValueError(f"plot samples {beyond} are beyond the input's {total} messages "
+                         f'(indices 0..{total - 1})')
     settings = TranslatorSettings.from_params_file(params_path)
     params = settings.params
     source = McapSource(input_path, topics=chosen)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
-    summary = ReplaySummary(source.report, chosen, warnings)
+    summary = ReplaySummary(source.report, chosen, warnings, total=total)
     summary.series.keep = frozenset(plot_samples)
     decoders = Decoders()
     bar = Progress(progress, total) if progress is not None else None
@@ -425,8 +504,9 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                         summary.undecodable += 1
                         summary.warn(f'message {index} on {raw.topic}: {error}')
                         if table:
-                            table.writerow([index, raw.topic, '', raw.log_time_ns, '']
-                                           + [''] * 6 + ['undecodable', str(error)])
+                            row = ([index, raw.topic, '', raw.log_time_ns, ''] + [''] * 6
+                                   + ['undecodable', str(error)])
+                            table.writerow(row + [''] * (len(CSV_COLUMNS) - len(row)))
                         continue
                     outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
                     for name, type_name, message in outcome.outputs:
@@ -479,12 +559,16 @@ def main_replay(args) -> int:
     stream = sys.stderr if (args.progress == 'always' or (
         args.progress == 'auto' and sys.stderr.isatty())) else None
     try:
+        for option, value in (('--out', args.out), ('--csv', args.csv), ('--plot', args.plot)):
+            if value is not None and not value.strip():
+                raise ValueError(f'{option} needs a file name, got {value!r}')
         if args.plot:
-            check_output(args.plot, 'plot')
+            check_plot_path(args.plot)
         summary = replay(args.input, args.out, topics=args.topic, params_path=args.params,
                          compliance=not args.no_compliance, backbones=args.backbones,
                          csv_path=args.csv, progress=stream,
-                         plot_samples=args.plot_samples or ())
+                         plot_samples=args.plot_samples or (),
+                         other_outputs=[('plot', args.plot)] if args.plot else [])
     except (ReplayError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_USAGE
@@ -496,20 +580,28 @@ def main_replay(args) -> int:
     if not summary.input_report.complete:
         print(f'warning: {summary.input_report.describe()}', file=sys.stderr)
     print(summary.table())
-    print(f'wrote {args.out}' + (f', {args.csv}' if args.csv else ''))
+    written = ', '.join(str(path) for path in (args.out, args.csv) if path)
+    print(f'wrote {written}' if not summary.output_error else
+          f'wrote {written} up to the write error')
+    code = summary.exit_code()
     if args.plot:
         if summary.series.time_s:
-            samples = plot_replay(summary.series, args.plot, params_path=args.params,
-                                  samples=args.plot_samples)
-            print(f'wrote {args.plot} (deflected shapes of messages {samples})')
+            try:
+                samples = plot_replay(summary.series, args.plot, params_path=args.params,
+                                      samples=args.plot_samples)
+                print(f'wrote {args.plot} (deflected shapes of messages {samples})')
+            except ValueError as error:   # chosen messages that did not converge
+                print(f'error: no plot written: {error}', file=sys.stderr)
+                if code in (EXIT_OK, EXIT_DAMAGED_INPUT):
+                    code = EXIT_USAGE
         else:
             print('warning: nothing converged, no plot written', file=sys.stderr)
-    code = summary.exit_code()
-    if summary.output_error or code == EXIT_USAGE:
+    if summary.output_error or summary.exit_code() == EXIT_USAGE:
         status = summary.output_status
-        print(f'error: {summary.output_error or ""}'
-              + (f' output MCAP {status.describe()}' if status is not None else ''),
-              file=sys.stderr)
+        print('error: ' + '; '.join(
+            part for part in (summary.output_error,
+                              f'output MCAP {status.describe()}' if status is not None else '')
+            if part), file=sys.stderr)
     elif code == EXIT_NOTHING_SOLVED:
         print(f'error: nothing could be solved: {summary.messages} messages read, '
               f'{summary.undecodable} undecodable, {summary.rejected} rejected, '

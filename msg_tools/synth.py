@@ -29,6 +29,8 @@ import numpy as np
 PROFILES = ('ramp', 'step', 'sinusoid', 'random-walk', 'paper', 'hard')
 #: Default first stamp: 2024-01-01T00:00:00Z.
 DEFAULT_START_NS = 1_704_067_200 * 1_000_000_000
+#: Stamps must stay below this: builtin_interfaces/Time holds int32 seconds.
+MAX_STAMP_NS = 2 ** 31 * 1_000_000_000
 
 
 class Sample(NamedTuple):
@@ -68,7 +70,7 @@ def generate(profile: str, count: int = 200, rate_hz: float = 100.0,
     """
     Return the wrench sequence of ``profile`` (``count`` samples; 'paper' and 'hard' fixed).
 
-    ValueError names a bad profile, count, rate or frequency.
+    ValueError names a bad profile, count, rate, frequency or seed.
     """
     if profile not in PROFILES:
         raise ValueError(f'profile must be one of {PROFILES}, got {profile!r}')
@@ -77,6 +79,8 @@ def generate(profile: str, count: int = 200, rate_hz: float = 100.0,
     for name, value in (('rate_hz', rate_hz), ('frequency_hz', frequency_hz)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise ValueError(f'{name} must be positive and finite, got {value!r}')
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f'seed must be an int >= 0, got {seed!r}')
     peak = np.concatenate([np.asarray(force, dtype=float), np.asarray(moment, dtype=float)])
     if peak.shape != (6,) or not np.all(np.isfinite(peak)):
         raise ValueError(f'force and moment must be 3 finite numbers each, got {force!r}, '
@@ -88,7 +92,11 @@ def generate(profile: str, count: int = 200, rate_hz: float = 100.0,
     elif profile == 'step':
         wrenches = np.outer(np.arange(count) >= count // 3, peak).astype(float)
     elif profile == 'sinusoid':
-        wrenches = np.outer(np.sin(2.0 * math.pi * frequency_hz * times), peak)
+        with np.errstate(invalid='ignore', over='ignore'):   # checked next, by name
+            wrenches = np.outer(np.sin(2.0 * math.pi * frequency_hz * times), peak)
+        if not np.all(np.isfinite(wrenches)):
+            raise ValueError(f'frequency_hz = {frequency_hz!r} gives non-finite wrenches at '
+                             f'rate_hz = {rate_hz!r}')
     elif profile == 'random-walk':
         scale = np.repeat([np.linalg.norm(peak[:3]), np.linalg.norm(peak[3:])], 3)
         steps = np.random.default_rng(seed).normal(size=(count, 6)) * scale / math.sqrt(count)
@@ -105,6 +113,11 @@ def generate(profile: str, count: int = 200, rate_hz: float = 100.0,
         wrenches = np.array([list(f) + list(m) for f, m, _ in cases])
         frames = [frame for _, _, frame in cases]
         times = np.arange(len(cases)) / rate_hz
+    last_ns = start_ns + 1e9 * float(times[-1])
+    if not last_ns < MAX_STAMP_NS:
+        raise ValueError(f'rate_hz = {rate_hz!r} is too low for {len(times)} samples: the last '
+                         f'stamp would be {float(times[-1]):.6g} s after the first, beyond '
+                         'what a ROS 2 stamp holds (int32 seconds)')
     return [Sample(start_ns + int(round(t * 1e9)), w[:3].copy(), w[3:].copy(), frame)
             for t, w, frame in zip(times, wrenches, frames)]
 
