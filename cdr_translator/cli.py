@@ -13,24 +13,28 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--chunk-size M] [--plot]
     python -m cdr_translator compile [--params FILE]
 
-Exit codes: 0 converged (and, for ``solve``, stable), 3 not converged (the result is still
-printed), 2 bad input, 4 ``solve`` converged to an unstable equilibrium (``stable: false``
-in the output: past a bifurcation no stable branch was found; docs/stability.md).
-delta-ik: 0 only when the target is reached; an unreachable target prints the nearest
-reachable point and exits 3. atlas: 0 when every sample converged, 3 otherwise.
+Exit codes: 0 converged (and stable), 3 not converged (the result is still printed; for
+``paper``, either case), 2 bad input (every key of the params file is checked, as the nodes
+do), 4 ``solve`` or ``delta`` converged to an unstable equilibrium (``stable: false`` in the
+output: past a bifurcation no stable branch was found; docs/stability.md). delta-ik: 0
+only when the target is reached; an unreachable target prints the nearest reachable point
+and exits 3. atlas: 0 when every sample converged, 3 otherwise. Every command: 130 on
+Ctrl-C, 141 when standard output was closed early (``| head``), no traceback. ``--json``
+prints strict JSON: a non-finite number is null.
 """
 
 import argparse
-import json
 import math
 import sys
 from typing import Any, Callable, List, Optional, Tuple, Union
 
 from . import _jit
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
+from .console import json_text, run_command
 from .fidelity import FIDELITIES, FidelitySolver
+from .interface.settings import CdrSettings, TranslatorSettings
 from .paper import TABLE_II
-from .params import DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
+from .params import Accuracy, DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
 from .problem import JACOBIANS
 from .result import SolveResult
 from .robot.atlas import run_cli as run_atlas
@@ -244,8 +248,9 @@ def _comparison_cell(paper: float, ours: float, spec: str) -> str:
     return f'{text:>30}'
 
 
-def _paper_comparison(params: TranslatorParams) -> str:
-    solver = TranslatorSolver(params)
+def _paper_comparison(params: TranslatorParams, accuracy: Accuracy) -> Tuple[str, bool]:
+    """Return the Table II comparison and whether both cases converged."""
+    solver = TranslatorSolver(params, accuracy=accuracy)
     lines = ["Table II of the paper vs this solver (cold solves; 'ours - paper' in brackets)",
              f"{'':36}" + ''.join(f'{f"F = [{case.force[0]:g}, 0, 0] N":>30}'
                                   for case in TABLE_II)]
@@ -275,7 +280,7 @@ def _paper_comparison(params: TranslatorParams) -> str:
     lines.append('Converged: ' + ', '.join(
         f'{r.converged} in {r.iterations} iterations, {1e3 * r.solve_time_s:.1f} ms'
         for r in results))
-    return '\n'.join(lines)
+    return '\n'.join(lines), all(result.converged for result in results)
 
 
 def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
@@ -318,7 +323,12 @@ def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    """Run the command line; return the exit code."""
+    """Run the command line; return the exit code (console.run_command: 130, 141 too)."""
+    return run_command(lambda: _run(argv))
+
+
+def _run(argv: Optional[List[str]]) -> int:
+    """Parse ``argv``, run the subcommand and print its result; return the exit code."""
     args = _parser().parse_args(argv)
     result: Any  # SolveResult, DeltaResult or InverseResult, printed by its table
     table: Callable[[Any], str]
@@ -326,13 +336,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     if args.command == 'atlas':
         return run_atlas(args)
     try:
-        params = TranslatorParams.from_yaml(args.params)
-        if args.command == 'paper':
-            print(_paper_comparison(params))
-            return EXIT_CONVERGED
-        if args.command == 'compile':
-            return _compile_kernels(params, args.params)
         if args.command in ('delta', 'delta-ik'):
+            CdrSettings.from_params_file(args.params)   # every key checked, as cdr_node does
             robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
             if args.command == 'delta':
                 result = robot.solve(args.sliders, args.payload, args.payload_moment,
@@ -343,28 +348,49 @@ def main(argv: Optional[List[str]] = None) -> int:
                                        args.payload_offset)
                 table = _inverse_table
         else:
+            # every key checked, as translator_node and replay do; the accuracy target too
+            settings = TranslatorSettings.from_params_file(args.params)
+            params = settings.params
+            accuracy = Accuracy.from_mapping(settings.values())
+            if args.command == 'paper':
+                text, converged = _paper_comparison(params, accuracy)
+                print(text)
+                return EXIT_CONVERGED if converged else EXIT_NOT_CONVERGED
+            if args.command == 'compile':
+                return _compile_kernels(params, args.params)
             options = {'compliance': args.compliance,
                        'sparsity_threshold': args.sparsity_threshold,
                        'mobility_ratio': args.mobility_ratio}
             if args.fidelity == 'full':
                 solver = TranslatorSolver(params, method=args.method,
                                           max_iterations=args.max_iterations,
-                                          time_limit_s=args.time_limit)
+                                          time_limit_s=args.time_limit, accuracy=accuracy)
                 options['verify'] = args.verify
             elif args.method != 'fast' or args.verify or args.max_iterations is not None:
                 raise ValueError('--method, --verify and --max-iterations apply to '
                                  '--fidelity full only')
             else:
                 solver = FidelitySolver(params, args.fidelity, args.max_position_error,
-                                        args.max_angle_error, time_limit_s=args.time_limit)
+                                        args.max_angle_error, time_limit_s=args.time_limit,
+                                        accuracy=accuracy)
             result = solver.solve(args.force, args.moment, **options)
             table = _table
     except (ParameterError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
-    print(json.dumps(result.to_dict()) if args.json else table(result))
+    try:
+        print(json_text(result.to_dict()) if args.json else table(result))
+        sys.stdout.flush()   # a full disk shows here, not in the interpreter's last flush
+    except BrokenPipeError:
+        raise
+    except OSError as error:
+        print(f'error: cannot write the result to standard output: {error.strerror or error}',
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     if not (result.converged and getattr(result, 'reachable', True)):
         return EXIT_NOT_CONVERGED
-    if getattr(result, 'stable', None) is False and args.command == 'solve':
+    if getattr(result, 'stable', None) is False:
+        print('warning: the equilibrium found is unstable (stable: false); see '
+              'docs/stability.md', file=sys.stderr)
         return EXIT_UNSTABLE
     return EXIT_CONVERGED

@@ -191,7 +191,12 @@ class TranslatorParams:
         return cls.from_mapping({field.name: values[field.name] for field in fields(cls)})
 
     def with_changes(self, **changes: Any) -> 'TranslatorParams':
-        """Return a validated copy with some fields changed."""
+        """Return a validated copy with some fields changed (ParameterError naming a key)."""
+        known = {field.name for field in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise ParameterError(f'unknown parameter(s) {", ".join(unknown)}; known: '
+                                 f'{", ".join(sorted(known))}')
         return replace(self, **changes)
 
     def to_dict(self) -> dict:

@@ -163,12 +163,13 @@ class SolveResult:
             **(self.verification.to_dict() if self.verification is not None else {}),
             'error_estimate_m': _finite_or_none(self.error_estimate_m),
             'error_estimate_deg': _finite_or_none(self.error_estimate_deg),
-            'accuracy_met': bool(self.accuracy_met),
+            # null when not assessed: no estimate (a reduced fidelity level, the paper's
+            # method, no convergence) is no evidence that the target was met
+            'accuracy_met': (bool(self.accuracy_met) if math.isfinite(self.error_estimate_m)
+                             else None),
             'steps_per_segment': int(self.steps_per_segment),
-            **({} if self.stable is None else {
-                'stable': bool(self.stable),
-                'stability_margin': (float(self.stability_margin)
-                                     if math.isfinite(self.stability_margin) else None)}),
+            'stable': None if self.stable is None else bool(self.stable),
+            'stability_margin': _finite_or_none(self.stability_margin),
         }
 
 

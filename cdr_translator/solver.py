@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from . import chord, lifted, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
-from .checks import check_vector
+from .checks import check_integer, check_number, check_vector
 from .compliance import compliance_analysis
 from .params import Accuracy, MAX_REFINED_STEPS, TranslatorParams
 from .problem import JACOBIANS, Problem, RESIDUAL_KINDS
@@ -235,19 +235,19 @@ class TranslatorSolver:
             raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
         if method not in METHODS:
             raise ValueError(f'method must be one of {METHODS}, got {method!r}')
+        if params is not None and not isinstance(params, TranslatorParams):
+            raise ValueError(f'params must be a TranslatorParams (TranslatorParams.from_yaml '
+                             f'reads a params file), got {type(params).__name__} {params!r}')
+        if accuracy is not None and not isinstance(accuracy, Accuracy):
+            raise ValueError(f'accuracy must be an Accuracy(position_m, angle_deg), got '
+                             f'{type(accuracy).__name__} {accuracy!r}')
         self.params = params if params is not None else TranslatorParams.from_yaml()
         self.method = method
-        self.tolerance = tolerance
         if max_iterations is None:
             max_iterations = 30 if method == 'paper' else 12
-        if max_iterations < 1:
-            raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
-        self.max_iterations = max_iterations
-        if not (math.isfinite(time_limit_s) and time_limit_s >= 0.0):
-            raise ValueError(f'time_limit_s must be finite and >= 0, got {time_limit_s}')
-        if not (math.isfinite(tolerance) and tolerance > 0.0):
-            raise ValueError(f'tolerance must be positive and finite, got {tolerance}')
-        self.time_limit_s = time_limit_s
+        self.max_iterations = check_integer('max_iterations', max_iterations, low=1)
+        self.time_limit_s = check_number('time_limit_s', time_limit_s, low=0.0)
+        self.tolerance = check_number('tolerance', tolerance, low=0.0, low_open=True)
         if method == 'paper':
             jacobian = 'fd'
         self.jacobian = jacobian

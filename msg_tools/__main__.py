@@ -15,18 +15,16 @@ reports), 2 bad arguments or unusable input. All: 141 when stdout was closed ear
 """
 
 import argparse
-import os
 import sys
 from typing import Optional, Sequence
 
+from cdr_translator.console import EXIT_BROKEN_PIPE, run_command
 from msg_tools import synth
 from msg_tools.info import describe
 from msg_tools.replay import main_replay
 from msg_tools.synth import PROFILES
 
-#: Exit code when stdout is closed early (``| head``): 128 + SIGPIPE, as a shell reports a
-#: process that SIGPIPE ended.
-EXIT_BROKEN_PIPE = 141
+__all__ = ['EXIT_BROKEN_PIPE', 'main']
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -76,13 +74,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the command line; return the exit code (EXIT_BROKEN_PIPE: stdout was closed)."""
-    try:
-        return _run(argv)
-    except BrokenPipeError:
-        # the reader of stdout went away (`| head -1`): what was printed stands, the outputs
-        # are finished; later writes to stdout (the interpreter's last flush) go nowhere
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_BROKEN_PIPE
+    return run_command(lambda: _run(argv))
 
 
 def _run(argv: Optional[Sequence[str]]) -> int:

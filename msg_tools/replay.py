@@ -21,10 +21,10 @@ import math
 import os
 from pathlib import Path
 import sys
-import tempfile
 import time
 from typing import Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
 
+from cdr_translator.console import unwritable_reason
 from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
@@ -384,19 +384,9 @@ def check_output(path: Union[str, Path], what: str) -> None:
     Creates the missing folders (as the writers would) and a probe file next to ``path``,
     so a read-only folder, a file in the way or a folder given as ``path`` are found.
     """
-    target = Path(path)
-    if target.is_dir():
-        raise OutputError(f'cannot write the {what} {target}: it is a folder')
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=target.parent):
-            pass
-        if target.exists() and not os.access(target, os.W_OK):
-            raise PermissionError(f'{target} is not writable')
-    except OSError as error:
-        reason = error.strerror or str(error)
-        where = f' ({error.filename})' if getattr(error, 'filename', None) else ''
-        raise OutputError(f'cannot write the {what} {target}: {reason}{where}') from None
+    reason = unwritable_reason(path)
+    if reason is not None:
+        raise OutputError(f'cannot write the {what} {path}: {reason}')
 
 
 def _same_file(first: Path, second: Path) -> bool:

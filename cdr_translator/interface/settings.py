@@ -17,6 +17,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
 
 from ..checks import check_integer, check_number
 from ..errors import ParameterError
+from ..fidelity import FIDELITIES
 from ..params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
 from ..params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
 from ..params import TranslatorParams
@@ -31,15 +32,19 @@ PathLike = Union[str, Path]
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """Name, human description, read-only flag and closed bounds (both or neither)."""
+    """Name, human description, read-only flag, closed bounds (both or neither), choices."""
 
     name: str
     description: str
     read_only: bool = False
     bounds: Optional[Tuple[float, float]] = None
+    choices: Optional[Tuple[str, ...]] = None
 
     def check(self, value: Any) -> None:
-        """Raise ParameterError naming the key when a bounded value is outside its bounds."""
+        """Raise ParameterError naming the key for a value outside its bounds or choices."""
+        if self.choices is not None and value not in self.choices:
+            raise ParameterError(f'{self.name} must be one of {", ".join(self.choices)}, got '
+                                 f'{value!r}')
         if self.bounds is None:
             return
         low, high = self.bounds
@@ -99,7 +104,8 @@ _NODE = (
 
 _FIDELITY = (
     ParameterSpec('fidelity', 'model level: full, rod, cc, linear, or auto (cheapest within '
-                  'max_position_error / max_angle_error)', read_only=True),
+                  'max_position_error / max_angle_error)', read_only=True,
+                  choices=FIDELITIES),
     ParameterSpec('max_position_error', "m, end-disk position error budget of fidelity 'auto'",
                   read_only=True, bounds=(0.0, 1.0)),
     ParameterSpec('max_angle_error', "deg, bending-angle error budget of fidelity 'auto'",

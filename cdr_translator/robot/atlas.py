@@ -35,6 +35,7 @@ import numpy as np
 
 from .samples import (AtlasSpec, chunk_bounds, RESULT_VARIABLES, solve_chunk,
                       workspace_volumes)
+from ..console import json_text, unwritable_reason
 from ..params import DEFAULT_PARAMS_PATH, ParameterError
 
 #: Exit codes of the atlas command (as the other commands').
@@ -307,6 +308,9 @@ def run_cli(args: argparse.Namespace) -> int:
         if args.chunk_size is not None and args.chunk_size < 1:
             raise ValueError(f'--chunk-size must be at least 1, got {args.chunk_size}')
         out = Path(args.out)
+        reason = unwritable_reason(out, folder_ok=True)
+        if reason is not None:
+            raise ValueError(f'cannot write the atlas store {out}: {reason}')
         summary = run_atlas(spec, out, args.chunk_size, args.workers, args.scheduler,
                             progress=not args.no_progress)
     except (ParameterError, ValueError) as error:
@@ -322,5 +326,5 @@ def run_cli(args: argparse.Namespace) -> int:
     summary['workspace_volumes'] = workspace_volumes(spec, results)
     if args.plot:
         summary['plots'] = [str(path) for path in plot_atlas(out)]
-    print(json.dumps(summary))
+    print(json_text(summary))
     return EXIT_CONVERGED if summary['converged'] == spec.size else EXIT_NOT_CONVERGED

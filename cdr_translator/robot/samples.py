@@ -26,6 +26,9 @@ from ..params import DEFAULT_PARAMS_PATH
 
 #: Characters of a sample's message kept in the atlas.
 MESSAGE_LENGTH = 160
+#: Samples of one atlas at most (a 100^3 grid): its inputs are built in memory (about 0.4 GB
+#: at this size) and it takes hours on one worker; a --grid of 1e5 once took 24 GB.
+MAX_ATLAS_SAMPLES = 1_000_000
 
 #: Per-sample result variables: name -> (trailing shape, dtype, units, description).
 RESULT_VARIABLES: Dict[str, Tuple[Tuple[int, ...], str, str, str]] = {
@@ -78,6 +81,11 @@ class AtlasSpec:
         """Validate the sweep (ValueError naming a bad value) and read each variant's stroke."""
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
             raise ValueError(f'grid must be an integer of at least 2, got {grid!r}')
+        size = grid ** 3 * max(len(payloads), 1) * max(len(params_files), 1)
+        if size > MAX_ATLAS_SAMPLES:
+            raise ValueError(f'--grid {grid} with {len(payloads)} payload(s) and '
+                             f'{len(params_files)} params file(s) is {size:.3g} samples '
+                             f'(grid^3 each); an atlas holds at most {MAX_ATLAS_SAMPLES:.0e}')
         checked: List[Tuple[float, float, float]] = []
         for payload in payloads:
             array = np.asarray(payload, dtype=float)

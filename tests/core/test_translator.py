@@ -156,6 +156,33 @@ def test_non_finite_wrench_is_rejected(solver, bad):
         solver.solve((0.0, 0.0, 0.0), bad)
 
 
+@pytest.mark.parametrize('options, fragment', [
+    ({'params': {'youngs_modulus': 1.0}}, 'params must be a TranslatorParams, got dict'),
+    ({'params': 'config/translator.yaml'}, 'params must be a TranslatorParams, got str'),
+    ({'max_iterations': '5'}, 'max_iterations must be an integer'),
+    ({'max_iterations': 1.5}, 'max_iterations must be an integer'),
+    ({'max_iterations': math.nan}, 'max_iterations must be an integer'),
+    ({'max_iterations': 0}, 'max_iterations must be an integer >= 1'),
+    ({'time_limit_s': None}, 'time_limit_s must be a number'),
+    ({'time_limit_s': -1.0}, 'time_limit_s must be >= 0'),
+    ({'tolerance': 'x'}, 'tolerance must be a number'),
+    ({'tolerance': 0.0}, 'tolerance must be positive'),
+    ({'accuracy': (1e-3, 1e-3)}, 'accuracy must be an Accuracy'),
+])
+def test_bad_solver_options_are_value_errors_naming_them(options, fragment):
+    """At construction, not as a TypeError or AttributeError halfway through a solve."""
+    with pytest.raises(ValueError) as raised:
+        TranslatorSolver(**options)
+    assert fragment in str(raised.value).replace(' (TranslatorParams.from_yaml reads a '
+                                                 'params file)', ''), raised.value
+
+
+def test_unknown_parameter_change_is_named(params):
+    """with_changes refuses a key no TranslatorParams has: a ParameterError, not a TypeError."""
+    with pytest.raises(ValueError, match='unknown parameter.s. bogus'):
+        params.with_changes(bogus=1.0)
+
+
 def test_wrong_wrench_shape_is_rejected(solver):
     """A force needs exactly three components."""
     with pytest.raises(ValueError, match='3 components'):

@@ -1,0 +1,82 @@
+"""
+What every command line of the project prints and how it ends at the console's edges.
+
+* ``json_text``: strict JSON (RFC 8259 has no NaN or Infinity): a non-finite number is
+  written as null, so any JSON reader accepts what ``--json`` prints.
+* ``run_command``: a closed standard output (``| head -1``) ends quietly with
+  ``EXIT_BROKEN_PIPE``, Ctrl-C with one line and ``EXIT_INTERRUPTED``, never a traceback.
+* ``unwritable_reason``: whether an output path can be written, asked before any work.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import sys
+import tempfile
+from typing import Any, Callable, Optional, Union
+
+#: Ctrl-C (128 + SIGINT), as a shell reports a process SIGINT ended.
+EXIT_INTERRUPTED = 130
+#: Standard output closed early (128 + SIGPIPE), as a shell reports a process SIGPIPE ended.
+EXIT_BROKEN_PIPE = 141
+
+__all__ = ['EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED', 'finite_or_none', 'json_text',
+           'run_command', 'unwritable_reason']
+
+
+def finite_or_none(data: Any) -> Any:
+    """Return ``data`` with every non-finite float (in dicts, lists, tuples) made None."""
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {key: finite_or_none(value) for key, value in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [finite_or_none(value) for value in data]
+    return data
+
+
+def json_text(data: Any) -> str:
+    """Return ``data`` as strict JSON text: NaN and infinities become null."""
+    return json.dumps(finite_or_none(data), allow_nan=False)
+
+
+def run_command(command: Callable[[], int]) -> int:
+    """
+    Run a command-line ``command``; return its exit code, or the console's own.
+
+    A BrokenPipeError (the reader of stdout went away) returns EXIT_BROKEN_PIPE after
+    pointing stdout at /dev/null, so the interpreter's final flush cannot raise again; a
+    KeyboardInterrupt prints 'interrupted' on stderr and returns EXIT_INTERRUPTED.
+    """
+    try:
+        return command()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:
+        print('interrupted (Ctrl-C)', file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def unwritable_reason(path: Union[str, Path], folder_ok: bool = False) -> Optional[str]:
+    """
+    Return why ``path`` cannot be written, or None when it can.
+
+    Creates the missing folders (as the writers would) and a probe file next to ``path``,
+    so a read-only folder, a file in the way or /proc are found before any work is done.
+    A folder at ``path`` is a reason unless ``folder_ok`` (a store that is a folder).
+    """
+    target = Path(path)
+    if target.is_dir() and not folder_ok:
+        return 'it is a folder'
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=target.parent):
+            pass
+        if target.exists() and not os.access(target, os.W_OK):
+            return 'it is not writable'
+    except OSError as error:
+        reason = error.strerror or str(error)
+        return reason + (f' ({error.filename})' if getattr(error, 'filename', None) else '')
+    return None
