@@ -318,6 +318,10 @@ def test_ctrl_c_finalizes_the_output(tmp_path, monkeypatch):
         counts = make_reader(stream).get_summary().statistics.channel_message_counts
     assert sorted(counts.values()) == [5, 5, 5, 6]   # pose, angles, diagnostics; 6 inputs
     assert len(list(csv.DictReader(open(tmp_path / 'o.csv')))) == 5
+    # the summary says the input was not read through, and how much was left
+    assert summary.stopped_early and summary.total == 20
+    assert 'up to where the replay stopped' in summary.table()
+    assert '14 of 20 messages' in summary.table()   # the sixth was read, not solved
 
 
 def test_sigint_inside_a_write_waits_for_the_message(tmp_path, monkeypatch):

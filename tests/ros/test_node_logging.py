@@ -47,6 +47,26 @@ def log_diagnostics(run):
             if message.status[0].name == LOG_DIAGNOSTIC]
 
 
+def _solve_until(run, force, pace_s, reported):
+    """
+    Send wrenches (each answered) until a log diagnostic is ``reported``; return the last stamp.
+
+    The node checks its log once a second: the wait is bounded by time, not by a count of
+    wrenches (a fast machine answers a thousand within that second).
+    """
+    deadline = time.monotonic() + RESUME_TIMEOUT_S
+    index = 0
+    while True:
+        stamp = run.client.publish((force + 0.01 * (index % 100), 0.0, 0.0))
+        index += 1
+        assert run.answered(POSE, stamp), run.node.text()
+        time.sleep(pace_s)
+        if any(reported(status) for status in log_diagnostics(run)):
+            return stamp
+        if time.monotonic() > deadline:
+            return stamp
+
+
 def _closing(text):
     """Return (written, lost) of the node's closing MCAP log line."""
     found = CLOSED.findall(text)
@@ -82,16 +102,7 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
     ros_args = ['-p', 'log_backbones:=true', '-p', 'log_compliance:=true',
                 '-p', 'mcap_flush_messages:=20']
     with Running(tmp_path, ros_env, ros_args, command=LIMITED_COMMAND, mcap=path) as run:
-        # The node checks its log once a second: every wait here is bounded by time, not by
-        # a count of wrenches (a fast machine answers a thousand within that second).
-        deadline = time.monotonic() + RESUME_TIMEOUT_S
-        index = 0
-        while time.monotonic() < deadline:
-            stamp = run.client.publish((2.0 + 0.01 * (index % 200), 0.0, 0.0))
-            index += 1
-            assert run.answered(POSE, stamp), run.node.text()
-            if any(status.level == bytes([messages.ERROR]) for status in log_diagnostics(run)):
-                break
+        _solve_until(run, 2.0, 0.0, lambda status: status.level == bytes([messages.ERROR]))
         errors = [status for status in log_diagnostics(run)
                   if status.level == bytes([messages.ERROR])]
         assert errors, run.node.text()
@@ -101,15 +112,8 @@ def test_write_error_is_an_error_diagnostic_and_the_node_goes_on(tmp_path, ros_e
         # Still solving and publishing; the log tries a new file once 1 s has passed. Paced,
         # so that the new file takes longer than the node's 1 s log check to reach the limit
         # again, on any machine: otherwise the resumption may never be seen.
-        deadline = time.monotonic() + RESUME_TIMEOUT_S
-        index = 0
-        while time.monotonic() < deadline:
-            stamp = run.client.publish((3.0 + 0.01 * (index % 100), 0.0, 0.0))
-            index += 1
-            assert run.answered(POSE, stamp), run.node.text()
-            time.sleep(RESUMED_PACE_S)
-            if any('resumed in' in status.message for status in log_diagnostics(run)):
-                break
+        stamp = _solve_until(run, 3.0, RESUMED_PACE_S,
+                             lambda status: 'resumed in' in status.message)
         assert any(status.level == bytes([messages.WARN]) and 'resumed in' in status.message
                    for status in log_diagnostics(run)), run.node.text()
         assert run.answered(DIAGNOSTICS, stamp)
