@@ -378,8 +378,9 @@ def _run(argv: Optional[List[str]]) -> int:
     except (ParameterError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
-    try:
-        print(json_text(result.to_dict()) if args.json else table(result))
+    data = result.to_dict()   # its 'stable' also holds the compliance's verdict when that
+    try:                      # was the only one (the paper's method)
+        print(json_text(data) if args.json else table(result))
         sys.stdout.flush()   # a full disk shows here, not in the interpreter's last flush
     except BrokenPipeError:
         raise
@@ -389,7 +390,7 @@ def _run(argv: Optional[List[str]]) -> int:
         return EXIT_BAD_INPUT
     if not (result.converged and getattr(result, 'reachable', True)):
         return EXIT_NOT_CONVERGED
-    if getattr(result, 'stable', None) is False:
+    if data.get('stable') is False:
         print('warning: the equilibrium found is unstable (stable: false); see '
               'docs/stability.md', file=sys.stderr)
         return EXIT_UNSTABLE

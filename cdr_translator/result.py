@@ -168,7 +168,11 @@ class SolveResult:
             'accuracy_met': (bool(self.accuracy_met) if math.isfinite(self.error_estimate_m)
                              else None),
             'steps_per_segment': int(self.steps_per_segment),
-            'stable': None if self.stable is None else bool(self.stable),
+            # the solve's own verdict (docs/stability.md) wins over the compliance's; null
+            # when neither was assessed
+            'stable': (bool(self.stable) if self.stable is not None
+                       else bool(self.compliance.stable) if self.compliance is not None
+                       else None),
             'stability_margin': _finite_or_none(self.stability_margin),
         }
 

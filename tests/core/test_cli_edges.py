@@ -154,3 +154,12 @@ def test_json_text_writes_non_finite_numbers_as_null():
     text = json_text({'a': float('nan'), 'b': [1.5, float('inf'), (2, -float('inf'))],
                       'c': 'x', 'd': 3})
     assert _strict(text) == {'a': None, 'b': [1.5, None, [2, None]], 'c': 'x', 'd': 3}
+
+
+def test_the_compliance_verdict_counts_when_it_is_the_only_one(capsys):
+    """The paper's method judges nothing itself: --compliance's unstable verdict exits 4."""
+    assert main(['solve', '--method', 'paper', '--force', '0', '0', '-40', '--compliance',
+                 '--json']) == cli.EXIT_UNSTABLE
+    data = _strict(capsys.readouterr().out)
+    assert data['converged'] is True and data['stable'] is False
+    assert data['stability_margin'] is None   # the solve's own margin was not assessed
