@@ -337,8 +337,10 @@ def _run(argv: Optional[List[str]]) -> int:
         return run_atlas(args)
     try:
         if args.command in ('delta', 'delta-ik'):
-            CdrSettings.from_params_file(args.params)   # every key checked, as cdr_node does
-            robot = DeltaRobot.from_yaml(args.params, time_limit_s=args.time_limit)
+            # every key checked, as cdr_node does; the legs' model and the geometry from it
+            robot_settings = CdrSettings.from_params_file(args.params)
+            robot = DeltaRobot(robot_settings.params, robot_settings.geometry,
+                               time_limit_s=args.time_limit)
             if args.command == 'delta':
                 result = robot.solve(args.sliders, args.payload, args.payload_moment,
                                      args.payload_offset, compliance=True)
@@ -350,8 +352,7 @@ def _run(argv: Optional[List[str]]) -> int:
         else:
             # every key checked, as translator_node and replay do; the accuracy target too
             settings = TranslatorSettings.from_params_file(args.params)
-            params = settings.params
-            accuracy = Accuracy.from_mapping(settings.values())
+            params, accuracy = settings.params, settings.accuracy
             if args.command == 'paper':
                 text, converged = _paper_comparison(params, accuracy)
                 print(text)

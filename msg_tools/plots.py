@@ -16,7 +16,8 @@ from cdr_translator.geometry import fit_circle
 from cdr_translator.params import DEFAULT_PARAMS_PATH
 import matplotlib
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402,I100 - after choosing the backend
+from matplotlib.backend_bases import FigureCanvasBase  # noqa: E402,I100 - after the backend
+import matplotlib.pyplot as plt  # noqa: E402 - after choosing the backend
 import numpy as np  # noqa: E402
 
 #: Shapes drawn when no samples are chosen: this many, evenly spread over the run.
@@ -75,8 +76,7 @@ def check_plot_path(path: Union[str, Path]) -> None:
     Without the check a missing suffix gets '.png' appended behind the caller's back, and
     an unknown one fails only once the replay is done.
     """
-    formats = sorted(plt.figure().canvas.get_supported_filetypes())
-    plt.close('all')
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
     suffix = Path(path).suffix.lower().lstrip('.')
     if suffix not in formats:
         raise ValueError(f'plot file {path}: its suffix must name an image format, one of '

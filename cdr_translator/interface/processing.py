@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from . import messages
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
-from ..params import Accuracy, TranslatorParams
+from ..params import TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, TranslatorSolver
 
@@ -39,8 +39,7 @@ def node_solver(params: TranslatorParams, settings: TranslatorSettings) -> Fidel
                           max_position_error=settings.max_position_error,
                           max_angle_error_deg=settings.max_angle_error,
                           time_limit_s=settings.solve_time_limit_s,
-                          accuracy=Accuracy(settings.accuracy_position_m,
-                                            settings.accuracy_angle_deg))
+                          accuracy=settings.accuracy)
 
 
 def check_magnitude(force: ArrayLike, moment: ArrayLike, max_force: float,

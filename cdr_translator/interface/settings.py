@@ -18,7 +18,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
 from ..checks import check_integer, check_number
 from ..errors import ParameterError
 from ..fidelity import FIDELITIES
-from ..params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
+from ..params import Accuracy, ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
 from ..params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
 from ..params import TranslatorParams
 from ..params_file import layered_values
@@ -259,6 +259,11 @@ class TranslatorSettings:
     def from_params_file(cls, path: Optional[PathLike] = None) -> 'TranslatorSettings':
         """One params file over the shipped defaults (None: the shipped file alone)."""
         return cls.from_params_files([path])
+
+    @property
+    def accuracy(self) -> Accuracy:
+        """Return the discretization-error target of every solve (the accuracy keys)."""
+        return Accuracy(self.accuracy_position_m, self.accuracy_angle_deg)
 
     def values(self) -> Dict[str, Any]:
         """Return the flat parameter mapping, as written in the params file."""
