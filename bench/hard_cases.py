@@ -17,7 +17,7 @@ import platform
 import time
 
 from cdr_translator import TranslatorParams
-from cdr_translator.studies import hard_cases
+from cdr_translator.studies import buckling, hard_case_report, hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / 'bench' / 'results' / 'hard_cases.md'
@@ -48,9 +48,9 @@ def main() -> None:
     params = TranslatorParams.from_yaml()
     started = time.perf_counter()
     reports = hard_cases.run_suite(params, quick_only=args.quick, refine=True)
-    buckling = hard_cases.critical_compression(params)
+    critical = buckling.critical_compression(params)
     elapsed = time.perf_counter() - started
-    body = hard_cases.markdown_report(reports, buckling)
+    body = hard_case_report.markdown_report(reports, critical)
     footer = (f'\n_{len(reports)} cases, {elapsed:.0f} s in all (solves, verification, '
               f'refinement, stability) on {platform.machine()} with Python '
               f'{platform.python_version()}; each solve capped at '

@@ -9,20 +9,17 @@ judged for stability (:func:`stability`). When a converged state fails verificat
 through discretization error, :func:`run_case` can re-solve it on a finer grid
 (warm-started from the coarse solution) until it verifies.
 
-:func:`critical_compression` finds the axial buckling load of the straight translator
-(where the shooting Jacobian becomes singular) and :func:`euler_critical_load` gives the
-closed-form Euler estimate of the same structure. ``bench/hard_cases.py`` runs it all and
+Axial buckling lives in :mod:`cdr_translator.studies.buckling` and the Markdown report in
+:mod:`cdr_translator.studies.hard_case_report`. ``bench/hard_cases.py`` runs it all and
 writes bench/results/hard_cases.md and the summary in docs/hard_cases.md;
 ``tests/studies/test_hard_cases.py`` runs the quick cases.
 """
 
 from dataclasses import dataclass
 import math
-import time
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Tuple
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from .finite_difference import finite_difference_compliance
 from ..compliance import analyse
@@ -239,7 +236,7 @@ class CaseReport:
         return 'verified'
 
 
-def _study_solver(params: TranslatorParams, path: str = 'default') -> TranslatorSolver:
+def study_solver(params: TranslatorParams, path: str = 'default') -> TranslatorSolver:
     """
     Return a solver reporting what it converged to at the case's own discretization.
 
@@ -322,11 +319,11 @@ def _refine(params: TranslatorParams, result: SolveResult,
             # the case's coarse solution is too far from a fine grid's for the shot's
             # sensitivity: the first re-solve follows the load path from the unloaded
             # state, later ones the Newton homotopy from the last fine solution
-            solver = _study_solver(params, 'tracking')
+            solver = study_solver(params, 'tracking')
             solver.start_from(result)
             result = solver.solve(result.force, result.moment, warm_start=refined)
         else:
-            solver = _study_solver(params)
+            solver = study_solver(params)
             solver.start_from(result)
             result = solver.solve(result.force, result.moment)
         if not result.converged:
@@ -345,7 +342,7 @@ def run_case(case: HardCase, params: TranslatorParams, refine: bool = False) -> 
     that fails only through discretization error is re-solved on finer grids.
     """
     params = params.with_changes(**dict(case.params))
-    solver = _study_solver(params)
+    solver = study_solver(params)
     outcomes = []
     for index, (force, moment) in enumerate(case.loads):
         last = index == len(case.loads) - 1
@@ -377,131 +374,3 @@ def run_suite(params: TranslatorParams, quick_only: bool = False,
     """Run every case (or the quick ones) of :func:`cases`."""
     return [run_case(case, params, refine) for case in cases()
             if case.quick or not quick_only]
-
-
-# buckling ----------------------------------------------------------------------------------
-def euler_critical_load(params: TranslatorParams) -> float:
-    """
-    Closed-form Euler buckling load (N) of the straight translator under axial compression.
-
-    The translating (S-shaped) mode: each joint is a column of bending stiffness 5 EI (the
-    five backbones bend together) and length (S + 1) D; the tube is rigid; the base is
-    clamped and the end disk keeps its orientation. By antisymmetry the tube's midpoint is
-    an inflection point, so each half is a clamped column of length l carrying a rigid arm
-    a = L_m / 2 to a moment-free tip: w = d (1 - cos k s), d = w(l) + a w'(l), which gives
-    k l tan(k l) = l / a, and P = 5 EI k^2.
-    """
-    length = params.joint_length
-    arm = 0.5 * params.tube_length
-    root = brentq(lambda u: u * math.tan(u) - length / arm, 1e-12, 0.5 * math.pi - 1e-12)
-    return 5.0 * params.bending_stiffness * (root / length) ** 2
-
-
-@dataclass
-class Buckling:
-    """
-    Axial buckling of the straight translator: numerical critical load and its checks.
-
-    ``critical_load_n`` minimizes the smallest singular value of the (nondimensional)
-    shooting Jacobian along the straight, perfectly symmetric compression branch;
-    ``smallest_singular_value`` is that minimum (0 for an exactly singular Jacobian) and
-    ``unloaded_singular_value`` the same quantity at no load. ``stable_below`` and
-    ``stable_above`` are :func:`stability` 2 % below and above the critical load.
-    """
-
-    critical_load_n: float
-    smallest_singular_value: float
-    unloaded_singular_value: float
-    euler_estimate_n: float
-    stable_below: Optional[bool]
-    stable_above: Optional[bool]
-    time_s: float
-
-
-def critical_compression(params: TranslatorParams) -> Buckling:
-    """Find the axial buckling load (see :class:`Buckling`), bracketed by the Euler one."""
-    started = time.perf_counter()
-    solver = _study_solver(params)
-    problem = solver.problem
-
-    def smallest_singular_value(compression: float) -> float:
-        solver.reset()
-        result = solver.solve((0.0, 0.0, -compression))
-        if not result.converged:
-            return math.inf
-        wrench = np.array([0.0, 0.0, -compression, 0.0, 0.0, 0.0])
-        xs = result.unknowns / problem.x_scale
-        jacobian = problem.jacobian(xs, wrench, problem.residual(xs, wrench))
-        return float(np.linalg.svd(jacobian, compute_uv=False)[-1])
-
-    euler = euler_critical_load(params)
-    found = minimize_scalar(smallest_singular_value, bracket=(0.6 * euler, euler, 1.5 * euler),
-                            tol=1e-9)
-    judged = []
-    for factor in (0.98, 1.02):
-        solver.reset()
-        result = solver.solve((0.0, 0.0, -factor * found.x), compliance=True)
-        judged.append(stability(solver, result)[0])
-    return Buckling(float(found.x), float(found.fun), smallest_singular_value(0.0), euler,
-                    judged[0], judged[1], time.perf_counter() - started)
-
-
-# report --------------------------------------------------------------------------------------
-def _wrench_text(wrench: Wrench) -> str:
-    force, moment = wrench
-    text = 'F (' + ', '.join(f'{value:g}' for value in force) + ') N'
-    if any(moment):
-        text += ', M (' + ', '.join(f'{value:g}' for value in moment) + ') N m'
-    return text
-
-
-def _yes_no(value: Optional[bool]) -> str:
-    return 'unknown' if value is None else ('yes' if value else 'no')
-
-
-def markdown_report(reports: Sequence[CaseReport], buckling: Optional[Buckling] = None) -> str:
-    """Return the report: per-case table, convergence rates, buckling, failures."""
-    solves = [outcome for report in reports for outcome in report.loads]
-    converged = sum(outcome.converged for outcome in solves)
-    lines = [
-        '| case | solves | outcome | iterations | time (ms) | residual | stable | '
-        'PJ bending (deg) | end-disk rotation (deg) |',
-        '|---|---|---|---|---|---|---|---|---|',
-    ]
-    for report in reports:
-        final = report.final
-        lines.append(
-            f'| {report.case.name} | {len(report.loads)} | {report.outcome} | '
-            f'{report.iterations} | {1e3 * report.time_s:.1f} | {report.residual:.1e} | '
-            f'{_yes_no(report.stable)} | {math.degrees(final.pj_bending[0]):.2f} | '
-            f'{math.degrees(final.end_disk_rotation):.2f} |')
-    verified = sum(report.verified for report in reports)
-    lines += [
-        '',
-        f'**Convergence rate: {converged}/{len(solves)} solves '
-        f'({100.0 * converged / len(solves):.1f} %)**; cases converged: '
-        f'{sum(report.converged for report in reports)}/{len(reports)}; verified (at the '
-        f"case's or a finer discretization): {verified}/{len(reports)}.",
-    ]
-    if buckling is not None:
-        lines += [
-            '',
-            f'**Axial buckling load: {buckling.critical_load_n:.3f} N** (smallest singular '
-            f'value of the Jacobian {buckling.smallest_singular_value:.1e}, against '
-            f'{buckling.unloaded_singular_value:.1e} unloaded); Euler estimate '
-            f'{buckling.euler_estimate_n:.3f} N '
-            f'({100.0 * (buckling.critical_load_n / buckling.euler_estimate_n - 1.0):+.1f} %). '
-            f'Stable 2 % below: {_yes_no(buckling.stable_below)}; 2 % above: '
-            f'{_yes_no(buckling.stable_above)}.',
-        ]
-    unstable = [report for report in reports if report.stable is False]
-    unknown = [report for report in reports if report.converged and report.stable is None]
-    failing = [report for report in reports if not report.verified]
-    for title, chosen, text in (
-            ('Not verified or not converged', failing, lambda r: r.outcome),
-            ('Unstable equilibria', unstable, lambda r: r.stability),
-            ('Stability unknown', unknown, lambda r: r.stability)):
-        if chosen:
-            lines += ['', f'{title}:', '']
-            lines += [f'* {report.case.name}: {text(report)}' for report in chosen]
-    return '\n'.join(lines) + '\n'

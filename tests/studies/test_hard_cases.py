@@ -9,6 +9,8 @@ import math
 from cdr_translator import solver as solver_module, TranslatorSolver
 from cdr_translator.params import Accuracy
 from cdr_translator.studies import hard_cases
+from cdr_translator.studies.buckling import critical_compression
+from cdr_translator.studies.hard_case_report import markdown_report
 from cdr_translator.studies.hard_cases import DISCRETIZATION_FREE_CHECKS
 import numpy as np
 import pytest
@@ -25,7 +27,7 @@ def reports(params):
 @pytest.fixture(scope='module')
 def buckling(params):
     """Analyse the axial buckling of the shipped translator."""
-    return hard_cases.critical_compression(params)
+    return critical_compression(params)
 
 
 def test_the_suite_covers_every_kind_of_hard_case(reports):
@@ -230,7 +232,7 @@ def test_bad_solver_settings_are_value_errors(params, keyword, value):
 
 def test_report_lists_rates_and_buckling(reports, buckling):
     """The markdown report has one row per case, the convergence rate and the buckling load."""
-    text = hard_cases.markdown_report(list(reports.values()), buckling)
+    text = markdown_report(list(reports.values()), buckling)
     rows = [line for line in text.splitlines() if line.startswith('| ') and 'case |' not in line]
     assert len(rows) == len(reports)
     assert 'Convergence rate:' in text and 'Axial buckling load:' in text
