@@ -11,7 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / 'README.md'
 DOCS = sorted((ROOT / 'docs').glob('*.md'))
-#: Issue 12: the README stays a front page; everything else lives in docs/*.md.
+#: The README stays a front page; everything else lives in docs/*.md.
 README_MAX_BYTES = 12 * 1024
 #: The marker line right above the README's fenced Python block that this test runs.
 SOLVE_MARKER = '<!-- docs-test: readme-solve -->'
