@@ -237,7 +237,7 @@ def _ms(seconds: float) -> str:
 
 def main() -> None:
     """Measure, print and write bench/results/targets.md."""
-    parser = argparse.ArgumentParser(description="The speed targets, exact vs FD.")
+    parser = argparse.ArgumentParser(description='The speed targets, exact vs FD.')
     parser.add_argument('--skip-paper', action='store_true', help='omit the slow baseline')
     parser.add_argument('--spacers-slope', action='store_true',
                         help='also time 1..9 spacer disks per joint (slow)')
