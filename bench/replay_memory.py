@@ -10,7 +10,7 @@ ERROR diagnostic, so every message is read, decoded, checked, answered and writt
 the run fits in minutes (a solve costs about 3 ms on this shared machine). Then it runs
 ``python -m msg_tools replay --no-compliance`` and ``python -m msg_tools info`` on each in
 a child process of its own and reads the child's
-peak RSS from ``os.wait4``. Writes bench/results/replay_memory.md (issue 14: growth from
+peak RSS from ``os.wait4``. Writes bench/results/replay_memory.md (the growth from
 10 k to 1 M messages must stay within 20 MB).
 """
 
@@ -93,7 +93,7 @@ def main() -> None:
                   f'(input written in {written_s:.1f} s)', flush=True)
         (work / f'out_{count}.mcap').unlink(missing_ok=True)
         source.unlink()
-    lines = ['# Peak RSS of replay and info against the number of messages (issue 14)', '',
+    lines = ['# Peak RSS of replay and info against the number of messages', '',
              f'`python -m bench.replay_memory --counts {" ".join(map(str, args.counts))}` on '
              f'{platform.node() or "this machine"}, Python {platform.python_version()}: '
              'one child process per run, peak RSS from `os.wait4`. Input: WrenchStamped at '

@@ -1,7 +1,7 @@
 """
 Property-based tests (hypothesis) over random bounded wrenches.
 
-The property of issue 7: a solve is either converged and verified, or not converged with
+The property: a solve is either converged and verified, or not converged with
 a message; never a silent wrong answer. Inside the paper's range (each force component up
 to 20 N, each moment component up to 0.2 N m) the default discretization verifies every
 state. Far outside it a converged state may miss the verification tolerances through RK4

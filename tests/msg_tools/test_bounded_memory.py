@@ -1,5 +1,5 @@
 """
-Replay and info hold no per-message lists (issue 14): traced peak memory against length.
+Replay and info hold no per-message lists: traced peak memory against length.
 
 The 1 M-message peak-RSS measurement is ``python -m bench.replay_memory``
 (bench/results/replay_memory.md); here the Python heap (tracemalloc) of a short and a

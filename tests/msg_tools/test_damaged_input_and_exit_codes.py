@@ -1,4 +1,4 @@
-"""info tells the truth, duplicates are skipped, replay exit codes mean something (issue 14)."""
+"""info tells the truth, duplicates are skipped, replay exit codes mean something."""
 
 import errno
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""McapLog: one writer per file, write errors as events (issue 14)."""
+"""McapLog: one writer per file, write errors as events."""
 
 import errno
 import os

@@ -11,8 +11,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / 'README.md'
 DOCS = sorted((ROOT / 'docs').glob('*.md'))
-#: Issue 12: the README stays a front page; everything else lives in docs/*.md.
+#: The README stays a front page; everything else lives in docs/*.md.
 README_MAX_BYTES = 12 * 1024
+#: A docs page is a reference on one topic: at most 10 KB.
+DOC_MAX_BYTES = 10 * 1024
 #: The marker line right above the README's fenced Python block that this test runs.
 SOLVE_MARKER = '<!-- docs-test: readme-solve -->'
 
@@ -25,6 +27,15 @@ CODE_PATH = re.compile(r'`((?:cdr_translator|msg_tools|bench|scripts|config|laun
 #: A dotted name in the package (`cdr_translator.studies.hard_cases.stability`).
 DOTTED = re.compile(r'`((?:cdr_translator|msg_tools)(?:\.\w+)+)`')
 DEFINED = re.compile(r'^\s*(?:def|class)\s+(\w+)|^(\w+)\s*[:=]', re.MULTILINE)
+#: Journal wording: history belongs in CHANGELOG.rst and git, not in docs, code or tests.
+#: (Written with a character class so that this file does not match its own pattern.)
+JOURNAL = re.compile(r'session [0-9]|\bissue[ -]?#?[0-9]|this[ ]branch|\*\*changed', re.IGNORECASE)
+#: Where journal wording is looked for (CHANGELOG.rst is the one place for history).
+JOURNAL_PLACES = ('docs', 'README.md', 'tests', 'cdr_translator', 'msg_tools', 'bench',
+                  'scripts')
+JOURNAL_SUFFIXES = {'.md', '.py', '.rst', '.txt', '.yaml', '.cfg'}
+#: A path outside the repository: the parent of the checkout, or an absolute path.
+OUTSIDE_PATH = re.compile(r'\.\./shared|(?<![\w.~])/(?:home|tmp|work|root|mnt)/')
 
 
 def _prose(text: str) -> str:
@@ -62,7 +73,8 @@ def test_docs_exist():
     """The topic files the README and docs/index.md point to are there."""
     names = {path.name for path in DOCS}
     for name in ('index.md', 'model.md', 'compliance.md', 'node.md', 'parameters.md',
-                 'replay.md', 'robot.md', 'hard_cases.md', 'performance.md', 'layout.md'):
+                 'replay.md', 'robot.md', 'hard_cases.md', 'performance.md', 'layout.md',
+                 'inverse_statics.md', 'atlas.md', 'speed.md', 'node_latency.md'):
         assert name in names
 
 
@@ -136,3 +148,46 @@ def test_hard_case_summary_markers_are_in_the_docs():
     assert 'SUMMARY' in replaced and replaced.count(module.BEGIN) == 1
     report = '| case |\n|---|\n| a |\n\n**Convergence rate: 1/1**\n'
     assert module.summary(report) == '**Convergence rate: 1/1**\n'
+
+
+@pytest.mark.parametrize('path', DOCS, ids=lambda path: path.name)
+def test_doc_pages_are_short(path):
+    """Every docs/*.md is at most 10 KB: a reference page on one topic."""
+    size = len(path.read_bytes())
+    assert size <= DOC_MAX_BYTES, f'{path.name} is {size} bytes: split it by topic'
+
+
+def _journal_files() -> list:
+    """Return the text files where journal wording is looked for."""
+    files = []
+    for place in JOURNAL_PLACES:
+        base = ROOT / place
+        if base.is_file():
+            files.append(base)
+            continue
+        for path in sorted(base.rglob('*')):
+            skipped = {'__pycache__', '.hypothesis'} & set(path.parts)
+            if path.is_file() and path.suffix in JOURNAL_SUFFIXES and not skipped:
+                files.append(path)
+    return files
+
+
+def test_no_journal_wording():
+    """Docs, code and tests say what is, not which session or issue changed it."""
+    found = []
+    for path in _journal_files():
+        for number, line in enumerate(path.read_text(encoding='utf-8').splitlines(), 1):
+            if JOURNAL.search(line):
+                found.append(f'{path.relative_to(ROOT)}:{number}: {line.strip()[:80]}')
+    assert not found, 'history belongs in CHANGELOG.rst:\n' + '\n'.join(found)
+
+
+@pytest.mark.parametrize('path', [README] + DOCS, ids=lambda path: path.name)
+def test_no_paths_outside_the_repository(path):
+    """The docs refer to nothing outside the repository (no ../shared, no absolute paths)."""
+    text = path.read_text(encoding='utf-8')
+    assert not OUTSIDE_PATH.search(text), f'{path.name}: {OUTSIDE_PATH.search(text).group()}'
+    for file_part, _ in _relative_links(path):
+        if file_part:
+            target = (path.parent / file_part).resolve()
+            assert ROOT in target.parents, f'{path.name} links outside the repository: {file_part}'

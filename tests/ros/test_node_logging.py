@@ -1,5 +1,5 @@
 """
-translator_node's MCAP log (issue 14): one writer per file, write errors as diagnostics.
+translator_node's MCAP log: one writer per file, write errors as diagnostics.
 
 Also a clean shutdown that states what was written and lost, and log times in order per
 channel.
