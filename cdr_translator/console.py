@@ -4,7 +4,8 @@ What every command line of the project prints and how it ends at the console's e
 * ``json_text``: strict JSON (RFC 8259 has no NaN or Infinity): a non-finite number is
   written as null, so any JSON reader accepts what ``--json`` prints.
 * ``run_command``: a closed standard output (``| head -1``) ends quietly with
-  ``EXIT_BROKEN_PIPE``, Ctrl-C with one line and ``EXIT_INTERRUPTED``, never a traceback.
+  ``EXIT_BROKEN_PIPE``, Ctrl-C with one line and ``EXIT_INTERRUPTED``, never a traceback;
+  a warning (an implausible parameter) is one line, ``warning: ...``, on stderr.
 * ``unwritable_reason``: whether an output path can be written, asked before any work.
 """
 
@@ -14,7 +15,8 @@ import os
 from pathlib import Path
 import sys
 import tempfile
-from typing import Any, Callable, Optional, Union
+from typing import Any, Callable, Optional, TextIO, Type, Union
+import warnings
 
 #: Ctrl-C (128 + SIGINT), as a shell reports a process SIGINT ended.
 EXIT_INTERRUPTED = 130
@@ -22,7 +24,7 @@ EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141
 
 __all__ = ['EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED', 'finite_or_none', 'json_text',
-           'run_command', 'unwritable_reason']
+           'one_line_warning', 'run_command', 'unwritable_reason']
 
 
 def finite_or_none(data: Any) -> Any:
@@ -47,16 +49,26 @@ def run_command(command: Callable[[], int]) -> int:
 
     A BrokenPipeError (the reader of stdout went away) returns EXIT_BROKEN_PIPE after
     pointing stdout at /dev/null, so the interpreter's final flush cannot raise again; a
-    KeyboardInterrupt prints 'interrupted' on stderr and returns EXIT_INTERRUPTED.
+    KeyboardInterrupt prints 'interrupted' on stderr and returns EXIT_INTERRUPTED. Warnings
+    print as one line each (``one_line_warning``).
     """
     try:
-        return command()
+        with warnings.catch_warnings():
+            warnings.showwarning = one_line_warning
+            return command()
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
         print('interrupted (Ctrl-C)', file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+def one_line_warning(message: Union[Warning, str], category: Type[Warning], filename: str,
+                     lineno: int, file: Optional[TextIO] = None,
+                     line: Optional[str] = None) -> None:
+    """Print a warning as ``warning: <message>`` (a ``warnings.showwarning`` replacement)."""
+    print(f'warning: {message}', file=sys.stderr if file is None else file)
 
 
 def unwritable_reason(path: Union[str, Path], folder_ok: bool = False) -> Optional[str]:

@@ -6,7 +6,7 @@ a computation that cannot give an answer the caller asked to have (rather than o
 reports failure in its result) is an ``ArithmeticError`` subclass.
 """
 
-__all__ = ['InputError', 'ParameterError', 'SolveError']
+__all__ = ['InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError']
 
 
 class ParameterError(ValueError):
@@ -19,3 +19,7 @@ class InputError(ValueError):
 
 class SolveError(ArithmeticError):
     """A computation that must produce a value (e.g. a compliance matrix) could not."""
+
+
+class PlausibilityWarning(UserWarning):
+    """A parameter is legal but far outside the translator's scale (the message names it)."""

@@ -3,10 +3,11 @@
 from dataclasses import asdict, dataclass, fields, replace
 import math
 from pathlib import Path
-from typing import Any, Mapping, Union
+from typing import Any, List, Mapping, Union
+import warnings
 
 from .checks import check_integer, check_number
-from .errors import ParameterError
+from .errors import ParameterError, PlausibilityWarning
 from .params_file import layered_values, section_values
 
 #: The node name under which the parameters sit in the ROS 2 params file.
@@ -43,6 +44,19 @@ SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 #: one iteration alone took longer.
 MAX_SPACERS_PER_JOINT = 16
 MAX_STEPS_PER_SEGMENT = 1024
+
+#: The translator is a desktop-scale mechanism: a length of a metre or more is almost always a
+#: length in millimetres typed into a metre field (the paper's prototype: 10 mm pitch radius,
+#: 10 mm disk spacing, 138 mm tube).
+PLAUSIBLE_MAX_LENGTH_M = 1.0
+
+#: Pitch radius over joint length beyond which the joints are discs rather than continuum
+#: joints (the paper's prototype has 0.5).
+PLAUSIBLE_MAX_PITCH_RATIO = 10.0
+
+#: Young's modulus range of backbone materials (Pa): polymers (~1 GPa) to steel (~200 GPa),
+#: with a decade of slack on each side; outside it a modulus in MPa or GPa is likely.
+PLAUSIBLE_MODULUS_PA = (1e8, 1e12)
 
 #: Most RK4 steps per disk interval the automatic refinement may use.
 MAX_REFINED_STEPS = 256
@@ -129,6 +143,32 @@ class TranslatorParams:
             raise ParameterError(
                 f'backbone_diameter ({self.backbone_diameter!r}) must be smaller than '
                 f'disk_spacing ({self.disk_spacing!r}): a rod is not slender at that size')
+        for text in self.implausibilities():
+            warnings.warn(text, PlausibilityWarning, stacklevel=3)
+
+    def implausibilities(self) -> List[str]:
+        """
+        Say which legal values lie far outside the translator's scale, naming the likely slip.
+
+        Empty for any real translator; each text names the key, its value and the rule.
+        ``__post_init__`` issues each as a PlausibilityWarning.
+        """
+        texts = []
+        for name in ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length'):
+            value = getattr(self, name)
+            if value >= PLAUSIBLE_MAX_LENGTH_M:
+                texts.append(f'{name} is {value!r} m, a length of {PLAUSIBLE_MAX_LENGTH_M:g} m '
+                             'or more: millimetres typed as metres?')
+        ratio = self.pitch_radius / self.joint_length
+        if ratio > PLAUSIBLE_MAX_PITCH_RATIO and self.pitch_radius < PLAUSIBLE_MAX_LENGTH_M:
+            texts.append(f'pitch_radius ({self.pitch_radius!r} m) is {ratio:.3g} times the '
+                         f'joint length ({self.joint_length!r} m, over '
+                         f'{PLAUSIBLE_MAX_PITCH_RATIO:g}): millimetres typed as metres?')
+        low, high = PLAUSIBLE_MODULUS_PA
+        if not low <= self.youngs_modulus <= high:
+            texts.append(f'youngs_modulus is {self.youngs_modulus!r} Pa, outside '
+                         f'{low:g}..{high:g} Pa of backbone materials: MPa or GPa typed as Pa?')
+        return texts
 
     # Derived quantities -------------------------------------------------------------------
     @property

@@ -19,14 +19,15 @@ follows from the two radii and the leg's stack height: sin(beta) = (R_b - R_p) /
 from dataclasses import dataclass, fields
 import math
 from pathlib import Path
-from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
+import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..checks import check_number
-from ..errors import InputError, ParameterError
-from ..params import DEFAULT_PARAMS_PATH, NODE_NAME, TranslatorParams
+from ..errors import InputError, ParameterError, PlausibilityWarning
+from ..params import DEFAULT_PARAMS_PATH, NODE_NAME, PLAUSIBLE_MAX_LENGTH_M, TranslatorParams
 from ..params_file import applicable_sections, layered_values, section_values
 
 #: The section of the params file holding the CDR geometry (also the cdr_node's name).
@@ -98,6 +99,15 @@ class DeltaParams:
             if min(gap, 360.0 - gap) < 1.0:
                 raise ParameterError(
                     f'leg_azimuths_deg {list(azimuths)!r}: two legs share a radial plane')
+        for text in self.implausibilities():
+            warnings.warn(text, PlausibilityWarning, stacklevel=3)
+
+    def implausibilities(self) -> List[str]:
+        """Say which legal lengths lie far outside the robot's scale (PlausibilityWarning)."""
+        return [f'{name} is {getattr(self, name)!r} m, a length of {PLAUSIBLE_MAX_LENGTH_M:g} m '
+                'or more: millimetres typed as metres?'
+                for name in ('base_radius', 'platform_radius', 'slider_stroke')
+                if getattr(self, name) >= PLAUSIBLE_MAX_LENGTH_M]
 
     @property
     def slider_inclination(self) -> float:

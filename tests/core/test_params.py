@@ -1,8 +1,10 @@
 """Parameter file reading and validation: every error names the key and the value."""
 
 import math
+import warnings
 
-from cdr_translator import ParameterError, TranslatorParams
+from cdr_translator import ParameterError, PlausibilityWarning, TranslatorParams
+from cdr_translator.console import run_command
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 import pytest
 import yaml
@@ -84,3 +86,32 @@ def test_with_changes_validates(params):
     assert params.with_changes(spacers_per_joint=3).spacers_per_joint == 3
     with pytest.raises(ParameterError, match='poisson_ratio'):
         params.with_changes(poisson_ratio=0.7)
+
+
+@pytest.mark.parametrize('changes, fragment', [
+    ({'pitch_radius': 10.0}, 'pitch_radius is 10.0 m'),
+    ({'tube_length': 138.3}, 'tube_length is 138.3 m'),
+    ({'pitch_radius': 0.5}, 'times the joint length'),
+    ({'youngs_modulus': 88.4}, 'youngs_modulus is 88.4 Pa'),
+    ({'youngs_modulus': 88.4e15}, 'MPa or GPa typed as Pa'),
+])
+def test_implausible_values_warn_naming_the_likely_slip(params, changes, fragment):
+    """Legal values far outside the translator's scale warn, naming the key and the slip."""
+    with pytest.warns(PlausibilityWarning, match=fragment):
+        changed = params.with_changes(**changes)
+    assert any(fragment in text for text in changed.implausibilities())
+
+
+def test_the_shipped_geometry_is_plausible(params):
+    """The paper's translator gives no warning (warnings as errors here)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert params.with_changes(steps_per_segment=4).implausibilities() == []
+
+
+def test_a_warning_is_one_line_at_the_console(capsys, params):
+    """Every command line prints an implausibility as one 'warning:' line on stderr."""
+    assert run_command(lambda: len(params.with_changes(pitch_radius=10.0).implausibilities())) == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ['warning: pitch_radius is 10.0 m, a length of 1 m or more: millimetres '
+                     'typed as metres?']
