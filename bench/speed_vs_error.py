@@ -1,5 +1,5 @@
 """
-Speed against error of every fidelity level (issue 6); writes bench/results/.
+Speed against error of every fidelity level; writes bench/results/.
 
 Usage: python -m bench.speed_vs_error [--skip-paper] [--skip-node] [--skip-validation]
                                       [--repeats N]

@@ -9,7 +9,7 @@ Command line of msg_tools (no ROS needed): info, synth, replay.
 Exit codes (replay; docs/replay.md): 0 all good; 1 the input was damaged, what could be
 read was replayed; 2 bad arguments, unusable input or an output that cannot be written
 (checked before reading; message on stderr, no traceback); 3 nothing could be decoded or
-solved (until issue 14 such a replay exited 0); 130 interrupted by Ctrl-C (the output MCAP
+solved; 130 interrupted by Ctrl-C (the output MCAP
 is finalized all the same). info and synth: 0 done (info also for a damaged file, which it
 reports), 2 bad arguments or unusable input. All: 141 when stdout was closed early (``| head``).
 """
