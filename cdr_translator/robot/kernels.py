@@ -1,5 +1,5 @@
 """
-Compiled pieces of the CDR's coupled Newton iterate (robot/delta.py).
+Compiled pieces of the CDR's coupled Newton iterate (robot/coupled_newton.py).
 
 An iterate of a warm CDR solve is three leg shots (~35 us each) and a little algebra on
 24 platform and 3 x n leg unknowns; written with numpy, the algebra's call overhead cost
@@ -170,7 +170,7 @@ def within(residual, equilibrium_tolerance, position_tolerance, rotation_toleran
 def coupled_step(residual, leg_residuals, with_legs, r_scale, x_scale, leg_lu, leg_pivots,
                  twists, gains, platform_inverse, updates, steps, count, out):
     """
-    Write the coupled Newton step (robot/delta.py's ``_correction``) into ``out``.
+    Write the coupled Newton step (robot/coupled_newton.py's ``correction``) into ``out``.
 
     ``out`` = [platform step / x_scale (24); leg steps (3 x n)], then the ``count``
     Broyden updates applied. Leg k: a_k = J_k^-1 r_k (its LU), its twist T_k a_k taken off
@@ -221,7 +221,7 @@ REBUILD = 2
 NO_STEP = 3
 FAR = 4
 
-#: Step halvings of a line search (robot/delta.py's _line_search).
+#: Step halvings of a line search (robot/coupled_newton.py's line search).
 HALVINGS = 10
 
 
@@ -229,7 +229,7 @@ HALVINGS = 10
 def turn_and_move(position, rotation, wrenches, unknowns, step, scale, x_scale, out_position,
                   out_rotation, out_wrenches, out_unknowns):
     """
-    Write the state moved by ``scale`` times the flat scaled ``step`` (delta._State.moved).
+    Write the state moved by ``scale`` times the flat scaled ``step`` (chain.ChainState.moved).
 
     Platform position + dp, rotation exp([dphi]) R (Rodrigues' formula; the series below
     an angle of 1e-6 rad, error below angle^3 / 6), leg wrenches + dw, leg unknowns + their
@@ -274,7 +274,7 @@ def secant_update(updates, steps, count, taken, change, correction):
     """
     Add the good-Broyden update of step ``taken`` whose residual change y has H y = ``change``.
 
-    (robot/delta.py _Secants.) ``correction`` (H r for some r) becomes H+ r in place; the
+    (robot/linearization.py's Secants.) ``correction`` (H r for some r) becomes H+ r in place; the
     new count is returned. Once ``updates`` is full, or for a degenerate step, nothing is
     added and ``correction`` stays as it is.
     """
@@ -333,7 +333,7 @@ def coupled_iterations(state, trial, step, has_step, inputs, leg, platform, fact
                        updates, steps, count, tolerances, controls, fresh, chord_steps,
                        chord_log, leg_error):
     """
-    Run the coupled Newton's chord iterations on one factorization (delta.py _newton).
+    Run the coupled Newton's chord iterations on one factorization (CoupledNewton.correct).
 
     ``state`` and ``trial`` are state tuples (position (3), rotation (3, 3), wrenches
     (3, 6), leg unknowns (3, n), leg end-disk frames (3, 4, 4), leg residuals (3, n),

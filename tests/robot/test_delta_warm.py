@@ -4,8 +4,9 @@ import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.params import Accuracy
-from cdr_translator.robot import delta, kernels
-from cdr_translator.robot.delta import _Secants, DeltaRobot, MAX_SECANTS
+from cdr_translator.robot import coupled_newton, kernels
+from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.robot.linearization import MAX_SECANTS, Secants
 from cdr_translator.robot.result import LegResults, rotation_vector
 import numpy as np
 import pytest
@@ -98,7 +99,7 @@ def test_secant_update_reproduces_its_step():
     rng = np.random.default_rng(3)
     size = 30
     inverse = np.eye(size) + 0.1 * rng.standard_normal((size, size))  # H_0
-    secants = _Secants(size)
+    secants = Secants(size)
     residual_change = rng.standard_normal(size)
     step = rng.standard_normal(size)
     other = rng.standard_normal(size)
@@ -126,7 +127,7 @@ def test_compiled_residual_matches_its_formula(robot):
     rng = np.random.default_rng(7)
     robot.reset()
     robot.solve((0.01, 0.0, -0.005), GRAVITY_1KG)
-    state = robot._previous[0]
+    state = robot._continuation.previous[0]
     inputs = np.concatenate([[0.01, 0.002, -0.005], rng.standard_normal(9)])
     for angle in (0.01, 2.5):
         frames = state.frames.copy()
@@ -137,7 +138,7 @@ def test_compiled_residual_matches_its_formula(robot):
                             _rotation(0.01 * rng.standard_normal(3)) @ state.rotation,
                             state.wrenches + rng.standard_normal((3, 6)), state.unknowns,
                             frames)
-        assert np.allclose(robot._residual(trial, inputs), _residual(robot, trial, inputs),
+        assert np.allclose(robot._chain.residual(trial, inputs), _residual(robot, trial, inputs),
                            rtol=1e-12, atol=1e-12)
 
 
@@ -222,17 +223,17 @@ def test_unjudged_leg_solves_and_judged_results():
 
 
 def _python_loop_only(robot, monkeypatch):
-    """Make ``robot``'s _newton run each coupled iteration in Python (the FAR hand-off)."""
+    """Make ``robot``'s Newton run each coupled iteration in Python (the FAR hand-off)."""
     def hand_back(state, residual, step, inputs, factorization, fresh, chord_steps, chord_log,
                   allowed):
-        return delta._CoupledRun(kernels.FAR, 0, state, residual, step, fresh, chord_steps,
-                                 chord_log)
-    monkeypatch.setattr(robot, '_coupled_iterations', hand_back)
+        return coupled_newton.CoupledRun(kernels.FAR, 0, state, residual, step, fresh,
+                                         chord_steps, chord_log)
+    monkeypatch.setattr(robot._newton, 'coupled_iterations', hand_back)
 
 
 def test_compiled_coupled_iterations_take_the_python_loops_steps(monkeypatch):
     """
-    kernels.coupled_iterations does what _newton's Python loop does, step for step.
+    kernels.coupled_iterations does what CoupledNewton.correct's Python loop does, step for step.
 
     Along warm solves on a slider path (some rebuild their factorization, some do not) the
     same iterations, leg shots and leg Jacobians, and the platform within 1e-12 m, as the
