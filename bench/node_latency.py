@@ -15,11 +15,12 @@ clock): median, 95th and 99th percentile and maximum. "No backlog" means every r
 wrench was answered (none skipped) and the latency did not grow. ``--no-log`` runs without
 the MCAP log, to see what logging costs; ``--compliance`` subscribes to the compliance
 eigenvalues too. ``--node-python`` runs the node with another checkout's interpreter (``-m
-cdr_translator.node`` of that venv, without this checkout on PYTHONPATH), so an old and a
-new node can be measured with the same client in the same minutes; ``--markdown`` writes
-the run to a file anew (bench/results/node_rate.md holds the latest run only). ``--profile``
-runs this checkout's node under bench.node_profile (timers around its stages, every thread's
-CPU time), which writes its account to OUT.md when the node stops (use one rate per run to see
+cdr_translator.ros.translator_node`` of that venv, without this checkout on PYTHONPATH), so
+two checkouts' nodes can be measured with the same client in the same minutes; ``--markdown``
+writes the run to a file anew (bench/results/node_rate.md holds the latest run only).
+``--profile`` runs this checkout's node under bench.node_profile (timers around its stages,
+every thread's CPU time), which writes its account to OUT.md when the node stops (use one rate
+per run to see
 that rate's split).
 ``--param`` sets one of the node's parameters (``-p NAME:=VALUE``, e.g. pending_wrenches:=1).
 
@@ -158,7 +159,7 @@ def main() -> None:
     command: Tuple[str, ...] = MODULE_COMMAND
     if args.node_python:
         node_env.pop('PYTHONPATH', None)
-        command = (args.node_python, '-m', 'cdr_translator.node')  # old path: any checkout
+        command = (args.node_python, *MODULE_COMMAND[1:])
         # CHECKOUT/.venv/bin/python (not resolved: the venv's python is a symlink); -m
         # imports from the working directory, which must be that checkout, or the run
         # would measure this checkout's node

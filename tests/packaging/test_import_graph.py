@@ -18,12 +18,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ('cdr_translator', 'msg_tools')
 
-#: Old module paths kept as deprecated aliases of the moved modules.
-ALIASES = {'cdr_translator.node', 'cdr_translator.cdr_node', 'cdr_translator.node_io',
-           'cdr_translator.node_params', 'cdr_translator.node_client',
-           'cdr_translator.cdr_messages', 'cdr_translator.delta', 'cdr_translator.delta_params',
-           'cdr_translator.hard_cases', 'msg_tools.messages', 'msg_tools.processing'}
-
 #: ROS client library and message packages: only cdr_translator.ros may import them.
 ROS_PACKAGES = {'rclpy', 'rcl_interfaces', 'geometry_msgs', 'sensor_msgs', 'std_msgs',
                 'visualization_msgs', 'diagnostic_msgs', 'builtin_interfaces'}
@@ -112,12 +106,11 @@ def test_no_import_cycles(graph):
 
 
 def test_layers_point_one_way(graph):
-    """Check core <- fidelity, robot <- studies <- interface <- ros <- cli (aliases aside)."""
+    """Check core <- fidelity, robot <- studies <- interface <- ros <- cli."""
     wrong = [f'{module} -> {target}' for module, targets in graph.items()
-             if module.startswith('cdr_translator') and module not in ALIASES
+             if module.startswith('cdr_translator')
              for target in targets
-             if target.startswith('cdr_translator.') and target not in ALIASES
-             and layer(target) > layer(module)]
+             if target.startswith('cdr_translator.') and layer(target) > layer(module)]
     assert not wrong, wrong
 
 
@@ -132,7 +125,7 @@ def test_only_the_ros_subpackage_imports_ros():
     """Check that rclpy and message packages appear only under cdr_translator/ros."""
     wrong = []
     for module, path in module_names().items():
-        if module.startswith('cdr_translator.ros') or module in ALIASES:
+        if module.startswith('cdr_translator.ros'):
             continue
         wrong += [f'{module} imports {name}' for name in imported(module, path)
                   if name.split('.')[0] in ROS_PACKAGES]
@@ -142,7 +135,7 @@ def test_only_the_ros_subpackage_imports_ros():
 def test_importing_the_libraries_loads_no_ros():
     """Importing every non-ROS module leaves rclpy unloaded (checked in a fresh process)."""
     modules = sorted(module for module in module_names()
-                     if not module.startswith('cdr_translator.ros') and module not in ALIASES
+                     if not module.startswith('cdr_translator.ros')
                      and not module.endswith('__main__'))
     code = ('import importlib, sys\n'
             f'for name in {modules!r}:\n'
@@ -151,23 +144,6 @@ def test_importing_the_libraries_loads_no_ros():
             f'{sorted(ROS_PACKAGES)!r})\n'
             'print(loaded)\n'
             'sys.exit(1 if loaded else 0)\n')
-    process = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                             cwd=ROOT, timeout=300)
-    assert process.returncode == 0, process.stdout + process.stderr
-
-
-def test_aliases_warn_and_re_export():
-    """Each old module path still works and says where the module went."""
-    code = ('import importlib, warnings\n'
-            f'for name in {sorted(ALIASES)!r}:\n'
-            '    with warnings.catch_warnings(record=True) as caught:\n'
-            '        warnings.simplefilter("always")\n'
-            '        module = importlib.import_module(name)\n'
-            '    assert any(issubclass(w.category, DeprecationWarning) for w in caught), name\n'
-            'import msg_tools.messages, msg_tools.processing, cdr_translator.node\n'
-            'assert msg_tools.messages.WRENCH_TOPIC == "wrench"\n'
-            'assert callable(msg_tools.processing.WrenchProcessor)\n'
-            'assert callable(cdr_translator.node.main)\n')
     process = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                              cwd=ROOT, timeout=300)
     assert process.returncode == 0, process.stdout + process.stderr

@@ -1,16 +1,19 @@
 """
 package.xml resolves with rosdep and declares exactly what the sources import.
 
-The rosdep keys are checked against unmodified copies of rosdistro's rosdep/python.yaml and
-rosdep/base.yaml in ``shared/ros/rosdep/`` beside the repository (``../shared`` of a clone;
-``CDR_ROSDEP_DIR`` overrides). ROS packages are keys by their own names: the ones the pip
-wheels install are found in the venv's ament index, ``launch`` / ``launch_ros`` (no wheels)
-are listed below. The imports are found by walking the sources with ``ast``.
+The rosdep keys are checked against ``rosdep_keys.yaml`` beside this file: the entries of
+rosdistro's rosdep/python.yaml and rosdep/base.yaml for the declared keys, at the rosdistro
+commit it names (scripts/refresh_rosdep_keys.py rewrites it). With ``CDR_ROSDEP_DIR`` set to
+a folder holding the two full files, the keys are checked against those instead, and the
+snapshot against them. ROS packages are keys by their own names: the ones the pip wheels
+install are found in the venv's ament index, ``launch`` / ``launch_ros`` (no wheels) are
+listed below. The imports are found by walking the sources with ``ast``.
 """
 
 import ast
 import os
 from pathlib import Path
+import subprocess
 import sys
 from typing import Dict, Iterator, List, Optional, Set, Tuple
 import xml.etree.ElementTree as ElementTree
@@ -72,23 +75,34 @@ ROS_PACKAGES_WITHOUT_WHEELS = {'launch', 'launch_ros'}
 PLATFORM = 'ubuntu'
 
 
-def rosdep_dir() -> Path:
-    """Return the folder of the rosdistro yaml copies: CDR_ROSDEP_DIR or shared/ beside us."""
-    if os.environ.get('CDR_ROSDEP_DIR'):
-        return Path(os.environ['CDR_ROSDEP_DIR'])
-    for folder in ROOT.parents:  # ../shared of a clone, ../../shared of a worktree in wt/
-        candidate = folder / 'shared' / 'ros' / 'rosdep'
-        if candidate.is_dir():
-            return candidate
-    pytest.fail(f'no shared/ros/rosdep/ beside {ROOT} (set CDR_ROSDEP_DIR)')
+#: The declared keys' entries of rosdistro's key files (scripts/refresh_rosdep_keys.py).
+SNAPSHOT = Path(__file__).with_name('rosdep_keys.yaml')
+REFRESH_SCRIPT = ROOT / 'scripts' / 'refresh_rosdep_keys.py'
+
+#: rosdistro's key files, merged in this order.
+ROSDEP_FILES = ('python.yaml', 'base.yaml')
+
+
+def load_yaml(path: Path) -> dict:
+    """Return the parsed YAML file (libyaml's loader when there is one: the files are big)."""
+    with open(path) as stream:
+        return yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+
+
+def full_copy() -> Optional[Dict[str, dict]]:
+    """Return file name -> keys of the full rosdistro files in CDR_ROSDEP_DIR, if it is set."""
+    folder = os.environ.get('CDR_ROSDEP_DIR')
+    if not folder:
+        return None
+    return {name: load_yaml(Path(folder) / name) for name in ROSDEP_FILES}
 
 
 def rosdep_keys() -> Dict[str, dict]:
-    """Return every key of rosdistro's python.yaml and base.yaml with its rules."""
+    """Return every key (of the full copy, else of the snapshot) with its rules."""
+    files = full_copy() or load_yaml(SNAPSHOT)['files']
     keys: Dict[str, dict] = {}
-    for name in ('python.yaml', 'base.yaml'):
-        with open(rosdep_dir() / name) as stream:
-            keys.update(yaml.load(stream, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader)))
+    for name in ROSDEP_FILES:
+        keys.update(files[name])
     return keys
 
 
@@ -165,7 +179,8 @@ def _key_problem(key: str, keys: Dict[str, dict], ros: Set[str]) -> Optional[str
     if key in ros or key in ROS_PACKAGES_WITHOUT_WHEELS:
         return None
     if key not in keys:
-        return f'{key}: neither a rosdep key nor a ROS package'
+        return (f'{key}: neither a rosdep key nor a ROS package (a new key of rosdistro: '
+                f'add it to {SNAPSHOT.name} with {REFRESH_SCRIPT.name})')
     rules = keys[key]
     if not isinstance(rules, dict) or not rules.get(PLATFORM):
         return f'{key}: no {PLATFORM} rule'
@@ -190,6 +205,36 @@ def test_the_key_check_can_fail():
     assert _key_problem('python3-threadpoolctl', keys, ros) is not None
     assert _key_problem('cdr_no_such_package', keys, ros) is not None
     assert _key_problem('python3-numba', keys, ros) is None
+
+
+def test_the_snapshot_is_what_the_refresh_script_writes(tmp_path):
+    """The script rebuilds the snapshot from full files: declared keys only, entries kept."""
+    committed = load_yaml(SNAPSHOT)
+    folder = tmp_path / 'rosdep'
+    folder.mkdir()
+    for name in ROSDEP_FILES:
+        entries = {**committed['files'][name], f'cdr_undeclared_{name[:-5]}': {'ubuntu': ['x']}}
+        (folder / name).write_text(yaml.safe_dump(entries))
+    (folder / 'README.md').write_text(f'Copied at commit {committed["rosdistro_commit"]}.\n')
+    written = tmp_path / 'rosdep_keys.yaml'
+    process = subprocess.run([sys.executable, str(REFRESH_SCRIPT), str(folder),
+                              '--output', str(written)],
+                             capture_output=True, text=True, timeout=60)
+    assert process.returncode == 0, process.stdout + process.stderr
+    assert written.read_text() == SNAPSHOT.read_text()
+
+
+@pytest.mark.skipif(not os.environ.get('CDR_ROSDEP_DIR'),
+                    reason='CDR_ROSDEP_DIR names no full copy of the rosdistro files')
+def test_the_snapshot_matches_the_full_copy():
+    """Every declared key of the full files is in the snapshot with the same rules."""
+    files, everything = full_copy(), {key for keys in declared().values() for key in keys}
+    assert files is not None
+    snapshot = load_yaml(SNAPSHOT)['files']
+    stale = [name for name in ROSDEP_FILES
+             if snapshot[name] != {key: rules for key, rules in files[name].items()
+                                   if key in everything}]
+    assert not stale, f'{SNAPSHOT.name} differs from {stale}: run {REFRESH_SCRIPT.name}'
 
 
 def test_installed_code_imports_only_declared_exec_dependencies():

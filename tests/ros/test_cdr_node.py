@@ -7,8 +7,7 @@ import signal
 import sys
 import time
 
-from cdr_translator import cdr_messages
-from cdr_translator.interface import messages
+from cdr_translator.interface import cdr_messages, messages
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
