@@ -20,8 +20,7 @@ two checkouts' nodes can be measured with the same client in the same minutes; `
 writes the run to a file anew (bench/results/node_rate.md holds the latest run only).
 ``--profile`` runs this checkout's node under bench.node_profile (timers around its stages,
 every thread's CPU time), which writes its account to OUT.md when the node stops (use one rate
-per run to see
-that rate's split).
+per run to see that rate's split).
 ``--param`` sets one of the node's parameters (``-p NAME:=VALUE``, e.g. pending_wrenches:=1).
 
 The publisher sleeps between wrenches (no busy spin); the client runs without the cyclic
