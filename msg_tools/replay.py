@@ -29,7 +29,8 @@ from cdr_translator.interface import messages
 from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
 from msg_tools.interrupts import deferred_sigint
-from msg_tools.mcap_log import LogStatus, McapLog
+from msg_tools.log_status import LogStatus
+from msg_tools.mcap_log import McapLog
 from msg_tools.plots import check_plot_path, plot_replay
 from msg_tools.reader import Decoders, McapSource, ReadReport
 import numpy as np
