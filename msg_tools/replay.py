@@ -2,12 +2,12 @@
 Replay recorded wrenches through the solver offline: what translator_node would have published.
 
 Reads the WrenchStamped messages of an MCAP (salvaging a damaged file), handles each as the
-node does (``processing.WrenchProcessor``: same checks, frames, warm-started solver, time
-limit) and writes a new MCAP holding the input messages and every output the node publishes
-(end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /diagnostics and, on
-request, backbones) with header stamps equal to the input stamps and log times equal to the
-input log times. Output topics take the input topic's namespace ('/robot/wrench' gives
-'/robot/end_disk_pose'). Optionally a CSV row per message and a plot. No rclpy needed.
+node does (``wrench_processing.WrenchProcessor``: same checks, frames, warm-started solver,
+time limit) and writes a new MCAP holding the input messages and every output the node
+publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /diagnostics
+and, on request, backbones) with header stamps equal to the input stamps and log times equal
+to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
+gives '/robot/end_disk_pose'). Optionally a CSV row per message and a plot. No rclpy needed.
 
 Memory stays bounded however long the input: messages stream through and the statistics
 are running ones (``msg_tools.replay_summary``). The topics replayed are chosen by
@@ -22,8 +22,8 @@ import time
 from typing import Collection, IO, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
-from cdr_translator.interface.processing import WrenchProcessor
 from cdr_translator.interface.settings import TranslatorSettings
+from cdr_translator.interface.wrench_processing import WrenchProcessor
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.mcap_log import McapLog

@@ -14,7 +14,7 @@ import time
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
-from cdr_translator.interface.processing import InputSettings, WrenchProcessor
+from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
 from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.reader import make_reader
