@@ -24,7 +24,7 @@ from typing import Any, Callable, Dict, List
 
 from bench.node_latency import child_pids
 from cdr_translator.interface import messages
-from cdr_translator.ros import cdr, runtime, translator_node
+from cdr_translator.ros import runtime, serialization, translator_node
 from rclpy.publisher import Publisher
 
 #: stage -> [calls, thread CPU s, wall s]
@@ -136,16 +136,16 @@ def install(out: Path) -> None:
     wrap(node_class, '_wanted', 'subscription counts')  # before the CDR encoding
     wrap(runtime.SubscriberCounts, 'subscribed', 'subscription counts')
     wrap(translator_node, 'deserialize_message', 'decode')
-    wrap(cdr, 'decode', 'decode')
+    wrap(serialization, 'decode', 'decode')
     wrap(translator_node, 'solve_wrench', 'solve')
     wrap(translator_node, 'fill_message', 'fill rclpy message')
     wrap(translator_node, 'serialize_message', 'serialize')
-    if hasattr(translator_node, 'cdr'):
-        make_encoder = cdr.encoder
-        cdr.encoder = lambda message_class: timed('encode', make_encoder(message_class))
-    if hasattr(cdr, 'decoder'):  # a decoder bound at start (wrapped above: cdr.decode)
-        make_decoder = cdr.decoder
-        setattr(cdr, 'decoder',  # noqa: B010 - replaced for the profile
+    if hasattr(translator_node, 'serialization'):
+        make_encoder = serialization.encoder
+        serialization.encoder = lambda message_class: timed('encode', make_encoder(message_class))
+    if hasattr(serialization, 'decoder'):  # a decoder bound at start, not the wrapped decode
+        make_decoder = serialization.decoder
+        setattr(serialization, 'decoder',  # noqa: B010 - replaced for the profile
                 lambda message_class: timed('decode', make_decoder(message_class)))
     for name in ('pose_message', 'joint_state_message', 'diagnostics_message',
                  'solve_diagnostic_values', 'compliance_eigenvalues_message',

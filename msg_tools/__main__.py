@@ -9,9 +9,9 @@ Command line of msg_tools (no ROS needed): info, synth, replay.
 Exit codes (replay; docs/replay.md): 0 all good; 1 the input was damaged, what could be
 read was replayed; 2 bad arguments, unusable input or an output that cannot be written
 (checked before reading; message on stderr, no traceback); 3 nothing could be decoded or
-solved; 130 interrupted by Ctrl-C (the output MCAP
-is finalized all the same). info and synth: 0 done (info also for a damaged file, which it
-reports), 2 bad arguments or unusable input. All: 141 when stdout was closed early (``| head``).
+solved; 130 interrupted by Ctrl-C (the output MCAP is finalized all the same). info and
+synth: 0 done (info also for a damaged file, which it reports), 2 bad arguments or unusable
+input. All: 141 when stdout was closed early (``| head``).
 """
 
 import argparse
@@ -20,8 +20,11 @@ from typing import Optional, Sequence
 
 from cdr_translator.console import EXIT_BROKEN_PIPE, run_command
 from msg_tools import synth
+from msg_tools.errors import ReplayError
 from msg_tools.info import describe
-from msg_tools.replay import main_replay
+from msg_tools.plots import check_plot_path, plot_replay
+from msg_tools.replay import replay
+from msg_tools.replay_summary import EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE
 from msg_tools.synth import PROFILES
 
 __all__ = ['EXIT_BROKEN_PIPE', 'main']
@@ -102,7 +105,62 @@ def _run(argv: Optional[Sequence[str]]) -> int:
             return 2
         print(f'wrote {count} {args.profile} wrenches on {args.topic} to {args.output}')
         return 0
-    return main_replay(args)
+    return _run_replay(args)
+
+
+def _run_replay(args: argparse.Namespace) -> int:
+    """Run ``python -m msg_tools replay`` with parsed ``args``; return the exit code."""
+    stream = sys.stderr if (args.progress == 'always' or (
+        args.progress == 'auto' and sys.stderr.isatty())) else None
+    try:
+        for option, value in (('--out', args.out), ('--csv', args.csv), ('--plot', args.plot)):
+            if value is not None and not value.strip():
+                raise ValueError(f'{option} needs a file name, got {value!r}')
+        if args.plot:
+            check_plot_path(args.plot)
+        summary = replay(args.input, args.out, topics=args.topic, params_path=args.params,
+                         compliance=not args.no_compliance, backbones=args.backbones,
+                         csv_path=args.csv, progress=stream,
+                         plot_samples=args.plot_samples or (),
+                         other_outputs=[('plot', args.plot)] if args.plot else [])
+    except (ReplayError, ValueError) as error:
+        print(f'error: {error}', file=sys.stderr)
+        return EXIT_USAGE
+    for warning in summary.warnings:
+        print(f'warning: {warning}', file=sys.stderr)
+    if summary.warnings_dropped:
+        print(f'warning: {summary.warnings_dropped} more such warnings not shown',
+              file=sys.stderr)
+    if not summary.input_report.complete:
+        print(f'warning: {summary.input_report.describe()}', file=sys.stderr)
+    print(summary.table())
+    written = ', '.join(str(path) for path in (args.out, args.csv) if path)
+    print(f'wrote {written}' if not summary.output_error else
+          f'wrote {written} up to the write error')
+    code = summary.exit_code()
+    if args.plot:
+        if summary.series.time_s:
+            try:
+                samples = plot_replay(summary.series, args.plot, params_path=args.params,
+                                      samples=args.plot_samples)
+                print(f'wrote {args.plot} (deflected shapes of messages {samples})')
+            except ValueError as error:   # chosen messages that did not converge
+                print(f'error: no plot written: {error}', file=sys.stderr)
+                if code in (EXIT_OK, EXIT_DAMAGED_INPUT):
+                    code = EXIT_USAGE
+        else:
+            print('warning: nothing converged, no plot written', file=sys.stderr)
+    if summary.output_error or summary.exit_code() == EXIT_USAGE:
+        status = summary.output_status
+        print('error: ' + '; '.join(
+            part for part in (summary.output_error,
+                              f'output MCAP {status.describe()}' if status is not None else '')
+            if part), file=sys.stderr)
+    elif code == EXIT_NOTHING_SOLVED:
+        print(f'error: nothing could be solved: {summary.messages} messages read, '
+              f'{summary.undecodable} undecodable, {summary.rejected} rejected, '
+              f'{summary.not_converged} not converged', file=sys.stderr)
+    return code
 
 
 if __name__ == '__main__':

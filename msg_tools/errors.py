@@ -1,4 +1,4 @@
-"""Errors of msg_tools' MCAP writer (ROS-free; nothing here imports cdr_translator)."""
+"""Errors of msg_tools' MCAP writer and replay, and their text (ROS-free, no cdr_translator)."""
 
 from pathlib import Path
 from typing import Union
@@ -29,3 +29,17 @@ class LogFileExistsError(LogFileError):
         super().__init__(f'{self.path} already exists and is not overwritten (a finished log '
                          'of an earlier run?); remove it, choose another path, or ask for an '
                          'auto-named file')
+
+
+class ReplayError(ValueError):
+    """The input cannot be replayed at all (no such file, no usable wrench topic)."""
+
+
+class OutputError(ReplayError):
+    """An output file cannot be written (found before reading, or a write error)."""
+
+
+def error_text(error: BaseException) -> str:
+    """Return 'Type: message' of an exception (some mcap errors have empty messages)."""
+    text = str(error)
+    return f'{type(error).__name__}: {text}' if text else type(error).__name__

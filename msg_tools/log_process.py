@@ -30,7 +30,9 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
-from msg_tools.mcap_log import LogStatus, McapLog, open_exclusive
+from msg_tools.file_lock import open_exclusive
+from msg_tools.log_status import LogStatus
+from msg_tools.mcap_log import McapLog
 
 #: How often the child reports the log's status (s), and how often it looks for news.
 STATUS_PERIOD_S = 0.1

@@ -5,179 +5,38 @@ The file follows the MCAP ``ros2`` profile the way rosbag2 (Jazzy) writes it: sc
 encoding ``ros2msg`` holding the complete message definition (``msgdefs``), channels with
 message encoding ``cdr`` and the channel metadata ``offered_qos_profiles`` (the YAML list
 rosbag2 stores) and ``topic_type_hash`` (RIHS01), zstd-compressed chunks, and a ``rosbag2``
-metadata record with ``ROS_DISTRO``. Completed chunks are flushed to the file every N
-messages and every T seconds (a background thread), so a writer killed with SIGKILL loses
-at most the messages of that window; everything before stays readable (see
-``msg_tools.reader`` for the salvage of such a file). ``close()`` writes the summary and
-index and is idempotent.
+metadata record with ``ROS_DISTRO`` (``msg_tools.rosbag2_metadata``). Completed chunks are
+flushed to the file every N messages and every T seconds (a background thread), so a writer
+killed with SIGKILL loses at most the messages of that window; everything before stays
+readable (see ``msg_tools.reader`` for the salvage of such a file). ``close()`` writes the
+summary and index and is idempotent.
 
-One writer per file: the file is created exclusively (``if_exists`` 'fail', the default;
-'overwrite' or 'rename' on request) and held with an exclusive ``flock`` while open, so a
-second writer on the same path fails at once (``LogFileBusyError`` naming the holder's PID)
-instead of interleaving. Write errors (disk full, I/O error, the file removed) never raise
-from ``write``/``flush``/``close``: the file is cut back to its last complete chunk, the
-records not written are counted, ``status()`` says what happened, and writing resumes in a
-new file (``<stem>_<n><suffix>``) once that works again. See docs/logging.md.
+One writer per file: the file is created exclusively and held with an exclusive ``flock``
+while open (``msg_tools.file_lock``). Write errors (disk full, I/O error, the file removed)
+never raise from ``write``/``flush``/``close``: the file is cut back to its last complete
+chunk, the records not written are counted, ``status()`` (a ``LogStatus``) says what
+happened, and writing resumes in a new file (``<stem>_<n><suffix>``) once that works again.
+See docs/logging.md.
 
 CDR encoding of plain dicts uses ``mcap_ros2``'s dynamic encoder (``serialize_dynamic`` of
 mcap-ros2-support 0.6.0, pinned in requirements.txt).
 """
 
-from dataclasses import dataclass
 import errno
-import fcntl
 import os
 from pathlib import Path
 import threading
 import time
-from typing import (Any, Callable, cast, Dict, IO, Iterator, List, Mapping, Optional, Tuple,
-                    Union)
+from typing import Any, Callable, cast, Dict, IO, List, Mapping, Optional, Tuple, Union
 
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
 from mcap_ros2._dynamic import serialize_dynamic
-from msg_tools.errors import LogFileBusyError, LogFileExistsError
+from msg_tools.errors import error_text
+from msg_tools.file_lock import open_exclusive
+from msg_tools.log_status import LogStatus
 from msg_tools.msgdefs import MESSAGE_DEFINITIONS, TYPE_HASHES
-import yaml
-
-#: ROS distribution recorded in the file's ``rosbag2`` metadata record.
-ROS_DISTRO = 'jazzy'
-
-#: rmw's infinite duration as rosbag2 serializes it.
-_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-
-#: The QoS profiles a topic can be registered with (rclpy's default publisher profile with
-#: depth 10, and qos_profile_sensor_data), as rosbag2 serializes an offered profile.
-QOS_PROFILES: Mapping[str, dict] = {
-    'reliable': {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
-                 'durability': 'volatile'},
-    'sensor_data': {'history': 'keep_last', 'depth': 5, 'reliability': 'best_effort',
-                    'durability': 'volatile'},
-}
-
-
-def offered_qos_profiles_yaml(qos: str) -> str:
-    """Return the ``offered_qos_profiles`` channel metadata of one publisher with ``qos``."""
-    if qos not in QOS_PROFILES:
-        raise ValueError(f'qos must be one of {sorted(QOS_PROFILES)}, got {qos!r}')
-    profile = dict(QOS_PROFILES[qos])
-    profile.update({'deadline': dict(_INFINITE), 'lifespan': dict(_INFINITE),
-                    'liveliness': 'automatic', 'liveliness_lease_duration': dict(_INFINITE),
-                    'avoid_ros_namespace_conventions': False})
-    return yaml.safe_dump([profile], sort_keys=False, default_flow_style=False).rstrip('\n')
-
-
-#: What a writer does when its path exists: fail (the default), overwrite it, or pick a
-#: new name ``<stem>_<n><suffix>``.
-IF_EXISTS = ('fail', 'overwrite', 'rename')
-
-#: Highest ``n`` tried for a new name.
-_MAX_RENAME = 9999
-
-
-def _flock_holder(path: Union[str, Path]) -> Optional[str]:
-    """
-    Return who holds a ``flock`` on ``path`` ('PID 123: command line'), None if nobody.
-
-    Read from /proc/locks (Linux) without taking any lock, so looking never makes a real
-    writer fail; without /proc/locks, a shared lock is tried for an instant instead.
-    """
-    try:
-        status = os.stat(path)
-        with open('/proc/locks') as locks:
-            lines = locks.read().splitlines()
-    except FileNotFoundError:
-        return _probe(path)
-    except OSError:
-        return None
-    device = f'{os.major(status.st_dev):02x}:{os.minor(status.st_dev):02x}:{status.st_ino}'
-    for line in lines:
-        fields = line.split()
-        if '->' in fields or 'FLOCK' not in fields or len(fields) < 6:
-            continue
-        if fields[5] != device and fields[5].rsplit(':', 1)[-1] != str(status.st_ino):
-            continue
-        pid = fields[4]
-        if pid == str(os.getpid()):
-            return f'PID {pid}, this process'
-        try:
-            with open(f'/proc/{pid}/cmdline', 'rb') as command:
-                text = command.read().replace(b'\0', b' ').decode(errors='replace').strip()
-        except OSError:
-            text = ''
-        return f'PID {pid}: {text[:160]}' if text else f'PID {pid}'
-    return None
-
-
-def lock_holder(path: Union[str, Path]) -> str:
-    """Describe the holder of the lock on ``path`` ('holder unknown' when it cannot tell)."""
-    return _flock_holder(path) or 'holder unknown'
-
-
-def _probe(path: Union[str, Path]) -> Optional[str]:
-    """Try a shared lock on ``path`` for an instant: 'holder unknown' if it is held."""
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
-    except OSError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return 'holder unknown'
-    finally:
-        os.close(fd)
-    return None
-
-
-def _names(path: Path) -> Iterator[Path]:
-    """Yield ``path`` then ``<stem>_1<suffix>``, ``<stem>_2<suffix>``, ..."""
-    yield path
-    for number in range(1, _MAX_RENAME + 1):
-        yield path.with_name(f'{path.stem}_{number}{path.suffix}')
-
-
-def open_exclusive(path: Union[str, Path], if_exists: str = 'fail') -> Tuple[int, Path]:
-    """
-    Create ``path`` (and its folders) for writing under an exclusive flock; return (fd, path).
-
-    ``if_exists``: 'fail' raises LogFileExistsError for an existing file (LogFileBusyError
-    when a writer holds it); 'overwrite' truncates it once the lock is held; 'rename' takes
-    the first free ``<stem>_<n><suffix>``. A file locked by another writer is never opened
-    for writing: LogFileBusyError names it and its holder. Other OSErrors (no permission, a
-    file where a folder should be) propagate.
-    """
-    if if_exists not in IF_EXISTS:
-        raise ValueError(f'if_exists must be one of {IF_EXISTS}, got {if_exists!r}')
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if if_exists == 'overwrite':
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            raise LogFileBusyError(path, lock_holder(path)) from None
-        os.ftruncate(fd, 0)
-        return fd, path
-    for candidate in _names(path) if if_exists == 'rename' else [path]:
-        try:
-            fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
-        except FileExistsError:
-            if if_exists == 'fail':
-                holder = _flock_holder(candidate)
-                if holder is not None:
-                    raise LogFileBusyError(candidate, holder) from None
-                raise LogFileExistsError(candidate) from None
-            continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:   # an overwriting writer took the new file first
-            os.close(fd)
-            if if_exists == 'fail':
-                raise LogFileBusyError(candidate, lock_holder(candidate)) from None
-            continue
-        return fd, candidate
-    raise LogFileExistsError(path.with_name(f'{path.stem}_{_MAX_RENAME}{path.suffix}'))
+from msg_tools.rosbag2_metadata import offered_qos_profiles_yaml, QOS_PROFILES, ROS_DISTRO
 
 
 class _FileSink:
@@ -217,35 +76,6 @@ class _FileSink:
         """Raise OSError if the file was removed (its data would vanish on close)."""
         if os.fstat(self.fd).st_nlink == 0:
             raise OSError(errno.ENOENT, 'the file was removed while being written')
-
-
-@dataclass(frozen=True)
-class LogStatus:
-    """
-    What a McapLog has done: ``ok`` False while writing fails.
-
-    ``written``: records in complete chunks on disk; ``pending``: records accepted but not
-    yet flushed; ``lost``: records that will never be written (a write error, the file
-    removed); ``errors``: write-error events; ``message``: the last event (error or resume),
-    '' when nothing happened; ``files``: every file written, the current one last.
-    """
-
-    ok: bool
-    path: str
-    files: Tuple[str, ...]
-    written: int
-    pending: int
-    lost: int
-    errors: int
-    message: str
-
-    def describe(self) -> str:
-        """Return a one-line account, e.g. for a node's closing log line."""
-        state = 'ok' if self.ok else 'ERROR'
-        files = ', '.join(self.files)
-        text = (f'{state}: {self.written} records written, {self.lost} lost'
-                + (f', {self.pending} pending' if self.pending else '') + f'; file(s) {files}')
-        return text + (f'; {self.message}' if self.message else '')
 
 
 class McapLog:
@@ -414,7 +244,7 @@ class McapLog:
         self._unflushed = 0
         kept = ('it was removed' if removed else
                 f'it is readable up to byte {self._committed_offset}')
-        self._failure = (f'writing {self.path} failed: {_error_text(error)}; {lost} records '
+        self._failure = (f'writing {self.path} failed: {error_text(error)}; {lost} records '
                          f'lost ({self._lost} in all); {kept}; trying a new file every '
                          f'{self._retry_s:g} s')
         self._message = self._failure
@@ -445,7 +275,7 @@ class McapLog:
                 path.unlink()
             except OSError:
                 pass
-            self._message = f'{failed}; a new file failed too: {_error_text(error)}'
+            self._message = f'{failed}; a new file failed too: {error_text(error)}'
             return False
         self._failing = False
         self._message = (f'resumed in {path} after a write error ({self._lost} records '
@@ -598,7 +428,7 @@ class McapLog:
             except Exception as error:  # noqa: B902 - the thread must not die with a traceback
                 with self._lock:
                     self._errors += 1
-                    self._message = f'flush thread: {_error_text(error)}'
+                    self._message = f'flush thread: {error_text(error)}'
 
     def close(self) -> LogStatus:
         """
@@ -635,9 +465,3 @@ def _removed(fd: int) -> bool:
         return os.fstat(fd).st_nlink == 0
     except OSError:
         return False
-
-
-def _error_text(error: BaseException) -> str:
-    """Return 'Type: message' of an exception."""
-    text = str(error)
-    return f'{type(error).__name__}: {text}' if text else type(error).__name__

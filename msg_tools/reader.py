@@ -32,6 +32,7 @@ from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
 from mcap.stream_reader import CRCValidationError, get_chunk_data_stream, StreamReader
 from mcap_ros2.decoder import DecoderFactory
+from msg_tools.errors import error_text
 import zstandard
 
 #: Exceptions that mean "this part of the file cannot be read": struct.error for cut
@@ -258,7 +259,7 @@ class McapSource:
         try:
             summary = SeekingReader(stream).get_summary()
         except READ_ERRORS as error:
-            return None, f'no readable summary: {_error_text(error)}'
+            return None, f'no readable summary: {error_text(error)}'
         if summary is None:
             return None, 'the file has no summary section'
         if summary.statistics is None:
@@ -285,7 +286,7 @@ class McapSource:
             except READ_ERRORS as error:
                 self.report.problems.append(
                     f'chunk at byte {index.chunk_start_offset} unreadable '
-                    f'({_error_text(error)}): its messages are lost')
+                    f'({error_text(error)}): its messages are lost')
                 continue
             yield from self._chunk(index.chunk_start_offset, chunk, first, records)
 
@@ -302,12 +303,12 @@ class McapSource:
             self._data_crc_mismatch(error)
         except READ_ERRORS as error:
             self.report.problems.append(
-                f'data section not readable through ({_error_text(error)})')
+                f'data section not readable through ({error_text(error)})')
 
     def _data_crc_mismatch(self, error: BaseException) -> None:
         """Record a data-section CRC mismatch."""
         self.data_crc = 'mismatch'
-        self.report.problems.append(f'data-section CRC mismatch ({_error_text(error)}): '
+        self.report.problems.append(f'data-section CRC mismatch ({error_text(error)}): '
                                     'some record outside the messages read is damaged')
 
     # streamed -----------------------------------------------------------------------------
@@ -329,7 +330,7 @@ class McapSource:
                 self.report.unread_bytes = max(self.report.size_bytes - position, 0)
                 if self.report.unread_bytes:
                     self.report.problems.append(
-                        f'unreadable from byte {position} ({_error_text(error)})')
+                        f'unreadable from byte {position} ({error_text(error)})')
                 return
             end = stream.tell()
             if isinstance(record, Chunk):
@@ -338,7 +339,7 @@ class McapSource:
                     first = next(inside, None)   # decompressed and CRC-checked here
                 except READ_ERRORS as error:
                     self.report.problems.append(
-                        f'chunk at byte {position} unreadable ({_error_text(error)}): '
+                        f'chunk at byte {position} unreadable ({error_text(error)}): '
                         f'its messages are lost')
                     position = end
                     continue
@@ -361,7 +362,7 @@ class McapSource:
             yield from self._records(itertools.chain([first], records), copied)
         except READ_ERRORS as error:
             self.report.problems.append(f'chunk at byte {offset}: a record does not parse '
-                                        f'({_error_text(error)}); the rest of it is lost')
+                                        f'({error_text(error)}); the rest of it is lost')
 
     def _wanted(self, channel_id: int) -> bool:
         """Tell whether messages of ``channel_id`` pass the topic filter."""
@@ -414,7 +415,7 @@ class Decoders:
                                                     message.schema)
             except READ_ERRORS + (NotImplementedError, KeyError, IndexError) as error:
                 raise ValueError(f'cannot parse the schema {message.schema_name!r} of '
-                                 f'{message.topic!r}: {_error_text(error)}') from error
+                                 f'{message.topic!r}: {error_text(error)}') from error
             if decoder is None:
                 raise ValueError(f'channel {message.topic!r}: no decoder for message encoding '
                                  f'{message.channel.message_encoding!r} with schema encoding '
@@ -424,10 +425,4 @@ class Decoders:
             return self._decoders[key](message.data)
         except READ_ERRORS + (IndexError, KeyError, NotImplementedError) as error:
             raise ValueError(f'cannot decode a {message.schema_name} on {message.topic!r}: '
-                             f'{_error_text(error)}') from error
-
-
-def _error_text(error: BaseException) -> str:
-    """Return 'Type: message' of an exception (some mcap errors have empty messages)."""
-    text = str(error)
-    return f'{type(error).__name__}: {text}' if text else type(error).__name__
+                             f'{error_text(error)}') from error

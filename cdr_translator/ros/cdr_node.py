@@ -5,7 +5,7 @@ Subscribes ``sliders`` (sensor_msgs/JointState: positions in m, named slider_1..
 unnamed in leg order) and ``platform_wrench`` (geometry_msgs/WrenchStamped: the payload on
 the platform origin, in the world frame), both with sensor-data QoS, and publishes,
 reliable with depth 10, ``platform_pose``, ``leg_bending_angles``, ``leg_tip_wrenches``
-and ``/diagnostics`` (cdr_messages defines their content). Every accepted input triggers a
+and ``/diagnostics`` (robot_messages defines their content). Every accepted input triggers a
 solve with the latest value of the other (sliders at home and no payload until the first
 message of each). Inverse statics: ``target_position`` (geometry_msgs/PointStamped, world
 frame, sensor-data QoS) is solved under the latest payload and answered on
@@ -29,15 +29,15 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-from . import cdr
+from . import serialization
 from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
-from ..interface import cdr_messages, messages
-from ..interface.processing import check_magnitude
+from ..interface import messages, robot_messages
 from ..interface.settings import CDR_SPECS, CdrSettings
+from ..interface.wrench_processing import check_magnitude
 from ..params import DEFAULT_PARAMS_PATH
 from ..robot.delta import DeltaRobot
 from ..robot.inverse import check_target
@@ -46,12 +46,12 @@ from ..solver import check_wrench
 
 #: Output topics and their message classes (the translator node's classes, by type).
 CDR_OUTPUTS = {
-    cdr_messages.PLATFORM_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
-    cdr_messages.LEG_ANGLES_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
-    cdr_messages.LEG_WRENCHES_TOPIC: OUTPUTS[messages.COMPLIANCE_TOPIC],
-    cdr_messages.DIAGNOSTICS_TOPIC: OUTPUTS[messages.DIAGNOSTICS_TOPIC],
-    cdr_messages.SLIDER_COMMAND_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
-    cdr_messages.PREDICTED_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
+    robot_messages.PLATFORM_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
+    robot_messages.LEG_ANGLES_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
+    robot_messages.LEG_WRENCHES_TOPIC: OUTPUTS[messages.COMPLIANCE_TOPIC],
+    robot_messages.DIAGNOSTICS_TOPIC: OUTPUTS[messages.DIAGNOSTICS_TOPIC],
+    robot_messages.SLIDER_COMMAND_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
+    robot_messages.PREDICTED_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
 }
 
 #: Mailbox item kinds: a forward solve (sliders) or an inverse one (target position).
@@ -93,9 +93,9 @@ class CdrNode(Node):
                                      for topic, message_class in CDR_OUTPUTS.items()}
         self._mailbox = LatestMailbox()
         timed_warm_up(self._warm_up, self.get_logger().info)
-        inputs = {cdr_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
-                  cdr_messages.SLIDERS_TOPIC: JointState,
-                  cdr_messages.TARGET_TOPIC: PointStamped}
+        inputs = {robot_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
+                  robot_messages.SLIDERS_TOPIC: JointState,
+                  robot_messages.TARGET_TOPIC: PointStamped}
         topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
                   for topic, message_class in inputs.items()]
         topics += [(publisher.topic_name, type_name(CDR_OUTPUTS[topic]), 'reliable')
@@ -107,15 +107,15 @@ class CdrNode(Node):
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         # the readers of the input types, built now (reading a layout takes about 17 ms)
-        self._decoders = {message_class: cdr.decoder(message_class)
+        self._decoders = {message_class: serialization.decoder(message_class)
                           for message_class in inputs.values()}
         sensor = sensor_qos(self._settings.input_queue_depth)
         self._subscriptions = [
-            self.create_subscription(WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC,
+            self.create_subscription(WrenchStamped, robot_messages.PLATFORM_WRENCH_TOPIC,
                                      self._on_wrench, sensor, raw=True),
-            self.create_subscription(JointState, cdr_messages.SLIDERS_TOPIC, self._on_sliders,
+            self.create_subscription(JointState, robot_messages.SLIDERS_TOPIC, self._on_sliders,
                                      sensor, raw=True),
-            self.create_subscription(PointStamped, cdr_messages.TARGET_TOPIC, self._on_target,
+            self.create_subscription(PointStamped, robot_messages.TARGET_TOPIC, self._on_target,
                                      sensor, raw=True)]
         self.get_logger().info(
             f'ready: {", ".join(s.topic_name for s in self._subscriptions)} -> '
@@ -182,7 +182,7 @@ class CdrNode(Node):
         stamp = dict(message['header']['stamp'])
         try:
             sliders = check_sliders(
-                cdr_messages.sliders_from_joint_state(message['name'], message['position']),
+                robot_messages.sliders_from_joint_state(message['name'], message['position']),
                 self.robot.geometry.slider_stroke)
         except ValueError as error:
             self._reject(stamp, 'sliders', error)
@@ -197,7 +197,7 @@ class CdrNode(Node):
         message = self._decoded(data, PointStamped, 'target')
         if message is None:
             return
-        target, frame_id, stamp = cdr_messages.target_from_point(message)
+        target, frame_id, stamp = robot_messages.target_from_point(message)
         world = self._settings.world_frame
         try:
             if frame_id not in ('', world):
@@ -214,7 +214,7 @@ class CdrNode(Node):
         """
         Return the message in ``data`` as a dict; None, rejected with a diagnostic, if malformed.
 
-        cdr.decoder reads it in microseconds, where rclpy's deserialize_message took
+        serialization.decoder reads it in microseconds, where rclpy's deserialize_message took
         0.15-0.3 ms in this (executor) thread.
         """
         try:
@@ -227,8 +227,8 @@ class CdrNode(Node):
     def _reject(self, stamp: dict, what: str, error: Exception) -> None:
         self.rejected += 1
         self.get_logger().warning(f'{what} rejected: {error}', throttle_duration_sec=1.0)
-        self._publish(cdr_messages.rejection_messages(stamp, f'{what} rejected: {error}',
-                                                      self._counts()))
+        self._publish(robot_messages.rejection_messages(stamp, f'{what} rejected: {error}',
+                                                        self._counts()))
 
     # solving ---------------------------------------------------------------------------------
     def _work(self) -> None:
@@ -246,7 +246,7 @@ class CdrNode(Node):
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
                 self.get_logger().error(f'solver thread: {error!r}')
-                self._publish(cdr_messages.rejection_messages(
+                self._publish(robot_messages.rejection_messages(
                     stamp, f'internal error: {error!r}', self._counts()))
                 continue
             if result.converged:
@@ -255,7 +255,7 @@ class CdrNode(Node):
                 self.failed += 1
                 self.get_logger().error(f'no equilibrium: {result.message}',
                                         throttle_duration_sec=1.0)
-            self._publish(cdr_messages.output_messages(
+            self._publish(robot_messages.output_messages(
                 result, stamp, self._settings.world_frame, self._counts()))
 
     def _answer_target(self, stamp: dict, target: np.ndarray, force: np.ndarray,
@@ -268,7 +268,7 @@ class CdrNode(Node):
             self.failed += 1
             self.get_logger().error(f'target not reached: {result.message}',
                                     throttle_duration_sec=1.0)
-        self._publish(cdr_messages.inverse_output_messages(
+        self._publish(robot_messages.inverse_output_messages(
             result, stamp, self._settings.world_frame, self._counts()))
 
     # output ----------------------------------------------------------------------------------
@@ -279,7 +279,7 @@ class CdrNode(Node):
                 **log_lost(getattr(self, '_log', None))}
 
     def _publish(self, built: Sequence[Tuple[str, str, dict]]) -> None:
-        """Fill, publish and queue for the MCAP log the (topic, type, dict) of cdr_messages."""
+        """Fill, publish and queue for the MCAP log the (topic, type, dict) of robot_messages."""
         for topic, name, values in built:
             message = fill_message(CDR_OUTPUTS[topic](), values)
             publisher = self._publishers_by_topic[topic]

@@ -1,10 +1,10 @@
 """
 The runtime both nodes share: mailbox, message filling, MCAP log process, start and spin.
 
-The latest-wins mailbox, message filling and the MCAP log process can each be tested
-without DDS; ``run`` starts a node, spins it until SIGINT/SIGTERM and closes it cleanly. The input
-checks and the solve of one wrench are cdr_translator.interface.processing's, shared with
-the offline replay.
+The latest-wins mailbox, message filling and the MCAP log process can each be tested without
+DDS; ``run`` starts a node, spins it until SIGINT/SIGTERM and closes it cleanly. The input
+checks and the solve of one wrench are cdr_translator.interface.wrench_processing's, shared
+with the offline replay.
 """
 
 from collections import deque

@@ -6,18 +6,18 @@ with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``
 ``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
 defines their content). The subscription callback only counts and logs a wrench and hands
 its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
-one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
-one solve are both answered and, when they keep arriving faster than the solver, the newest
-wins. The solver thread decodes (cdr.decoder) and checks the wrench it takes
-(cdr_translator.interface.processing: the same checks, frames and follower-load solve as the
-offline replay). The subscription's queue is
-``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
-it. Outputs are built only for topics someone subscribes to (all of them while logging),
-one by one with the pose first (it is published before the others are built), encoded
-straight to CDR from their dicts (cdr.encode), published only where someone subscribes,
-and the same bytes logged: every received wrench and every output goes to an MCAP file
-written by a child process (runtime.NodeLog), so that the writing takes no time from the
-solve. Only cdr_translator.ros imports rclpy or ROS message classes.
+one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving
+within one solve are both answered and, when they keep arriving faster than the solver, the
+newest wins. The solver thread decodes (serialization.decoder) and checks the wrench it
+takes (cdr_translator.interface.wrench_processing: the same checks, frames and follower-load
+solve as the offline replay). The subscription's queue is ``wrench_queue_depth`` deep and an
+EventsExecutor (rclpy.experimental, runtime.run) spins it. Outputs are built only for topics
+someone subscribes to (all of them while logging), one by one with the pose first (it is
+published before the others are built), encoded straight to CDR from their dicts
+(serialization.encode), published only where someone subscribes, and the same bytes logged:
+every received wrench and every output goes to an MCAP file written by a child process
+(runtime.NodeLog), so that the writing takes no time from the solve. Only cdr_translator.ros
+imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
@@ -33,16 +33,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from . import cdr
+from . import serialization
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, NodeLog, open_log, OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
-from ..interface.processing import check_magnitude, in_end_disk_frame, node_solver
-from ..interface.processing import solve_wrench
 from ..interface.settings import TranslatorSettings
+from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
+from ..interface.wrench_processing import solve_wrench
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
 from ..solver import check_wrench
@@ -83,10 +83,10 @@ class TranslatorNode(Node):
                                                                   reliable)
                                      for topic, message_class in OUTPUTS.items()}
         self._subscribers = SubscriberCounts(self._publishers_by_topic)
-        self._encoders = {topic: cdr.encoder(message_class)
+        self._encoders = {topic: serialization.encoder(message_class)
                           for topic, message_class in OUTPUTS.items()}
         # built now: reading the layout takes about 17 ms, which the first wrench would wait
-        self._decode_wrench = cdr.decoder(WrenchStamped)
+        self._decode_wrench = serialization.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in OUTPUTS.items()}
         self._mailbox = LatestMailbox(self._settings.pending_wrenches)
@@ -254,7 +254,7 @@ class TranslatorNode(Node):
         """
         CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
-        Wanted: logged, or someone subscribes to the topic (cdr.encode writes the bytes
+        Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
         straight from the dict, no rclpy message in between).
         """
         logged = self._log is not None

@@ -11,7 +11,7 @@ per chunk: the MCAP writer keeps one chunk index per 1000 output records for the
 import tracemalloc
 
 from cdr_translator.interface import messages
-from msg_tools import reader, replay as replay_module
+from msg_tools import reader, replay_summary
 from msg_tools.info import describe
 from msg_tools.mcap_log import McapLog
 from msg_tools.replay import replay
@@ -43,7 +43,7 @@ def _peak(function) -> int:
 
 def test_replay_and_info_peaks_do_not_grow_with_the_message_count(tmp_path, monkeypatch):
     """4000 more messages (400 more solves) add < 100 kB to the peak (was ~0.9 kB each)."""
-    monkeypatch.setattr(replay_module, 'SERIES_LIMIT', 50)
+    monkeypatch.setattr(replay_summary, 'SERIES_LIMIT', 50)
     monkeypatch.setattr(reader, 'DUPLICATE_WINDOW', 200)
     short, long = tmp_path / 'short.mcap', tmp_path / 'long.mcap'
     _input(short, 1000)

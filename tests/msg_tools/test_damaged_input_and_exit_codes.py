@@ -8,13 +8,14 @@ import sys
 from cdr_translator.interface import messages
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.writer import Writer
-from msg_tools import replay as replay_module, synth
+from msg_tools import __main__ as command_line, replay as replay_module, synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
 from msg_tools.mcap_log import _FileSink
 from msg_tools.reader import McapSource
-from msg_tools.replay import (EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE,
-                              replay)
+from msg_tools.replay import replay
+from msg_tools.replay_summary import (EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK,
+                                      EXIT_USAGE)
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -207,7 +208,7 @@ def test_write_error_during_replay_exits_2(tmp_path, monkeypatch, capsys):
         return original(fd, data)
 
     monkeypatch.setattr(_FileSink, 'os_write', staticmethod(failing))
-    monkeypatch.setattr(replay_module, 'replay', _small_flushes(replay_module.replay))
+    monkeypatch.setattr(command_line, 'replay', _small_flushes(replay_module.replay))
     code = main(['replay', str(bag), '--out', str(tmp_path / 'o.mcap'), '--progress', 'never',
                  '--no-compliance'])
     captured = capsys.readouterr()

@@ -14,7 +14,8 @@ from mcap.records import Message
 from mcap.stream_reader import StreamReader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import msgdefs
-from msg_tools.mcap_log import McapLog, offered_qos_profiles_yaml
+from msg_tools.mcap_log import McapLog
+from msg_tools.rosbag2_metadata import offered_qos_profiles_yaml
 import numpy as np
 import pytest
 import yaml

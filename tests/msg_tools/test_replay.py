@@ -14,17 +14,18 @@ import time
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
-from cdr_translator.interface.processing import InputSettings, WrenchProcessor
+from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
 from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
 from msg_tools.__main__ import main
+from msg_tools.errors import ReplayError
 from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points
 from msg_tools.reader import McapSource
-from msg_tools.replay import replay, ReplayError
+from msg_tools.replay import replay
 import numpy as np
 import pytest
 

@@ -15,9 +15,12 @@ import sys
 from chunked import write_undecodable
 from msg_tools import replay as replay_module, synth
 from msg_tools.__main__ import EXIT_BROKEN_PIPE, main
+from msg_tools.errors import ReplayError
 from msg_tools.mcap_log import McapLog
 from msg_tools.reader import McapSource
-from msg_tools.replay import CSV_COLUMNS, EXIT_USAGE, output_topic, replay, ReplayError
+from msg_tools.replay import CSV_COLUMNS, replay
+from msg_tools.replay_summary import EXIT_USAGE
+from msg_tools.replay_topics import output_topic
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]

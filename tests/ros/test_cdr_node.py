@@ -7,7 +7,7 @@ import signal
 import sys
 import time
 
-from cdr_translator.interface import cdr_messages, messages
+from cdr_translator.interface import messages, robot_messages
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
@@ -35,35 +35,35 @@ def solved():
 
 def test_sliders_from_joint_state():
     """Named in any order, or three unnamed in leg order; anything else is refused."""
-    named = cdr_messages.sliders_from_joint_state(['slider_3', 'slider_1', 'slider_2'],
-                                                  [0.3, 0.1, 0.2])
+    named = robot_messages.sliders_from_joint_state(['slider_3', 'slider_1', 'slider_2'],
+                                                    [0.3, 0.1, 0.2])
     assert named.tolist() == [0.1, 0.2, 0.3]
-    assert cdr_messages.sliders_from_joint_state([], [1, 2, 3]).tolist() == [1, 2, 3]
+    assert robot_messages.sliders_from_joint_state([], [1, 2, 3]).tolist() == [1, 2, 3]
     with pytest.raises(ValueError, match='needs 3 positions, got 2'):
-        cdr_messages.sliders_from_joint_state([], [0.0, 0.0])
+        robot_messages.sliders_from_joint_state([], [0.0, 0.0])
     with pytest.raises(ValueError, match='names must be'):
-        cdr_messages.sliders_from_joint_state(['a', 'b', 'c'], [0.0, 0.0, 0.0])
+        robot_messages.sliders_from_joint_state(['a', 'b', 'c'], [0.0, 0.0, 0.0])
 
 
 def test_output_messages(solved):
     """Pose, leg angles and wrenches carry the result; the diagnostic says OK."""
     stamp = {'sec': 7, 'nanosec': 9}
     built = {topic: message for topic, _, message in
-             cdr_messages.output_messages(solved, stamp, 'world', {'skipped': 0})}
-    assert set(built) == {cdr_messages.PLATFORM_POSE_TOPIC, cdr_messages.LEG_ANGLES_TOPIC,
-                          cdr_messages.LEG_WRENCHES_TOPIC, cdr_messages.DIAGNOSTICS_TOPIC}
-    pose = built[cdr_messages.PLATFORM_POSE_TOPIC]
+             robot_messages.output_messages(solved, stamp, 'world', {'skipped': 0})}
+    assert set(built) == {robot_messages.PLATFORM_POSE_TOPIC, robot_messages.LEG_ANGLES_TOPIC,
+                          robot_messages.LEG_WRENCHES_TOPIC, robot_messages.DIAGNOSTICS_TOPIC}
+    pose = built[robot_messages.PLATFORM_POSE_TOPIC]
     assert pose['header'] == {'stamp': stamp, 'frame_id': 'world'}
     assert [pose['pose']['position'][axis] for axis in 'xyz'] == solved.platform_position.tolist()
-    angles = built[cdr_messages.LEG_ANGLES_TOPIC]
+    angles = built[robot_messages.LEG_ANGLES_TOPIC]
     by_name = dict(zip(angles['name'], angles['position']))
     assert len(by_name) == 15
     assert by_name['leg2_pj_bending'] == solved.leg_bending[1, 0]
     assert by_name['leg3_dj_bending'] == solved.leg_bending[2, 1]
-    wrenches = built[cdr_messages.LEG_WRENCHES_TOPIC]
+    wrenches = built[robot_messages.LEG_WRENCHES_TOPIC]
     assert np.array(wrenches['data']).reshape(3, 6).tolist() == solved.leg_tip_wrenches.tolist()
-    status = built[cdr_messages.DIAGNOSTICS_TOPIC]['status'][0]
-    assert status['level'] == messages.OK and status['name'] == cdr_messages.DIAGNOSTIC_NAME
+    status = built[robot_messages.DIAGNOSTICS_TOPIC]['status'][0]
+    assert status['level'] == messages.OK and status['name'] == robot_messages.DIAGNOSTIC_NAME
     assert {'converged': 'true', 'skipped': '0'}.items() <= {
         pair['key']: pair['value'] for pair in status['values']}.items()
 
@@ -71,12 +71,12 @@ def test_output_messages(solved):
 def test_failure_publishes_only_an_error():
     """A result that did not converge: no pose, an ERROR diagnostic with the reason."""
     failed = DeltaRobot(time_limit_s=0.0).solve((0.02, 0.0, 0.0), (0.0, 0.0, 0.0))
-    built = cdr_messages.output_messages(failed, {'sec': 1, 'nanosec': 0}, 'world')
-    assert [topic for topic, _, _ in built] == [cdr_messages.DIAGNOSTICS_TOPIC]
+    built = robot_messages.output_messages(failed, {'sec': 1, 'nanosec': 0}, 'world')
+    assert [topic for topic, _, _ in built] == [robot_messages.DIAGNOSTICS_TOPIC]
     status = built[0][2]['status'][0]
     assert status['level'] == messages.ERROR and 'time limit' in status['message']
-    rejected = cdr_messages.rejection_messages({'sec': 1, 'nanosec': 0}, 'sliders rejected')
-    assert rejected[0][2]['status'][0]['name'] == cdr_messages.DIAGNOSTIC_NAME
+    rejected = robot_messages.rejection_messages({'sec': 1, 'nanosec': 0}, 'sliders rejected')
+    assert rejected[0][2]['status'][0]['name'] == robot_messages.DIAGNOSTIC_NAME
 
 
 class Client:
@@ -86,19 +86,19 @@ class Client:
         self.context = Context()
         rclpy.init(args=[], context=self.context)
         self.node = Node('cdr_test_client', context=self.context)
-        self.sliders = self.node.create_publisher(JointState, cdr_messages.SLIDERS_TOPIC,
+        self.sliders = self.node.create_publisher(JointState, robot_messages.SLIDERS_TOPIC,
                                                   qos_profile_sensor_data)
         self.wrench = self.node.create_publisher(
-            WrenchStamped, cdr_messages.PLATFORM_WRENCH_TOPIC, qos_profile_sensor_data)
-        self.target = self.node.create_publisher(PointStamped, cdr_messages.TARGET_TOPIC,
+            WrenchStamped, robot_messages.PLATFORM_WRENCH_TOPIC, qos_profile_sensor_data)
+        self.target = self.node.create_publisher(PointStamped, robot_messages.TARGET_TOPIC,
                                                  qos_profile_sensor_data)
         self.received = {}
         reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        outputs = {cdr_messages.PLATFORM_POSE_TOPIC: PoseStamped,
-                   cdr_messages.LEG_ANGLES_TOPIC: JointState,
-                   cdr_messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
-                   cdr_messages.SLIDER_COMMAND_TOPIC: JointState,
-                   cdr_messages.PREDICTED_POSE_TOPIC: PoseStamped}
+        outputs = {robot_messages.PLATFORM_POSE_TOPIC: PoseStamped,
+                   robot_messages.LEG_ANGLES_TOPIC: JointState,
+                   robot_messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+                   robot_messages.SLIDER_COMMAND_TOPIC: JointState,
+                   robot_messages.PREDICTED_POSE_TOPIC: PoseStamped}
         for topic, message_class in outputs.items():
             self.node.create_subscription(
                 message_class, topic,
@@ -129,7 +129,7 @@ class Client:
             answer_by = time.monotonic() + period_s
             while time.monotonic() < answer_by:
                 self.executor.spin_once(timeout_sec=0.05)
-                if self.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp):
+                if self.stamped(robot_messages.DIAGNOSTICS_TOPIC, stamp):
                     return stamp
         raise AssertionError(f'no answer in {timeout_s} s')
 
@@ -210,7 +210,7 @@ def topic_counts(mcap):
 
 def diagnostic(client, stamp):
     """Return (level, message, values) of the (last) diagnostic answering ``stamp``."""
-    status = client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, stamp)[-1].status[0]
+    status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, stamp)[-1].status[0]
     return (status.level[0] if isinstance(status.level, bytes) else status.level,
             status.message, {pair.key: pair.value for pair in status.values})
 
@@ -225,10 +225,10 @@ def test_node_round_trip(tmp_path, solved):
         stamp = client.send_until_answered(
             lambda stamp: client.publish_wrench((1.0, 0.5, -9.81), stamp), ANSWER_TIMEOUT_S)
         deadline = time.monotonic() + ANSWER_TIMEOUT_S
-        while (not client.stamped(cdr_messages.PLATFORM_POSE_TOPIC, stamp)
+        while (not client.stamped(robot_messages.PLATFORM_POSE_TOPIC, stamp)
                and time.monotonic() < deadline):
             client.executor.spin_once(timeout_sec=0.05)
-        pose = client.stamped(cdr_messages.PLATFORM_POSE_TOPIC, stamp)[0]
+        pose = client.stamped(robot_messages.PLATFORM_POSE_TOPIC, stamp)[0]
         assert pose.header.frame_id == 'cdr_base'
         position = [pose.pose.position.x, pose.pose.position.y, pose.pose.position.z]
         assert np.allclose(position, solved.platform_position, atol=1e-9)
@@ -240,7 +240,7 @@ def test_node_round_trip(tmp_path, solved):
             lambda stamp: client.publish_sliders((0.0, math.nan, 0.0), stamp), ANSWER_TIMEOUT_S)
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and 'slider 2 position is nan' in text
-        assert not client.stamped(cdr_messages.PLATFORM_POSE_TOPIC, bad)
+        assert not client.stamped(robot_messages.PLATFORM_POSE_TOPIC, bad)
         bad = client.send_until_answered(
             lambda stamp: client.publish_wrench((0.0, 0.0, -1.0), stamp, 'elsewhere'),
             ANSWER_TIMEOUT_S)
@@ -249,7 +249,7 @@ def test_node_round_trip(tmp_path, solved):
         # malformed bytes: an ERROR (stamp zero), and the node goes on answering
         zero = {'sec': 0, 'nanosec': 0}
         deadline = time.monotonic() + ANSWER_TIMEOUT_S
-        while not client.stamped(cdr_messages.DIAGNOSTICS_TOPIC, zero):
+        while not client.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero):
             assert time.monotonic() < deadline, 'malformed sliders not answered'
             client.sliders.publish(b'\x00\x01\x00\x00\x07')
             client.executor.spin_once(timeout_sec=0.25)
@@ -272,22 +272,22 @@ def test_inverse_output_messages():
     stamp = {'sec': 3, 'nanosec': 4}
     reached = robot.inverse(target, (0.0, 0.0, -9.81))
     built = {topic: message for topic, _, message in
-             cdr_messages.inverse_output_messages(reached, stamp, 'world')}
-    assert set(built) == {cdr_messages.SLIDER_COMMAND_TOPIC, cdr_messages.PREDICTED_POSE_TOPIC,
-                          cdr_messages.DIAGNOSTICS_TOPIC}
-    command = built[cdr_messages.SLIDER_COMMAND_TOPIC]
-    assert command['name'] == list(cdr_messages.SLIDER_NAMES)
+             robot_messages.inverse_output_messages(reached, stamp, 'world')}
+    assert set(built) == {robot_messages.SLIDER_COMMAND_TOPIC, robot_messages.PREDICTED_POSE_TOPIC,
+                          robot_messages.DIAGNOSTICS_TOPIC}
+    command = built[robot_messages.SLIDER_COMMAND_TOPIC]
+    assert command['name'] == list(robot_messages.SLIDER_NAMES)
     assert np.allclose(command['position'], [0.004, -0.002, 0.001], atol=1e-8)
-    pose = built[cdr_messages.PREDICTED_POSE_TOPIC]['pose']['position']
+    pose = built[robot_messages.PREDICTED_POSE_TOPIC]['pose']['position']
     assert np.allclose([pose[axis] for axis in 'xyz'], target, atol=1e-9)
     unreachable = robot.inverse((0.0, 0.0, -0.3), (0.0, 0.0, -9.81))
-    built = cdr_messages.inverse_output_messages(unreachable, stamp, 'world')
-    assert [topic for topic, _, _ in built] == [cdr_messages.DIAGNOSTICS_TOPIC]
+    built = robot_messages.inverse_output_messages(unreachable, stamp, 'world')
+    assert [topic for topic, _, _ in built] == [robot_messages.DIAGNOSTICS_TOPIC]
     status = built[0][2]['status'][0]
     assert status['level'] == messages.ERROR and 'unreachable' in status['message']
-    assert status['name'] == cdr_messages.INVERSE_DIAGNOSTIC_NAME
-    point = cdr_messages.point_message(target, stamp, 'world')
-    parsed, frame_id, parsed_stamp = cdr_messages.target_from_point(point)
+    assert status['name'] == robot_messages.INVERSE_DIAGNOSTIC_NAME
+    point = robot_messages.point_message(target, stamp, 'world')
+    parsed, frame_id, parsed_stamp = robot_messages.target_from_point(point)
     assert parsed.tolist() == target.tolist() and frame_id == 'world' and parsed_stamp == stamp
 
 
@@ -307,9 +307,9 @@ def test_node_inverse_round_trip(tmp_path):
         stamp = client.send_until_answered(
             lambda stamp: client.publish_target(target, stamp, 'cdr_base'), ANSWER_TIMEOUT_S,
             period_s=1.0, same_stamp=True)
-        command = client.wait_for(cdr_messages.SLIDER_COMMAND_TOPIC, stamp, ANSWER_TIMEOUT_S)
-        predicted = client.wait_for(cdr_messages.PREDICTED_POSE_TOPIC, stamp, ANSWER_TIMEOUT_S)
-        assert list(command.name) == list(cdr_messages.SLIDER_NAMES)
+        command = client.wait_for(robot_messages.SLIDER_COMMAND_TOPIC, stamp, ANSWER_TIMEOUT_S)
+        predicted = client.wait_for(robot_messages.PREDICTED_POSE_TOPIC, stamp, ANSWER_TIMEOUT_S)
+        assert list(command.name) == list(robot_messages.SLIDER_NAMES)
         assert np.allclose(command.position, true_sliders, atol=1e-7)
         position = predicted.pose.position
         assert np.allclose([position.x, position.y, position.z], target, atol=1e-9)
@@ -318,7 +318,7 @@ def test_node_inverse_round_trip(tmp_path):
         # the command, sent back as slider positions, puts the platform at the target
         forward = client.send_until_answered(
             lambda stamp: client.publish_sliders(command.position, stamp), ANSWER_TIMEOUT_S)
-        pose = client.wait_for(cdr_messages.PLATFORM_POSE_TOPIC, forward, ANSWER_TIMEOUT_S)
+        pose = client.wait_for(robot_messages.PLATFORM_POSE_TOPIC, forward, ANSWER_TIMEOUT_S)
         reached = [pose.pose.position.x, pose.pose.position.y, pose.pose.position.z]
         assert np.linalg.norm(np.array(reached) - target) < 1e-6
         # unreachable: an ERROR naming the binding limits, no command
@@ -328,7 +328,7 @@ def test_node_inverse_round_trip(tmp_path):
         level, text, values = diagnostic(client, far)
         assert level == messages.ERROR and 'unreachable' in text and 'stroke limit' in text
         assert values['reachable'] == 'false'
-        assert not client.stamped(cdr_messages.SLIDER_COMMAND_TOPIC, far)
+        assert not client.stamped(robot_messages.SLIDER_COMMAND_TOPIC, far)
         bad = client.send_until_answered(
             lambda stamp: client.publish_target((0.0, math.nan, -0.1), stamp),
             ANSWER_TIMEOUT_S)

@@ -1,17 +1,18 @@
 """
 The node's CDR encoding from message dicts, and which outputs it builds and publishes.
 
-cdr.encode must give what rclpy's fill_message + serialize_message gives (compared after
-rclpy decodes both: rclpy leaves its padding bytes uninitialized), cdr.decode must read
-rclpy's bytes; the node publishes only topics with subscribers and, without a log, builds
-nothing else. No DDS traffic: the node test runs in-process in its own context and domain.
+serialization.encode must give what rclpy's fill_message + serialize_message gives
+(compared after rclpy decodes both: rclpy leaves its padding bytes uninitialized),
+serialization.decode must read rclpy's bytes; the node publishes only topics with
+subscribers and, without a log, builds nothing else. No DDS traffic: the node test runs
+in-process in its own context and domain.
 """
 
 from cdr_translator.interface import messages
-from cdr_translator.interface.processing import node_solver
 from cdr_translator.interface.settings import TranslatorSettings
+from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params import DEFAULT_PARAMS_PATH
-from cdr_translator.ros import cdr
+from cdr_translator.ros import serialization
 from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
 from cdr_translator.ros.translator_node import TranslatorNode
 from geometry_msgs.msg import PoseStamped, WrenchStamped
@@ -36,11 +37,11 @@ def result():
 
 
 def _same_as_rclpy(topic, values):
-    """Assert that cdr.encode gives the message rclpy fills and serializes from ``values``."""
+    """Assert that serialization.encode gives what rclpy fills and serializes from ``values``."""
     message_class = OUTPUTS[topic]
     expected = fill_message(message_class(), values)
-    data = cdr.encode(message_class, values)
-    assert data[:4] == cdr.HEADER
+    data = serialization.encode(message_class, values)
+    assert data[:4] == serialization.HEADER
     assert deserialize_message(data, message_class) == expected
     assert deserialize_message(serialize_message(expected), message_class) == expected
 
@@ -60,14 +61,15 @@ def test_every_output_encodes_as_rclpy_does(result):
 
 def test_missing_fields_take_their_defaults_and_odd_sizes_align():
     """An empty dict is the default message; strings of every length keep the alignment."""
-    assert deserialize_message(cdr.encode(PoseStamped, {}), PoseStamped) == PoseStamped()
+    assert deserialize_message(serialization.encode(PoseStamped, {}), PoseStamped) == PoseStamped()
     for length in range(9):
         values = {'header': {'frame_id': 'x' * length}, 'name': ['a' * length, 'bc'],
                   'position': [0.5, -1.0], 'effort': [2.0]}
-        message = deserialize_message(cdr.encode(JointState, values), JointState)
+        message = deserialize_message(serialization.encode(JointState, values), JointState)
         assert message == fill_message(JointState(), values)
     layout = {'layout': {'dim': [{'label': 'l' * 3, 'size': 2, 'stride': 2}]}, 'data': [1.5]}
-    assert deserialize_message(cdr.encode(Float64MultiArray, layout), Float64MultiArray) \
+    encoded = serialization.encode(Float64MultiArray, layout)
+    assert deserialize_message(encoded, Float64MultiArray) \
         == fill_message(Float64MultiArray(), layout)
 
 
@@ -79,9 +81,9 @@ def test_runs_of_primitives_keep_their_padding():
                              {'name': 'yz', 'offset': 4, 'datatype': 8, 'count': 2}],
                   'is_bigendian': False, 'point_step': 12, 'row_step': 24,
                   'data': bytes(range(24)), 'is_dense': True}
-        data = cdr.encode(PointCloud2, values)
+        data = serialization.encode(PointCloud2, values)
         assert deserialize_message(data, PointCloud2) == fill_message(PointCloud2(), values)
-        assert cdr.decode(PointCloud2, data)['fields'] == values['fields']
+        assert serialization.decode(PointCloud2, data)['fields'] == values['fields']
 
 
 def test_decode_reads_rclpy_bytes_and_refuses_damaged_ones():
@@ -89,14 +91,15 @@ def test_decode_reads_rclpy_bytes_and_refuses_damaged_ones():
     values = messages.wrench_message([1.0, -2.5, 3.0], [0.1, 0.0, -0.2], 'translator_end_disk',
                                      STAMP)
     data = serialize_message(fill_message(WrenchStamped(), values))
-    assert cdr.decode(WrenchStamped, data) == values
-    assert cdr.decode(WrenchStamped, cdr.encode(WrenchStamped, values)) == values
+    assert serialization.decode(WrenchStamped, data) == values
+    encoded = serialization.encode(WrenchStamped, values)
+    assert serialization.decode(WrenchStamped, encoded) == values
     with pytest.raises(ValueError, match='ends at byte'):
-        cdr.decode(WrenchStamped, data[:40])
+        serialization.decode(WrenchStamped, data[:40])
     with pytest.raises(ValueError, match='little-endian'):
-        cdr.decode(WrenchStamped, b'\x00\x00' + data[2:])
+        serialization.decode(WrenchStamped, b'\x00\x00' + data[2:])
     with pytest.raises(ValueError, match='string length'):
-        cdr.decode(WrenchStamped, data[:12] + b'\xff\xff\x00\x00' + data[16:])
+        serialization.decode(WrenchStamped, data[:12] + b'\xff\xff\x00\x00' + data[16:])
 
 
 class _Publisher:

@@ -155,7 +155,7 @@ class WrenchProcessor:
 def __getattr__(name: str) -> Any:
     """Serve ``InputSettings``, the name TranslatorSettings had here before 0.2."""
     if name == 'InputSettings':
-        warnings.warn('cdr_translator.interface.processing.InputSettings is deprecated; use '
+        warnings.warn(f'{__name__}.InputSettings is deprecated; use '
                       'cdr_translator.interface.settings.TranslatorSettings',
                       DeprecationWarning, stacklevel=2)
         return TranslatorSettings

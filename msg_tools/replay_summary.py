@@ -1,0 +1,219 @@
+"""
+What a replay did: counts, solve-time percentiles, joint and position ranges, its exit code.
+
+Constant memory however long the input: the solve-time percentiles come from a log-spaced
+histogram (``TimeStats``), the plotted series is thinned to at most ``SERIES_LIMIT`` points
+and at most ``WARNING_LIMIT`` per-message warnings are kept. ``ReplaySummary.table`` is
+the table ``python -m msg_tools replay`` prints; ``EXIT_CODES`` its exit codes
+(docs/replay.md).
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import Collection, Dict, List, Optional
+
+from cdr_translator.interface import messages
+from msg_tools.log_status import LogStatus
+from msg_tools.reader import ReadReport
+import numpy as np
+
+#: Exit codes of ``python -m msg_tools replay`` (docs/replay.md).
+EXIT_OK = 0
+EXIT_DAMAGED_INPUT = 1
+EXIT_USAGE = 2
+EXIT_NOTHING_SOLVED = 3
+EXIT_INTERRUPTED = 130
+EXIT_CODES: Dict[int, str] = {
+    EXIT_OK: 'all good: the input was intact and at least one wrench converged',
+    EXIT_DAMAGED_INPUT: 'the input was damaged (unreadable chunks, cut, duplicates); '
+                        'everything readable was replayed',
+    EXIT_USAGE: 'bad arguments, no usable input, or an output that cannot be written '
+                '(checked before reading; or a write error during the replay)',
+    EXIT_NOTHING_SOLVED: 'nothing could be decoded or solved: no wrench gave a converged '
+                         'solve (all undecodable, rejected or not converged, or none)',
+    EXIT_INTERRUPTED: 'interrupted by Ctrl-C; the outputs are finalized and hold what was '
+                      'done',
+}
+
+#: Most points kept in ``Series`` (thinned by halves beyond that).
+SERIES_LIMIT = 5_000
+#: Most per-message warnings kept (the rest are counted).
+WARNING_LIMIT = 20
+
+
+@dataclass
+class Series:
+    """
+    Time series of the converged messages, for the plots; at most ``limit`` points.
+
+    Beyond ``limit`` every other point is dropped and the stride doubles, except the
+    message indices in ``keep`` (the shapes asked for).
+    """
+
+    time_s: List[float] = field(default_factory=list)
+    joints: List[List[float]] = field(default_factory=list)
+    position: List[List[float]] = field(default_factory=list)
+    index: List[int] = field(default_factory=list)
+    wrench: List[np.ndarray] = field(default_factory=list)
+    limit: int = field(default_factory=lambda: SERIES_LIMIT)
+    keep: Collection[int] = ()
+    stride: int = 1
+
+    def add(self, index: int, time_s: float, joints: List[float], position: List[float],
+            wrench: np.ndarray) -> None:
+        """Append a converged message when it falls on the stride (or is to be kept)."""
+        if index % self.stride and index not in self.keep:
+            return
+        self.time_s.append(time_s)
+        self.joints.append(joints)
+        self.position.append(position)
+        self.index.append(index)
+        self.wrench.append(wrench)
+        if len(self.index) > self.limit:
+            self.stride *= 2
+            chosen = [k for k, kept in enumerate(self.index)
+                      if kept % self.stride == 0 or kept in self.keep]
+            for name in ('time_s', 'joints', 'position', 'index', 'wrench'):
+                values = getattr(self, name)
+                setattr(self, name, [values[k] for k in chosen])
+
+
+class TimeStats:
+    """Count, maximum and percentiles (within 1.2 %) of durations, in constant memory."""
+
+    LOW_S, DECADES, PER_DECADE = 1e-7, 10, 200
+
+    def __init__(self) -> None:
+        """Start empty."""
+        self.count = 0
+        self.max_s = 0.0
+        self._bins = np.zeros(self.DECADES * self.PER_DECADE + 2, dtype=np.int64)
+
+    def add(self, seconds: float) -> None:
+        """Count one duration."""
+        self.count += 1
+        self.max_s = max(self.max_s, seconds)
+        position = (math.log10(max(seconds, self.LOW_S)) - math.log10(self.LOW_S)) * \
+            self.PER_DECADE
+        self._bins[min(int(position) + 1, len(self._bins) - 1)] += 1
+
+    def percentile(self, q: float) -> float:
+        """Return the ``q`` percentile in s (the geometric middle of its bin)."""
+        if not self.count:
+            return math.nan
+        rank = max(math.ceil(q / 100.0 * self.count), 1)
+        position = int(np.searchsorted(np.cumsum(self._bins), rank))
+        if position == 0:
+            return self.LOW_S
+        value = self.LOW_S * 10 ** ((position - 0.5) / self.PER_DECADE)
+        return min(value, self.max_s)
+
+
+@dataclass
+class ReplaySummary:
+    """Counts, timings and ranges of one replay (constant memory whatever the input)."""
+
+    input_report: ReadReport
+    topics: List[str]
+    warnings: List[str]
+    messages: int = 0
+    solved: int = 0
+    not_converged: int = 0
+    rejected: int = 0
+    undecodable: int = 0
+    solve_times: TimeStats = field(default_factory=TimeStats)
+    wall_s: float = 0.0
+    interrupted: bool = False
+    series: Series = field(default_factory=Series)
+    warnings_dropped: int = 0
+    joints_range: Optional[np.ndarray] = None
+    position_range: Optional[np.ndarray] = None
+    output_status: Optional[LogStatus] = None
+    output_error: str = ''
+    #: Messages of the replayed topics the input's summary lists (None: no summary).
+    total: Optional[int] = None
+
+    @property
+    def stopped_early(self) -> bool:
+        """Tell whether the replay ended before the input did (Ctrl-C or a write error)."""
+        return self.interrupted or bool(self.output_error) or bool(
+            self.output_status is not None and self.output_status.lost)
+
+    def not_replayed(self) -> str:
+        """Return how much of the input a replay that stopped early left (for the table)."""
+        if self.total is None:
+            return 'the rest of the input (its summary gives no count)'
+        return f'{max(self.total - self.messages, 0)} of {self.total} messages'
+
+    @property
+    def throughput(self) -> float:
+        """Messages per second of wall time (reading, solving and writing)."""
+        return self.messages / self.wall_s if self.wall_s > 0 else math.nan
+
+    def warn(self, text: str) -> None:
+        """Keep a per-message warning (the first ``WARNING_LIMIT``; the rest are counted)."""
+        if len(self.warnings) < WARNING_LIMIT:
+            self.warnings.append(text)
+        else:
+            self.warnings_dropped += 1
+
+    def converged(self, joints: List[float], position: List[float]) -> None:
+        """Widen the running joint (rad) and position (m) ranges."""
+        values = np.array(joints + position)
+        if self.joints_range is None or self.position_range is None:
+            self.joints_range = np.array([values[:5], values[:5]])
+            self.position_range = np.array([values[5:], values[5:]])
+            return
+        self.joints_range = np.array([np.minimum(self.joints_range[0], values[:5]),
+                                      np.maximum(self.joints_range[1], values[:5])])
+        self.position_range = np.array([np.minimum(self.position_range[0], values[5:]),
+                                        np.maximum(self.position_range[1], values[5:])])
+
+    def exit_code(self) -> int:
+        """Return the exit code (``EXIT_CODES``) this replay ends with."""
+        if self.output_error or (self.output_status is not None and self.output_status.lost):
+            return EXIT_USAGE
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        if not self.solved:
+            return EXIT_NOTHING_SOLVED
+        return EXIT_OK if self.input_report.complete else EXIT_DAMAGED_INPUT
+
+    def table(self) -> str:
+        """Return the summary table printed at the end of a replay."""
+        read = self.input_report.describe()
+        if self.stopped_early:
+            read += ' up to where the replay stopped'
+        rows = [('input', read),
+                ('wrench topics', ', '.join(self.topics)),
+                ('messages', str(self.messages)),
+                ('solved (converged)', str(self.solved)),
+                ('not converged', str(self.not_converged)),
+                ('rejected (bad input)', str(self.rejected)),
+                ('undecodable', str(self.undecodable)),
+                ('duplicates skipped', str(self.input_report.duplicates))]
+        if self.solve_times.count:
+            p50, p90, p99 = (1e3 * self.solve_times.percentile(q) for q in (50, 90, 99))
+            rows.append(('solve time ms p50/p90/p99/max',
+                         f'{p50:.3f} / {p90:.3f} / {p99:.3f} / '
+                         f'{1e3 * self.solve_times.max_s:.3f}'))
+        if self.joints_range is not None and self.position_range is not None:
+            joints = np.degrees(self.joints_range)
+            for column, name in enumerate(messages.JOINT_NAMES):
+                rows.append((f'{name} deg min..max',
+                             f'{joints[0, column]:.3f} .. {joints[1, column]:.3f}'))
+            position = 1e3 * self.position_range
+            for column, axis in enumerate('xyz'):
+                rows.append((f'end disk {axis} mm min..max',
+                             f'{position[0, column]:.3f} .. {position[1, column]:.3f}'))
+        rows.append(('wall time s', f'{self.wall_s:.3f}'))
+        rows.append(('throughput msg/s', f'{self.throughput:.1f}'))
+        if self.output_status is not None:
+            rows.append(('output records', f'{self.output_status.written} written, '
+                                           f'{self.output_status.lost} lost'))
+        if self.interrupted:
+            rows.append(('interrupted', 'yes (Ctrl-C): the output holds what was done'))
+        if self.stopped_early:
+            rows.append(('not replayed', self.not_replayed()))
+        width = max(len(name) for name, _ in rows)
+        return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
