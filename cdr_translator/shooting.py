@@ -182,7 +182,7 @@ def gather_station(x, t, nst):
     """
     Return station t's unknowns contiguously, secondary by secondary.
 
-    In ``x`` they are laid out with stride STATION_WIDTH * nst (see the module docstring).
+    In ``x`` they are laid out with stride STATION_WIDTH * nst (see layout.py).
     """
     col = np.empty(4 * STATION_WIDTH)
     for i in range(4):
@@ -220,7 +220,7 @@ def translator_residual(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     Shoot once through the translator and write the residual vector into ``out``.
 
     ``frames`` (4, 4, 4) receives {pe}, {pm}, {dm}, {de}; ``points`` (5, rows, 3) the
-    centre-line points of every rod when it has rows (see ``grid_points_per_rod``).
+    centre-line points of every rod when it has rows (see ``layout.grid_points_per_rod``).
     """
     none = np.empty((0, STATE_SIZE))
     shoot_with_nodes(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,

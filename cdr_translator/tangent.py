@@ -125,7 +125,7 @@ def _segment_tangent(k, length, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp, t
 
 @jit
 def _station_tangent(p, rot, tp, trot, i, jac, row, live):
-    """Tangents of the 5 conditions of secondary i at a disk (see _station_residuals)."""
+    """Tangents of the 5 conditions of secondary i at a disk (shooting._station_residuals)."""
     e0 = p[i + 1, 0] - p[0, 0]
     e1 = p[i + 1, 1] - p[0, 1]
     e2 = p[i + 1, 2] - p[0, 2]
@@ -389,7 +389,8 @@ def translator_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, 
     Residual into ``out`` and its exact Jacobian d(out)/dx into ``jac`` from one shot.
 
     ``pose_jac`` (12, size) receives the derivative of the end-disk frame {de}: rows 0-2 its
-    centre, rows 3-11 its rotation matrix (row-major); ``frames`` as in translator_residual.
+    centre, rows 3-11 its rotation matrix (row-major); ``frames`` as in
+    shooting.translator_residual.
     """
     none = np.empty((0, STATE_SIZE))
     lifted_jacobian(x, wrench, pitch_radius, spacing, tube_length, spacers, steps, inv_kse,
