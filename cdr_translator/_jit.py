@@ -1,5 +1,5 @@
 """
-Compilation switch for the numerical kernels (rod.py, model.py, fidelity/).
+Compilation switch for the numerical kernels (rod.py, shooting.py, tangent.py, fidelity/).
 
 The kernels are written once. Normally they are compiled with numba; the paper's
 baseline method runs the very same source interpreted (``interpreted_kernels``), so
@@ -26,7 +26,11 @@ from typing import Any, Callable, Dict, List, NamedTuple, Set
 import numba
 
 _interpreting = False
-_KERNEL_MODULES = ('cdr_translator.rod', 'cdr_translator.model')
+#: The modules of the translator's residual and Jacobian (Problem's kernels) and of the
+#: kernels they call, which the paper's method runs interpreted (interpreted_kernels).
+_KERNEL_MODULES = ('cdr_translator.rod', 'cdr_translator.layout',
+                   'cdr_translator.multiple_shooting_kernels', 'cdr_translator.shooting',
+                   'cdr_translator.tangent')
 _interpreted_cache: Dict[str, ModuleType] = {}
 
 #: numba's run-time configuration (CACHE_DIR is read when a cached kernel is defined).

@@ -32,8 +32,9 @@ import numpy as np
 
 from ._jit import jit
 from .chord import lu_solve
-from .model import N_RODS, translator_residual
+from .layout import N_RODS
 from .problem import Problem
+from .shooting import translator_residual
 
 
 @dataclass(frozen=True)

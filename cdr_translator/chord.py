@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .model import translator_residual
+from .shooting import translator_residual
 
 #: How ``chord_iterations`` ended.
 CONVERGED = 0

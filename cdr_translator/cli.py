@@ -288,8 +288,8 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
     Run every compiled kernel once (loading or compiling it).
 
     Solves once at every fidelity level, with each Jacobian, and the CDR; a cold solve with
-    spacer disks runs the multiple-shooting kernels (lifted.py), four warm solves along a
-    path the extrapolating predictor (chord.extrapolate).
+    spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
+    warm solves along a path the extrapolating predictor (chord.extrapolate).
     """
     for fidelity in FIDELITIES:
         FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)

@@ -18,7 +18,7 @@ disks per joint at 20 N) it stalls for two reasons, both measured:
   residual at the rounding floor NOISE_FACTOR eps max_i (|J| |x|)_i (what rounding of the
   unknowns alone produces) and says so.
 
-Each corrector iteration takes the exact Jacobian (model.translator_jacobian) at the
+Each corrector iteration takes the exact Jacobian (tangent.translator_jacobian) at the
 iterate, so the converged state carries an exact factorization for the stability verdict,
 the error estimate and the next tangent. :func:`track` is only called after the default
 path failed, so the results of solves that converge by the default path are unchanged.

@@ -7,11 +7,11 @@ tolerance and one finite-difference step suit every component.
 """
 
 from types import ModuleType
-from typing import Optional, Tuple
+from typing import Mapping, Optional, Tuple
 
 import numpy as np
 
-from . import chord, model
+from . import chord, layout, multiple_shooting_kernels, shooting, tangent
 from .params import TranslatorParams
 from .rod import inverse_stiffness
 
@@ -29,29 +29,42 @@ FD_STEP = 1e-9
 #: that converges too slowly then rebuilds the Jacobian, which starts afresh).
 MAX_SECANT_UPDATES = 24
 
-#: Ways to compute the Jacobian: 'exact' (tangent-linear shot, model.translator_jacobian)
+#: Ways to compute the Jacobian: 'exact' (tangent-linear shot, tangent.translator_jacobian)
 #: or 'fd' (forward differences, one shot per unknown: the paper's way and the check).
 JACOBIANS = ('exact', 'fd')
+
+#: The compiled kernel modules a Problem calls, by the short names of
+#: _jit.interpreted_kernels.
+COMPILED_KERNELS: Mapping[str, ModuleType] = {
+    'shooting': shooting, 'tangent': tangent,
+    'multiple_shooting_kernels': multiple_shooting_kernels}
 
 
 class Problem:
     """Residual, Jacobian and shape of the translator for fixed parameters."""
 
-    def __init__(self, params: TranslatorParams, kernel: ModuleType = model,
+    def __init__(self, params: TranslatorParams,
+                 kernels: Optional[Mapping[str, ModuleType]] = None,
                  jacobian: str = 'exact') -> None:
         """
-        Bind ``kernel`` (the compiled model module, or an interpreted copy) to params.
+        Bind the kernel modules to params: the compiled ones, or ``kernels`` instead.
 
+        ``kernels`` maps the short names of shooting, tangent and multiple_shooting_kernels
+        to modules, as _jit.interpreted_kernels returns them (the interpreted copies).
         ``jacobian`` is one of JACOBIANS: how ``jacobian()`` differentiates the residual.
         """
         if jacobian not in JACOBIANS:
             raise ValueError(f'jacobian must be one of {JACOBIANS}, got {jacobian!r}')
         self.jacobian_method = jacobian
         self.params = params
-        self.kernel = kernel
+        if kernels is None:
+            kernels = COMPILED_KERNELS
+        self.shooting = kernels['shooting']
+        self.tangent = kernels['tangent']
+        self.node_kernels = kernels['multiple_shooting_kernels']
         spacers = params.spacers_per_joint
-        self.size = model.unknown_count(spacers)
-        self.stations = model.station_count(spacers)
+        self.size = layout.unknown_count(spacers)
+        self.stations = layout.station_count(spacers)
         inv_kse, inv_kbt = inverse_stiffness(params.youngs_modulus, params.shear_modulus,
                                              params.backbone_diameter)
         self._args = (float(params.pitch_radius), float(params.disk_spacing),
@@ -62,14 +75,14 @@ class Problem:
         moment = params.bending_stiffness / length
         x_scale = np.empty(self.size)
         kind = np.empty(self.size, dtype=np.int64)
-        for rod in range(model.N_RODS):
+        for rod in range(layout.N_RODS):
             x_scale[6 * rod:6 * rod + 3] = force
             x_scale[6 * rod + 3:6 * rod + 6] = moment
         station_x = np.array([length, force, force, moment, moment])
         station_kind = np.array([0, 0, 0, 1, 1])
-        width = model.STATION_WIDTH
+        width = layout.STATION_WIDTH
         n_station_values = 4 * width * self.stations
-        x_scale[model.N_BASE_UNKNOWNS:] = np.tile(station_x, 4 * self.stations)
+        x_scale[layout.N_BASE_UNKNOWNS:] = np.tile(station_x, 4 * self.stations)
         kind[:n_station_values] = np.tile(station_kind, 4 * self.stations)
         kind[n_station_values:n_station_values + 24] = np.tile([0, 0, 0, 1, 1, 1], 4)
         kind[n_station_values + 24:] = [2, 2, 2, 3, 3, 3]
@@ -93,23 +106,24 @@ class Problem:
         #: (the diagonal of wrench_sensitivity there): as compiled callers take them
         self.scales = np.stack([self.x_scale, self.residual_scale])
         self.wrench_factors = np.stack([self.wrench_scale, self._wrench_gain])
-        #: node states of multiple shooting (lifted.py): one per disk interval after the first
-        self.node_count = model.interval_count(spacers) - 1
-        node_scale = np.empty(model.STATE_SIZE)
-        node_scale[model.STATE_P:model.STATE_ROT] = length
-        node_scale[model.STATE_ROT:model.STATE_N] = 1.0
-        node_scale[model.STATE_N:model.STATE_M] = force
-        node_scale[model.STATE_M:model.STATE_USED] = moment
-        node_scale[model.STATE_USED:] = length
+        #: node states of multiple shooting (multiple_shooting.py): one per disk interval
+        #: after the first
+        self.node_count = layout.interval_count(spacers) - 1
+        node_scale = np.empty(layout.STATE_SIZE)
+        node_scale[layout.STATE_P:layout.STATE_ROT] = length
+        node_scale[layout.STATE_ROT:layout.STATE_N] = 1.0
+        node_scale[layout.STATE_N:layout.STATE_M] = force
+        node_scale[layout.STATE_M:layout.STATE_USED] = moment
+        node_scale[layout.STATE_USED:] = length
         #: natural scale of each node-state value (SI per nondimensional unit)
         self.node_scale = node_scale
         #: departure from orthogonality beyond which a node rotation is projected
-        self.orthogonality_slack = model.ORTHOGONALITY_SLACK
-        #: node tangents (Z_t and a_t, see model.lifted_jacobian) of the last lifted_jacobian:
+        self.orthogonality_slack = multiple_shooting_kernels.ORTHOGONALITY_SLACK
+        #: node tangents (Z_t and a_t, see tangent.lifted_jacobian) of the last lifted_jacobian:
         #: a new array each call, so that a caller may keep one with its factorization
-        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
+        self.node_tangents = np.empty((self.node_count, layout.STATE_SIZE, self.size + 1))
         self._lifted = np.empty(self.size)
-        self._no_points = np.empty((model.N_RODS, 0, 3))
+        self._no_points = np.empty((layout.N_RODS, 0, 3))
         self._frames = np.empty((4, 4, 4))
         self._jacobian = np.empty((self.size, self.size))
         self._step = FD_STEP * x_scale
@@ -117,9 +131,9 @@ class Problem:
         #: derivative of the end-disk frame {de} (centre, then rotation matrix row-major;
         #: SI per nondimensional unknown) at the last Jacobian, or None
         self.pose_jacobian: Optional[np.ndarray] = None
-        rows = model.grid_points_per_rod(spacers, params.steps_per_segment)
+        rows = layout.grid_points_per_rod(spacers, params.steps_per_segment)
         #: two shape buffers (centre lines, frames) that chord_newton's shots alternate on
-        self.shape_points = np.empty((2, model.N_RODS, rows, 3))
+        self.shape_points = np.empty((2, layout.N_RODS, rows, 3))
         self.shape_frames = np.empty((2, 4, 4, 4))
         #: Broyden updates (chord.broyden_apply's u_i and s_i) on the factorization they
         #: were gathered on, and how many: (factorization or None, count)
@@ -129,14 +143,14 @@ class Problem:
 
     @property
     def model_args(self) -> tuple:
-        """Return the kernel's parameter arguments (model.translator_residual, after wrench)."""
+        """Return the kernel's parameter arguments (shooting.translator_residual, after wrench)."""
         return self._args
 
     def residual(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at nondimensional unknowns ``xs``."""
         out = np.empty(self.size)
-        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
-                                        self._no_points, self._frames)
+        self.shooting.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                          self._no_points, self._frames)
         return out / self.residual_scale
 
     def residual_and_end_frame(self, xs: np.ndarray,
@@ -144,8 +158,8 @@ class Problem:
         """Nondimensional residual and the end-disk frame {de} (4x4, SI) from one shot."""
         out = np.empty(self.size)
         frames = np.empty((4, 4, 4))
-        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
-                                        self._no_points, frames)
+        self.shooting.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                          self._no_points, frames)
         return out / self.residual_scale, frames[3]
 
     def jacobian(self, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarray) -> np.ndarray:
@@ -156,9 +170,9 @@ class Problem:
         """
         if self.jacobian_method == 'exact':
             return self.exact_jacobian(xs, wrench)[1]
-        self.kernel.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,
-                                      rs * self.residual_scale, self._jacobian,
-                                      self._pose_jacobian)
+        self.shooting.residual_jacobian(xs * self.x_scale, self._step, wrench, *self._args,
+                                        rs * self.residual_scale, self._jacobian,
+                                        self._pose_jacobian)
         self.pose_jacobian = self._pose_jacobian * self.x_scale
         return self._jacobian * (self.x_scale / self.residual_scale[:, None])
 
@@ -169,24 +183,24 @@ class Problem:
 
         All nondimensional in the unknowns; the residual and Jacobian rows nondimensional too,
         the pose Jacobian's rows SI (m, and rotation-matrix entries). The Jacobian is the
-        derivative of the discretized residual (model.translator_jacobian), so Newton is
+        derivative of the discretized residual (tangent.translator_jacobian), so Newton is
         quadratic up to rounding however curved the residual is.
         """
         out = np.empty(self.size)
-        self.kernel.translator_jacobian(xs * self.x_scale, wrench, *self._args, out,
-                                        self._jacobian, self._pose_jacobian, self._frames)
+        self.tangent.translator_jacobian(xs * self.x_scale, wrench, *self._args, out,
+                                         self._jacobian, self._pose_jacobian, self._frames)
         self.pose_jacobian = self._pose_jacobian * self.x_scale
         return (out / self.residual_scale,
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
                 self.pose_jacobian)
 
     def node_states(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
-        """Return the node states (node_count, model.STATE_SIZE; SI) single shooting carries."""
-        nodes = np.empty((self.node_count, model.STATE_SIZE))
+        """Return the node states (node_count, layout.STATE_SIZE; SI) single shooting carries."""
+        nodes = np.empty((self.node_count, layout.STATE_SIZE))
         out = np.empty(self.size)
-        self.kernel.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
-                                     self._no_points, self._frames, model.RECORD_NODES, nodes,
-                                     np.empty_like(nodes))
+        self.shooting.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
+                                       self._no_points, self._frames, layout.RECORD_NODES, nodes,
+                                       np.empty_like(nodes))
         return nodes
 
     def lifted_residual(self, xs: np.ndarray, nodes: np.ndarray,
@@ -194,9 +208,9 @@ class Problem:
         """Nondimensional residual and node defects of multiple shooting from ``nodes`` (SI)."""
         out = np.empty(self.size)
         defects = np.empty_like(nodes)
-        self.kernel.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
-                                     self._no_points, self._frames, model.LIFT_NODES, nodes,
-                                     defects)
+        self.shooting.shoot_with_nodes(xs * self.x_scale, wrench, *self._args, out,
+                                       self._no_points, self._frames, layout.LIFT_NODES, nodes,
+                                       defects)
         return out / self.residual_scale, defects / self.node_scale
 
     def lifted_jacobian(self, xs: np.ndarray, nodes: np.ndarray, wrench: np.ndarray
@@ -206,17 +220,17 @@ class Problem:
 
         All nondimensional (defects in ``node_scale`` units). The Jacobian is that of the
         residual with the nodes following the unknowns (dz_t = Z_t dx), the single-shooting
-        one when the defects are zero; the lifted column is R_z a (model.LIFT_COLUMN). The
+        one when the defects are zero; the lifted column is R_z a (layout.LIFT_COLUMN). The
         node tangents go to ``node_tangents`` (for ``advance_nodes``); ``pose_jacobian`` is
         set.
         """
-        self.node_tangents = np.empty((self.node_count, model.STATE_SIZE, self.size + 1))
+        self.node_tangents = np.empty((self.node_count, layout.STATE_SIZE, self.size + 1))
         out = np.empty(self.size)
         defects = np.empty_like(nodes)
-        self.kernel.lifted_jacobian(xs * self.x_scale, wrench, *self._args, out,
-                                    self._jacobian, self._pose_jacobian, self._frames,
-                                    model.LIFT_NODES, nodes, defects, self._lifted,
-                                    self.node_tangents)
+        self.tangent.lifted_jacobian(xs * self.x_scale, wrench, *self._args, out,
+                                     self._jacobian, self._pose_jacobian, self._frames,
+                                     layout.LIFT_NODES, nodes, defects, self._lifted,
+                                     self.node_tangents)
         self.pose_jacobian = self._pose_jacobian * self.x_scale
         return (out / self.residual_scale, defects / self.node_scale,
                 self._jacobian * (self.x_scale / self.residual_scale[:, None]),
@@ -233,15 +247,17 @@ class Problem:
         """
         advanced = nodes.copy()
         step = np.append(dxs * self.x_scale, defects)
-        self.kernel.advance_nodes(advanced, self.node_tangents if tangents is None else tangents,
-                                  step, self.params.spacers_per_joint, self.orthogonality_slack)
+        self.node_kernels.advance_nodes(advanced,
+                                        self.node_tangents if tangents is None else tangents,
+                                        step, self.params.spacers_per_joint,
+                                        self.orthogonality_slack)
         return advanced
 
     def residual_and_shape(self, xs: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Nondimensional residual at ``xs``; its shape goes to slot 0 (``recorded_shape``)."""
         out = np.empty(self.size)
-        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out,
-                                        self.shape_points[0], self.shape_frames[0])
+        self.shooting.translator_residual(xs * self.x_scale, wrench, *self._args, out,
+                                          self.shape_points[0], self.shape_frames[0])
         return out / self.residual_scale
 
     def chord_newton(self, xs: np.ndarray, rs: np.ndarray, wrench: np.ndarray, lu: tuple,
@@ -323,19 +339,19 @@ class Problem:
         out = np.empty(self.size)
         frames = np.empty((4, 4, 4))
         args = self._args[:4] + (steps,) + self._args[5:]
-        self.kernel.translator_residual(xs * self.x_scale, wrench, *args, out,
-                                        self._no_points, frames)
+        self.shooting.translator_residual(xs * self.x_scale, wrench, *args, out,
+                                          self._no_points, frames)
         return out / self.residual_scale, frames
 
     def shape(self, xs: np.ndarray, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Centre-line points (5, rows, 3) and frames (4, 4, 4) at ``xs``."""
-        rows = model.grid_points_per_rod(self.params.spacers_per_joint,
-                                         self.params.steps_per_segment)
-        points = np.empty((model.N_RODS, rows, 3))
+        rows = layout.grid_points_per_rod(self.params.spacers_per_joint,
+                                          self.params.steps_per_segment)
+        points = np.empty((layout.N_RODS, rows, 3))
         frames = np.empty((4, 4, 4))
         out = np.empty(self.size)
-        self.kernel.translator_residual(xs * self.x_scale, wrench, *self._args, out, points,
-                                        frames)
+        self.shooting.translator_residual(xs * self.x_scale, wrench, *self._args, out, points,
+                                          frames)
         return points, frames
 
     def residual_by_kind(self, rs: np.ndarray) -> dict:
@@ -348,7 +364,7 @@ class Problem:
         x = np.zeros(self.size)
         for i in range(4):
             for t in range(self.stations):
-                x[model.N_BASE_UNKNOWNS + model.STATION_WIDTH * (i * self.stations + t)] = \
+                x[layout.N_BASE_UNKNOWNS + layout.STATION_WIDTH * (i * self.stations + t)] = \
                     self.params.disk_spacing
         height = self.params.stack_height
         force = wrench[:3]

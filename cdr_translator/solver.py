@@ -4,7 +4,7 @@ TranslatorSolver: Newton on the shooting residual, warm starts, continuation, ba
 ``method='fast'`` (default): compiled kernel; Newton with the exact Jacobian (or 'fd'),
 backtracking line search, and for warm starts a first-order predictor plus chord steps
 that reuse the previous LU factorization, refreshed only when convergence slows. Cold
-solves of translators with spacer disks correct by multiple shooting instead (lifted.py).
+solves of translators with spacer disks correct by multiple shooting instead (multiple_shooting).
 ``method='paper'``: the paper's numerics as published (Section III.D) — the same model
 source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
 of one residual per column, stopping at the paper's tolerances. It is the baseline that
@@ -20,7 +20,7 @@ from typing import Any, Callable, Dict, Optional, Tuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import chord, lifted, path_following, stability
+from . import chord, multiple_shooting, path_following, stability
 from ._jit import interpreted_kernels
 from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
 from .checks import check_integer, check_number, check_vector
@@ -76,7 +76,7 @@ BRANCH_ATTEMPTS = 3
 IMPERFECTION = 0.02
 
 #: Cold continuations of translators with at least this many spacer disks per joint correct
-#: by the lifted Newton method (multiple shooting, lifted.py) instead of single shooting;
+#: by the lifted Newton method (multiple_shooting.newton) instead of single shooting;
 #: None: never.
 LIFT_FROM_SPACERS: Optional[int] = 2
 
@@ -202,7 +202,7 @@ class TranslatorSolver:
         Newton iterations of one continuation step (default 12: a step that needs more is
         halved instead) or, for ``method='paper'``, the Levenberg-Marquardt iterations
         (default 30); ``time_limit_s`` caps a whole solve. ``jacobian`` is 'exact' (the
-        tangent-linear shot of model.translator_jacobian, default) or 'fd' (forward
+        tangent-linear shot of tangent.translator_jacobian, default) or 'fd' (forward
         differences, one shot per unknown: the former default, kept for tests and the
         benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
         ``accuracy`` is the discretization-error target of every solve (default: the
@@ -223,7 +223,7 @@ class TranslatorSolver:
         fewer, exact-Jacobian iterations, which pays on fine grids of the hard cases.
         With spacer disks (``lift_from_spacers`` or more per joint, LIFT_FROM_SPACERS) and
         the exact Jacobian, a cold continuation corrects by the lifted Newton method
-        (multiple shooting, lifted.py); warm solves stay single shooting (chord steps).
+        (multiple_shooting.py); warm solves stay single shooting (chord steps).
         ``judge=False`` skips the stability verdict, the error estimate and so refinement:
         ``stable`` stays None, the estimates NaN and ``accuracy_met`` False, as the message
         says (for a caller that iterates on leg solutions and judges only the one it keeps,
@@ -251,7 +251,7 @@ class TranslatorSolver:
         if method == 'paper':
             jacobian = 'fd'
         self.jacobian = jacobian
-        kernel = interpreted_kernels()['model'] if method == 'paper' else None
+        kernel = interpreted_kernels() if method == 'paper' else None
         self.problem = (Problem(self.params, jacobian=jacobian) if kernel is None
                         else Problem(self.params, kernel, jacobian))
         self._previous: Optional[Tuple[np.ndarray, np.ndarray]] = None  # (xs, wrench)
@@ -990,7 +990,7 @@ class TranslatorSolver:
                        pose_in: Optional[Tuple[Optional[np.ndarray], np.ndarray]] = None
                        ) -> _Outcome:
         """
-        Multiple shooting by lifted Newton (lifted.py) from ``xs`` and nodes to go with it.
+        Multiple shooting by lifted Newton (multiple_shooting) from ``xs`` and nodes to go with it.
 
         The nodes are those of a lifted correction that ended at ``xs``; else, if ``xs`` is
         a prediction made with the factorization ``lu`` of the last converged correction,
@@ -1011,8 +1011,8 @@ class TranslatorSolver:
                 nodes = self.problem.node_states(xs, wrench)
         if state is not None and lu is not None and state[2] is lu:
             tangents = state[3]
-        done = lifted.newton(self.problem, xs, nodes, wrench, self.tolerance, max_iterations,
-                             deadline)
+        done = multiple_shooting.newton(self.problem, xs, nodes, wrench, self.tolerance,
+                                        max_iterations, deadline)
         self._lifted_last = ((done.xs, done.nodes, done.lu, done.tangents) if done.lu is not None
                              else (done.xs, done.nodes, lu, tangents))
         if done.converged:

@@ -16,7 +16,8 @@ import numpy as np
 
 from .._jit import jit
 from ..chord import apply_updates, lu_solve, norm
-from ..model import N_RODS, translator_residual
+from ..layout import N_RODS
+from ..shooting import translator_residual
 
 
 @jit

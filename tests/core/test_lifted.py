@@ -1,6 +1,6 @@
-"""Multiple shooting by the lifted Newton method (cdr_translator.lifted, model's node states)."""
+"""Multiple shooting by the lifted Newton method (multiple_shooting and its node kernels)."""
 
-from cdr_translator import lifted, solver as solver_module, TranslatorSolver
+from cdr_translator import multiple_shooting, solver as solver_module, TranslatorSolver
 from cdr_translator.problem import Problem
 import numpy as np
 import pytest
@@ -90,8 +90,8 @@ def test_lifted_newton_converges_quadratically_where_single_shooting_diverges(pa
     rs, jac, _ = problem.exact_jacobian(xs, wrench)
     single = problem.residual(xs - np.linalg.solve(jac, rs), wrench)
     assert np.abs(single).max() > 10.0 * np.abs(rs).max()
-    outcome = lifted.newton(problem, xs, problem.node_states(xs, wrench), wrench, 1e-10, 8,
-                            np.inf)
+    outcome = multiple_shooting.newton(problem, xs, problem.node_states(xs, wrench), wrench,
+                                       1e-10, 8, np.inf)
     assert outcome.converged and outcome.iterations <= 5, outcome
     assert np.abs(problem.residual(outcome.xs, wrench)).max() <= 1e-10
 

@@ -1,12 +1,15 @@
 """
 Multiple shooting by the lifted Newton method, for translators with many spacer disks.
 
+It solves the same equations as single shooting, the paper's Eq. 7-11 (Section III.C),
+by another iteration; its kernels are in multiple_shooting_kernels.py and tangent.py.
+
 Single shooting carries the rods' state through all 2 (S + 1) disk intervals of a shot, so
 its residual compounds the nonlinearity of every interval: at nine spacer disks per joint
 one exact Newton step from the 1.0 N solution to 1.1 N took the residual from 1.1e-3 to
 0.15 (its linear prediction: 4e-15), and a cold 2 N solve needed about 40 continuation
 steps. Multiple shooting makes the state at the start of every interval after the first a
-variable of its own (a node z_t, model.STATE_SIZE values), each interval shot from its
+variable of its own (a node z_t, layout.STATE_SIZE values), each interval shot from its
 node, with the defects d_t = Phi_{t-1}(z_{t-1}, x) - z_t as extra equations: Newton then
 linearizes every interval separately.
 
@@ -15,14 +18,14 @@ application in optimization", SIAM J. Optim. 20(3):1655-1684, 2010) takes that N
 at the cost of a single-shooting one. Condensing the node equations, dz_t = a_t + Z_t dx
 with a_t = L_{t-1} a_{t-1} + d_t (L the interval's local derivative) and Z_t the tangent of
 the carried state that the exact Jacobian chains anyway; a is one more tangent column
-(model.LIFT_COLUMN). The step solves J dx = -(r + R_z a), J the condensed Jacobian (at
+(layout.LIFT_COLUMN). The step solves J dx = -(r + R_z a), J the condensed Jacobian (at
 zero defects the single-shooting one), then z_t += a_t + Z_t dx; a rotation that this
 linear update leaves far from orthogonal is projected back onto SO(3)
-(model.ORTHOGONALITY_SLACK). The steps are full Newton steps: a merit function
-|r|^2 + |d|^2 rejected good ones (the first step from a consistent start raises the
-defects from zero by design, and a line search then crept along at 1/128 steps), so the
-iteration only ends, as not contracting, when that norm grows PATIENCE times in a row, and
-the caller's continuation then shortens its load step. Converged means the lifted
+(multiple_shooting_kernels.ORTHOGONALITY_SLACK). The steps are full Newton steps: a merit
+function |r|^2 + |d|^2 rejected good ones (the first step from a consistent start raises
+the defects from zero by design, and a line search then crept along at 1/128 steps), so
+the iteration only ends, as not contracting, when that norm grows PATIENCE times in a
+row, and the caller's continuation then shortens its load step. Converged means the lifted
 equations and the single-shooting residual at x are within the tolerance (or the latter
 at the shot's rounding floor, path_following.rounding_floor): the answer is the
 single-shooting solution, the nodes only steer the iteration.
