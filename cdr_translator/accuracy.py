@@ -31,7 +31,7 @@ from typing import Optional
 import numpy as np
 
 from ._jit import jit
-from .chord import lu_solve
+from ._linalg import lu_solve
 from .model import N_RODS, translator_residual
 from .problem import Problem
 

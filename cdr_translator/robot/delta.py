@@ -53,10 +53,12 @@ from .kernels import platform_residual, REBUILD, secant_update, shoot_legs, turn
 from .kernels import within
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult, LegResults, rotation_vector
+from .._blas import one_blas_thread
+from .._linalg import factorize, solve_lu
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
-from ..solver import check_wrench, one_blas_thread, TranslatorSolver
-from ..stability import factorize, pose_twist, solve_lu
+from ..solver import check_wrench, TranslatorSolver
+from ..stability import pose_twist
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).
 SIZE = 24

@@ -1,0 +1,187 @@
+"""
+Accuracy of a converged solve: its error estimate, and refinement until the target is met.
+
+docs/accuracy.md.
+
+A solve whose estimate (accuracy.py) misses the target is re-solved by solvers of the same
+structure at more steps per segment, each warm-started from the previous one (``refine``);
+a warm sequence then keeps the refined steps (``solve_kept``). The refined solvers and the
+kept steps are a ``Refinements``, owned by the solver.
+"""
+
+from dataclasses import dataclass, field
+import time
+from typing import Callable, Dict, Optional, TYPE_CHECKING
+
+import numpy as np
+
+from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
+from .branch import STALE_WRENCH
+from .correctors import Outcome
+from .params import Accuracy, MAX_REFINED_STEPS
+from .problem import Problem
+from .result import FRAME_NAMES, SolveResult
+
+if TYPE_CHECKING:
+    from .solver import TranslatorSolver
+
+#: Refined re-solves at most (each aims at the target from the error's N^-4 law).
+MAX_REFINEMENTS = 5
+
+
+@dataclass
+class Refinements:
+    """
+    The solvers at other steps per segment and what the next warm solve starts at.
+
+    ``make(steps)`` builds the solver at ``steps`` (kept in ``solvers``); ``kept`` is the
+    steps per segment the next warm solve starts at (a key of ``solvers``), kept from the
+    refinement of an earlier one, None: the owner's own; ``last_estimate`` the estimate
+    of the owner's last judged solve.
+    """
+
+    make: Callable[[int], 'TranslatorSolver']
+    solvers: Dict[int, 'TranslatorSolver'] = field(default_factory=dict)
+    kept: Optional[int] = None
+    last_estimate: Optional[ErrorEstimate] = None
+
+    def solver(self, steps: int) -> 'TranslatorSolver':
+        """Return the solver at ``steps`` steps per segment (made once)."""
+        made = self.solvers.get(steps)
+        if made is None:
+            made = self.solvers[steps] = self.make(steps)
+        return made
+
+
+def estimate_at(problem: Problem, outcome: Outcome, result: SolveResult,
+                wrench: np.ndarray) -> ErrorEstimate:
+    """Estimate the error of a converged outcome (accuracy.estimate)."""
+    pose = outcome.pose[0] if outcome.pose is not None else None
+    frames = (outcome.shape[2] if outcome.shape is not None and outcome.shape[0] is outcome.xs
+              else np.stack([result.frames[name] for name in FRAME_NAMES]))
+    return estimate_error(problem, outcome.xs, wrench, outcome.rs, frames, outcome.lu, pose)
+
+
+def set_estimate(result: SolveResult, estimate: ErrorEstimate, target: Accuracy) -> None:
+    """Set the result's discretization-error estimate and whether it meets ``target``."""
+    result.error_estimate_m = estimate.position_m
+    result.error_estimate_deg = estimate.angle_deg
+    result.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
+
+
+def accuracy_shortfall(result: SolveResult) -> str:
+    """Return the message tail of a result whose error estimate misses the accuracy target."""
+    return (f'; accuracy target not met: estimated error {result.error_estimate_m:.2g} m, '
+            f'{result.error_estimate_deg:.2g} deg at {result.steps_per_segment} steps per '
+            'segment')
+
+
+def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstimate,
+           source: 'TranslatorSolver', wrench: np.ndarray, deadline: float,
+           compliance: bool, verify: bool, compliance_options: dict) -> Optional[SolveResult]:
+    """
+    Re-solve with more steps per segment until ``owner``'s accuracy target is met.
+
+    ``result`` (with its ``estimate``) is the solve of ``source`` (``owner``, or a
+    refined solver of a kept solve). Each refined solve starts from the previous one's
+    solution and factorization (the unknowns mean the same at any discretization, and
+    the Jacobians differ by the discretization error: its chord steps converge).
+    Returns the last converged refined result (its message says whether the target was
+    met), or None when no refinement converged; the next warm solve starts at its steps.
+    """
+    refinements = owner._refinements
+    refined = None
+    target = owner.accuracy
+    for _ in range(MAX_REFINEMENTS):
+        steps = refined_steps(estimate, target.position_m, target.angle_deg, MAX_REFINED_STEPS)
+        remaining = deadline - time.perf_counter()
+        if steps <= estimate.steps or remaining <= 0.0:
+            break
+        solver = refinements.solver(steps)
+        solver.time_limit_s = remaining
+        solver._take_over(source)
+        attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance, verify=verify,
+                               **compliance_options)
+        if not attempt.converged:
+            break
+        refined = attempt
+        source = solver
+        assert solver._refinements.last_estimate is not None
+        estimate = solver._refinements.last_estimate
+        refined.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
+        if refined.accuracy_met:
+            break
+    if refined is None:
+        return None
+    refinements.kept = refined.steps_per_segment
+    refined.iterations += result.iterations
+    extra = '' if refined.message == 'converged' else f' ({refined.message})'
+    refined.message = result.message + extra
+    refined.message += (f'; refined to {refined.steps_per_segment} steps per segment '
+                        f'(estimated error at {result.steps_per_segment}: '
+                        f'{result.error_estimate_m:.2g} m, '
+                        f'{result.error_estimate_deg:.2g} deg)')
+    if not refined.accuracy_met:
+        refined.message += accuracy_shortfall(refined)
+    return refined
+
+
+def solve_kept(owner: 'TranslatorSolver', wrench: np.ndarray, started: float,
+               compliance: bool, verify: bool,
+               compliance_options: dict) -> Optional[SolveResult]:
+    """
+    Warm solve at the steps per segment kept from an earlier refinement.
+
+    A warm sequence that needed refinement usually needs it again: solving at the kept
+    steps directly skips ``owner``'s own solve and the refined one after it. The solve is
+    judged at those steps: refined further when its estimate misses the target
+    (``refine``), and the next solve steps down (accuracy.kept_steps) when it has room.
+    Returns None, forgetting the kept steps, when that solve did not converge or the
+    wrench moved by more than STALE_WRENCH (relative) since the last one (a long
+    continuation, cheaper at the owner's steps): the owner then solves as usual, from
+    the last solution.
+    """
+    refinements = owner._refinements
+    steps = refinements.kept
+    assert steps is not None
+    solver = refinements.solvers[steps]
+    refinements.kept = None
+    previous = solver._state.previous
+    if previous is None or float(np.linalg.norm(wrench - previous[1])) > \
+            STALE_WRENCH * float(np.linalg.norm(wrench)):
+        return None  # not a warm sequence: a long continuation is cheaper at fewer steps
+    solver.time_limit_s = owner.time_limit_s
+    attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance, verify=verify,
+                           **compliance_options)
+    if not attempt.converged:
+        return None
+    estimate = solver._refinements.last_estimate
+    assert solver._state.previous is not None and estimate is not None
+    owner._state.previous = solver._state.previous
+    refinements.last_estimate = estimate
+    target = owner.accuracy
+    attempt.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
+    extra = '' if attempt.message == 'converged' else f' ({attempt.message})'
+    attempt.message = (f'converged{extra} at {steps} steps per segment, kept from the '
+                       'refinement of an earlier solve')
+    result = attempt
+    if not attempt.accuracy_met:
+        refined = refine(owner, attempt, estimate, solver, wrench,
+                         started + owner.time_limit_s, compliance, verify, compliance_options)
+        if refined is not None:
+            result = refined
+        else:
+            refinements.kept = steps
+            result.message += accuracy_shortfall(result)
+    else:
+        fewer = kept_steps(estimate, target.position_m, target.angle_deg,
+                           owner.params.steps_per_segment)
+        if fewer == steps:
+            refinements.kept = steps
+        elif fewer > owner.params.steps_per_segment:
+            refinements.kept = fewer
+            refinements.solver(fewer)._take_over(solver)
+        else:
+            owner._take_over(solver)
+    result.solve_time_s = time.perf_counter() - started
+    return result
