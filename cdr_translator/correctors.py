@@ -18,7 +18,7 @@ from . import _linalg, chord, lifted
 from ._linalg import residual_norm
 from .accuracy import ErrorEstimate
 from .problem import Problem, RESIDUAL_KINDS
-from .result import PAPER_TOLERANCES
+from .result import FRAME_NAMES, PAPER_TOLERANCES, SolveResult
 
 #: A chord step that shrinks the residual by less than this rebuilds the Jacobian. A rebuild
 #: (Jacobian, LU, stability verdict) costs about as much as a dozen Newton-Broyden steps: on
@@ -64,6 +64,23 @@ class Outcome:
     residual_by_kind: Optional[dict] = None
     #: whether the fallback continuation (path_following.track) found it
     tracked: bool = False
+
+    def result(self, problem: Problem, wrench: np.ndarray, method: str) -> SolveResult:
+        """Return the SolveResult of this outcome (its shape shot again if not recorded)."""
+        if self.shape is not None and self.shape[0] is self.xs:
+            points, frames = self.shape[1:]
+        else:
+            points, frames = problem.shape(self.xs, wrench)
+        return SolveResult(
+            converged=self.converged, message=self.message, iterations=self.iterations,
+            residual_norm=residual_norm(self.rs),
+            residual_by_type=(self.residual_by_kind if self.residual_by_kind is not None
+                              else problem.residual_by_kind(self.rs)),
+            force=wrench[:3].copy(), moment=wrench[3:].copy(),
+            frames=dict(zip(FRAME_NAMES, frames)),  # views of a copy no one else keeps
+            backbones=points, solve_time_s=0.0, method=method,
+            unknowns=self.xs * problem.x_scale,
+            steps_per_segment=problem.params.steps_per_segment)
 
 
 @dataclass

@@ -44,8 +44,10 @@ SECONDARY_ANGLES_RAD = (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)
 MAX_SPACERS_PER_JOINT = 16
 MAX_STEPS_PER_SEGMENT = 1024
 
-#: Most RK4 steps per disk interval the automatic refinement may use.
-MAX_REFINED_STEPS = 256
+#: Most RK4 steps per disk interval the automatic refinement may use: any valid count. The
+#: hard cases past 90 deg of bending need about 700-1000 to meet the default target; the
+#: time limit, not this cap, bounds what a solve spends (refinement.refine).
+MAX_REFINED_STEPS = MAX_STEPS_PER_SEGMENT
 
 #: Keys of the same params file that belong to the ROS node, not to the model.
 NODE_ONLY_KEYS: frozenset = frozenset((

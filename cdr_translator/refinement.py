@@ -10,12 +10,14 @@ kept steps are a ``Refinements``, owned by the solver.
 """
 
 from dataclasses import dataclass, field
+import math
 import time
 from typing import Callable, Dict, Optional, TYPE_CHECKING
 
 import numpy as np
 
-from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, meets, refined_steps
+from .accuracy import ErrorEstimate, estimate as estimate_error, kept_steps, MAX_GROWTH, meets
+from .accuracy import refined_steps
 from .branch import STALE_WRENCH
 from .correctors import Outcome
 from .params import Accuracy, MAX_REFINED_STEPS
@@ -25,8 +27,13 @@ from .result import FRAME_NAMES, SolveResult
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
 
-#: Refined re-solves at most (each aims at the target from the error's N^-4 law).
-MAX_REFINEMENTS = 5
+#: Refined re-solves at most. Each aims at the target from the error's law, but the steps
+#: grow at most MAX_GROWTH times per re-solve: from 8 steps a result that needs about 1000
+#: (the 200 N out, 400 N down hard case) takes five of them.
+MAX_REFINEMENTS = 8
+
+#: Order of the rods' integrator (RK4): the error falls as N^-4 in the asymptotic range.
+RK4_ORDER = 4.0
 
 
 @dataclass
@@ -78,40 +85,65 @@ def accuracy_shortfall(result: SolveResult) -> str:
 
 def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstimate,
            source: 'TranslatorSolver', wrench: np.ndarray, deadline: float,
-           compliance: bool, verify: bool, compliance_options: dict) -> Optional[SolveResult]:
+           compliance: bool, verify: bool, compliance_options: dict,
+           tracked: bool = False) -> Optional[SolveResult]:
     """
     Re-solve with more steps per segment until ``owner``'s accuracy target is met.
 
     ``result`` (with its ``estimate``) is the solve of ``source`` (``owner``, or a
     refined solver of a kept solve). Each refined solve starts from the previous one's
     solution and factorization (the unknowns mean the same at any discretization, and
-    the Jacobians differ by the discretization error: its chord steps converge).
-    Returns the last converged refined result (its message says whether the target was
-    met), or None when no refinement converged; the next warm solve starts at its steps.
+    the Jacobians differ by the discretization error: its chord steps converge). A result
+    the fallback continuation found (``tracked``) is refined by that continuation alone
+    (path='tracking'), from the unloaded state while the estimates are not yet falling
+    with the steps (a coarse solution of so sensitive a shot is no warm start for a finer
+    grid), then from the last refined solution. The steps follow ``next_steps``; each
+    refined solve gets the time left, and the message says why refinement stopped short
+    of the target. Returns the last converged refined result (its message says whether
+    the target was met), or None when no refinement converged; the next warm solve starts
+    at its steps.
     """
     refinements = owner._refinements
     refined = None
     target = owner.accuracy
+    coarser: Optional[ErrorEstimate] = None
+    cold = tracked
+    stop = ''
     for _ in range(MAX_REFINEMENTS):
-        steps = refined_steps(estimate, target.position_m, target.angle_deg, MAX_REFINED_STEPS)
+        steps = next_steps(coarser, estimate, target)
         remaining = deadline - time.perf_counter()
-        if steps <= estimate.steps or remaining <= 0.0:
+        if steps <= estimate.steps:
+            break
+        if remaining <= 0.0:
+            stop = (f'; the time limit of {owner.time_limit_s} s was reached before the '
+                    f'refinement to {steps} steps per segment')
             break
         solver = refinements.solver(steps)
         solver.time_limit_s = remaining
         solver._take_over(source)
-        attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance, verify=verify,
-                               **compliance_options)
+        solver.path = 'tracking' if tracked else 'default'
+        try:
+            attempt = solver.solve(wrench[:3], wrench[3:], warm_start=not cold,
+                                   compliance=compliance, verify=verify, **compliance_options)
+        finally:
+            solver.path = 'default'
         if not attempt.converged:
+            stop = (f'; the refinement to {steps} steps per segment did not converge: '
+                    f'{attempt.message}')
             break
         refined = attempt
         source = solver
         assert solver._refinements.last_estimate is not None
-        estimate = solver._refinements.last_estimate
+        coarser, estimate = estimate, solver._refinements.last_estimate
+        cold = cold and not _error_ratio(estimate, target) < _error_ratio(coarser, target)
         refined.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
         if refined.accuracy_met:
             break
+    else:
+        stop = f'; refinement stopped after {MAX_REFINEMENTS} re-solves (MAX_REFINEMENTS)'
     if refined is None:
+        if stop:
+            result.message += stop
         return None
     refinements.kept = refined.steps_per_segment
     refined.iterations += result.iterations
@@ -122,8 +154,41 @@ def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstima
                         f'{result.error_estimate_m:.2g} m, '
                         f'{result.error_estimate_deg:.2g} deg)')
     if not refined.accuracy_met:
-        refined.message += accuracy_shortfall(refined)
+        refined.message += accuracy_shortfall(refined) + stop
     return refined
+
+
+def _error_ratio(estimate: ErrorEstimate, target: Accuracy) -> float:
+    """Return the larger of estimate / target over both kinds (0 when both are off)."""
+    ratio = 0.0
+    if target.position_m > 0.0:
+        ratio = max(ratio, estimate.position_m / target.position_m)
+    if target.angle_deg > 0.0:
+        ratio = max(ratio, estimate.angle_deg / target.angle_deg)
+    return ratio
+
+
+def next_steps(coarser: Optional[ErrorEstimate], current: ErrorEstimate,
+               target: Accuracy) -> int:
+    """
+    Return the steps per segment of the next refinement (at most MAX_REFINED_STEPS).
+
+    accuracy.refined_steps' N^-4 law (RK4's order, 25 % margin, at most MAX_GROWTH times
+    the steps), with the order the last two estimates show instead when they fall more
+    slowly than N^-4 (still above the asymptotic range): their ratio over the ratio of
+    the steps, at least 1.
+    """
+    steps = refined_steps(current, target.position_m, target.angle_deg, MAX_REFINED_STEPS)
+    if coarser is None or steps <= current.steps:
+        return steps
+    before, now = _error_ratio(coarser, target), _error_ratio(current, target)
+    if not 0.0 < now < before < math.inf:
+        return steps
+    order = max(1.0, math.log(before / now) / math.log(current.steps / coarser.steps))
+    if order >= RK4_ORDER:
+        return steps
+    wanted = min(MAX_GROWTH, 1.25 * now ** (1.0 / order))
+    return min(MAX_REFINED_STEPS, max(steps, math.ceil(wanted * current.steps)))
 
 
 def solve_kept(owner: 'TranslatorSolver', wrench: np.ndarray, started: float,

@@ -32,8 +32,8 @@ from .continuation import LIFT_FROM_SPACERS, PathState
 from .correctors import Limits, Outcome, Pose
 from .params import Accuracy, TranslatorParams
 from .problem import JACOBIANS, Problem
-from .result import FRAME_NAMES, SolveResult
-from .stability import Stability
+from .result import SolveResult
+from .stability import Reference, Stability
 from .verify import verify as verify_result
 
 METHODS = ('fast', 'paper')
@@ -75,7 +75,8 @@ class TranslatorSolver:
         benchmark); ``method='paper'`` always differentiates the paper's way, 'fd'.
         ``accuracy`` is the discretization-error target of every solve (default: the
         accuracy keys of config/translator.yaml): a converged solve whose estimate
-        (accuracy.py) exceeds it is re-solved with more steps per segment. Every converged
+        (accuracy.py) exceeds it is re-solved with more steps per segment, whichever
+        continuation found it, within the time limit (refinement.py). Every converged
         solve is judged stable or not (stability.py); an unstable one is, with
         ``follow_stable_branch``, perturbed along its critical mode and re-converged on the
         stable branch when one is found (without it, or if none is found, it is returned
@@ -219,7 +220,7 @@ class TranslatorSolver:
                           f'residual {largest:.2g} above the tolerance {self.tolerance:.2g} '
                           'at the given unknowns', lu, pose)
         outcome.shape = (xs, *self.problem.recorded_shape(0))
-        result = self._result(outcome, wrench, 0.0)
+        result = outcome.result(self.problem, wrench, self.method)
         if converged:
             try:
                 if self.method == 'fast':
@@ -293,7 +294,7 @@ class TranslatorSolver:
             continuation.extend_path(state, outcome.xs, wrench,
                                      continued and state.path_last is begin)
         verdict = None
-        result = self._result(outcome, wrench, 0.0)
+        result = outcome.result(self.problem, wrench, self.method)
         if outcome.converged and self.method == 'fast' and self.judge:
             verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
             if (not verdict.stable and self.follow_stable_branch
@@ -302,7 +303,7 @@ class TranslatorSolver:
                     state, self.params.stack_height, self._solve_newton, self._stability,
                     outcome, verdict, wrench, deadline)
                 if stable is not outcome:
-                    outcome, result = stable, self._result(stable, wrench, 0.0)
+                    outcome, result = stable, stable.result(self.problem, wrench, self.method)
         if verdict is not None:
             branch.apply_verdict(result, verdict)
         if outcome.converged and not self.judge:
@@ -315,7 +316,7 @@ class TranslatorSolver:
                 assert refinements.last_estimate is not None  # set by _estimate_error
                 refined = refinement.refine(self, result, refinements.last_estimate, self,
                                             wrench, deadline, compliance, verify,
-                                            compliance_options)
+                                            compliance_options, outcome.tracked)
                 if refined is not None:
                     refined.solve_time_s = time.perf_counter() - started
                     return refined
@@ -395,6 +396,10 @@ class TranslatorSolver:
         return branch.judge(self.problem, self._state, self._verdicts, outcome, wrench,
                             rotation)
 
+    def _origin(self) -> Reference:
+        """Return the unloaded state's stiffness and det J sign (branch.origin)."""
+        return branch.origin(self.problem, self._state, self._verdicts)
+
     def _estimate_error(self, result: SolveResult, outcome: Outcome,
                         wrench: np.ndarray) -> None:
         """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
@@ -426,21 +431,3 @@ class TranslatorSolver:
         self._state.previous = source._state.previous
         self._state.lu, self._state.pose = source._state.lu, source._state.pose
         self._refinements.kept = None
-
-    def _result(self, outcome: Outcome, wrench: np.ndarray, elapsed: float) -> SolveResult:
-        """Return the SolveResult of ``outcome`` (its shape shot again if not recorded)."""
-        problem = self.problem
-        if outcome.shape is not None and outcome.shape[0] is outcome.xs:
-            points, frames = outcome.shape[1:]
-        else:
-            points, frames = problem.shape(outcome.xs, wrench)
-        return SolveResult(
-            converged=outcome.converged, message=outcome.message,
-            iterations=outcome.iterations, residual_norm=residual_norm(outcome.rs),
-            residual_by_type=(outcome.residual_by_kind if outcome.residual_by_kind is not None
-                              else problem.residual_by_kind(outcome.rs)),
-            force=wrench[:3].copy(), moment=wrench[3:].copy(),
-            frames=dict(zip(FRAME_NAMES, frames)),  # views of a copy no one else keeps
-            backbones=points, solve_time_s=elapsed, method=self.method,
-            unknowns=outcome.xs * problem.x_scale,
-            steps_per_segment=self.params.steps_per_segment)
