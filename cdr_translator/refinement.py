@@ -12,7 +12,7 @@ kept steps are a ``Refinements``, owned by the solver.
 from dataclasses import dataclass, field
 import math
 import time
-from typing import Callable, Dict, Optional, TYPE_CHECKING
+from typing import Dict, Optional, TYPE_CHECKING
 
 import numpy as np
 
@@ -41,23 +41,38 @@ class Refinements:
     """
     The solvers at other steps per segment and what the next warm solve starts at.
 
-    ``make(steps)`` builds the solver at ``steps`` (kept in ``solvers``); ``kept`` is the
+    ``solvers`` are the owner's solvers at other steps per segment; ``kept`` is the
     steps per segment the next warm solve starts at (a key of ``solvers``), kept from the
     refinement of an earlier one, None: the owner's own; ``last_estimate`` the estimate
     of the owner's last judged solve.
     """
 
-    make: Callable[[int], 'TranslatorSolver']
     solvers: Dict[int, 'TranslatorSolver'] = field(default_factory=dict)
     kept: Optional[int] = None
     last_estimate: Optional[ErrorEstimate] = None
 
-    def solver(self, steps: int) -> 'TranslatorSolver':
-        """Return the solver at ``steps`` steps per segment (made once)."""
+    def solver(self, owner: 'TranslatorSolver', steps: int) -> 'TranslatorSolver':
+        """Return ``owner``'s solver at ``steps`` steps per segment, without a target."""
         made = self.solvers.get(steps)
         if made is None:
-            made = self.solvers[steps] = self.make(steps)
+            made = self.solvers[steps] = type(owner)(
+                owner.params.with_changes(steps_per_segment=steps), tolerance=owner.tolerance,
+                max_iterations=owner.max_iterations, jacobian=owner.jacobian,
+                accuracy=Accuracy(0.0, 0.0), follow_stable_branch=owner.follow_stable_branch)
         return made
+
+
+def take_over(solver: 'TranslatorSolver', source: 'TranslatorSolver') -> None:
+    """
+    Warm-start ``solver``'s next solve from ``source``'s last solution and factorization.
+
+    ``source`` solves the same structure at other steps per segment: the unknowns mean
+    the same, and its factorization (the Jacobian differs by the discretization error)
+    serves the chord steps and the stability verdict as a stale one would.
+    """
+    state, other = solver._state, source._state
+    state.previous, state.lu, state.pose = other.previous, other.lu, other.pose
+    solver._refinements.kept = None
 
 
 def estimate_at(problem: Problem, outcome: Outcome, result: SolveResult,
@@ -110,7 +125,7 @@ def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstima
     cold = tracked
     stop = ''
     for _ in range(MAX_REFINEMENTS):
-        steps = next_steps(coarser, estimate, target)
+        steps = next_steps(coarser if tracked else None, estimate, target)
         remaining = deadline - time.perf_counter()
         if steps <= estimate.steps:
             break
@@ -118,9 +133,9 @@ def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstima
             stop = (f'; the time limit of {owner.time_limit_s} s was reached before the '
                     f'refinement to {steps} steps per segment')
             break
-        solver = refinements.solver(steps)
+        solver = refinements.solver(owner, steps)
         solver.time_limit_s = remaining
-        solver._take_over(source)
+        take_over(solver, source)
         solver.path = 'tracking' if tracked else 'default'
         try:
             attempt = solver.solve(wrench[:3], wrench[3:], warm_start=not cold,
@@ -176,7 +191,9 @@ def next_steps(coarser: Optional[ErrorEstimate], current: ErrorEstimate,
     accuracy.refined_steps' N^-4 law (RK4's order, 25 % margin, at most MAX_GROWTH times
     the steps), with the order the last two estimates show instead when they fall more
     slowly than N^-4 (still above the asymptotic range): their ratio over the ratio of
-    the steps, at least 1.
+    the steps, at least 1. ``refine`` passes ``coarser`` for the fallback's states only:
+    elsewhere the estimates at 8 steps are already asymptotic, and accuracy.kept_steps'
+    hysteresis counts on the N^-4 law's margin.
     """
     steps = refined_steps(current, target.position_m, target.angle_deg, MAX_REFINED_STEPS)
     if coarser is None or steps <= current.steps:
@@ -245,8 +262,8 @@ def solve_kept(owner: 'TranslatorSolver', wrench: np.ndarray, started: float,
             refinements.kept = steps
         elif fewer > owner.params.steps_per_segment:
             refinements.kept = fewer
-            refinements.solver(fewer)._take_over(solver)
+            take_over(refinements.solver(owner, fewer), solver)
         else:
-            owner._take_over(solver)
+            take_over(owner, solver)
     result.solve_time_s = time.perf_counter() - started
     return result

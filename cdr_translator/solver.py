@@ -125,7 +125,7 @@ class TranslatorSolver:
                         else Problem(self.params, kernel, jacobian))
         self._state = PathState(self.problem.size)
         self._verdicts = branch.Verdicts()
-        self._refinements = refinement.Refinements(self._refined_solver)
+        self._refinements = refinement.Refinements()
         self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
         self.follow_stable_branch = follow_stable_branch
         self.judge = judge
@@ -413,21 +413,3 @@ class TranslatorSolver:
         """Estimate the error of a converged outcome (refinement.estimate_at)."""
         return refinement.estimate_at(self.problem, outcome, result, wrench)
 
-    def _refined_solver(self, steps: int) -> 'TranslatorSolver':
-        """Return a new solver at ``steps`` steps per segment, without a target of its own."""
-        return TranslatorSolver(self.params.with_changes(steps_per_segment=steps),
-                                tolerance=self.tolerance, max_iterations=self.max_iterations,
-                                jacobian=self.jacobian, accuracy=Accuracy(0.0, 0.0),
-                                follow_stable_branch=self.follow_stable_branch)
-
-    def _take_over(self, source: 'TranslatorSolver') -> None:
-        """
-        Warm-start the next solve from ``source``'s last solution and factorization.
-
-        ``source`` solves the same structure at other steps per segment: the unknowns mean
-        the same, and its factorization (the Jacobian differs by the discretization error)
-        serves the chord steps and the stability verdict as a stale one would.
-        """
-        self._state.previous = source._state.previous
-        self._state.lu, self._state.pose = source._state.lu, source._state.pose
-        self._refinements.kept = None
