@@ -412,4 +412,3 @@ class TranslatorSolver:
                      wrench: np.ndarray) -> ErrorEstimate:
         """Estimate the error of a converged outcome (refinement.estimate_at)."""
         return refinement.estimate_at(self.problem, outcome, result, wrench)
-
