@@ -31,7 +31,7 @@ from typing import Optional
 import numpy as np
 
 from ._jit import jit
-from .chord import lu_solve
+from ._linalg import lu_solve
 from .layout import N_RODS
 from .problem import Problem
 from .shooting import translator_residual

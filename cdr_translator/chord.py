@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from ._jit import jit
+from ._linalg import lu_solve
 from .shooting import translator_residual
 
 #: How ``chord_iterations`` ended.
@@ -40,62 +41,6 @@ SINGULAR = 5
 
 #: Backtracking halvings of one line search.
 LINE_SEARCH_HALVINGS = 12
-
-
-@jit
-def norm(vector):
-    """
-    Return the Euclidean norm of a flat vector (inf on overflow, NaN with a NaN entry).
-
-    Compiled: numpy's ``sqrt(v @ v)`` inside the ``errstate`` that silences its overflow
-    warning took 6 us for 90 entries; this call takes well under one.
-    """
-    total = 0.0
-    for i in range(vector.shape[0]):
-        total += vector[i] * vector[i]
-    return math.sqrt(total)
-
-
-@jit
-def lu_solve(lu, pivots, rhs, out):
-    """
-    Solve J out = rhs with LAPACK getrf's factors (scipy.linalg.lu_factor: lu, piv 0-based).
-
-    The same substitutions LAPACK's getrs makes: row swaps, unit lower, then upper. Factors
-    stored by columns (lu_factor's Fortran order) are swept column by column, contiguous
-    and independent updates (half the time of row sweeps there: 6.5 against 12 us at
-    90x90); factors stored by rows (robot/delta.py stacks them so) row by row.
-    """
-    size = rhs.shape[0]
-    for i in range(size):
-        out[i] = rhs[i]
-    for i in range(size):
-        j = pivots[i]
-        if j != i:
-            swap = out[i]
-            out[i] = out[j]
-            out[j] = swap
-    if lu.strides[0] < lu.strides[1]:  # column-major
-        for j in range(size):
-            value = out[j]
-            for i in range(j + 1, size):
-                out[i] -= lu[i, j] * value
-        for j in range(size - 1, -1, -1):
-            value = out[j] / lu[j, j]
-            out[j] = value
-            for i in range(j):
-                out[i] -= lu[i, j] * value
-        return
-    for i in range(size):
-        acc = out[i]
-        for j in range(i):
-            acc -= lu[i, j] * out[j]
-        out[i] = acc
-    for i in range(size - 1, -1, -1):
-        acc = out[i]
-        for j in range(i + 1, size):
-            acc -= lu[i, j] * out[j]
-        out[i] = acc / lu[i, i]
 
 
 @jit

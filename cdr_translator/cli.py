@@ -31,6 +31,7 @@ from typing import Any, Callable, List, Optional, Tuple, Union
 from . import _jit
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .console import json_text, run_command
+from .continuation import LIFT_FROM_SPACERS
 from .fidelity import FIDELITIES, FidelitySolver
 from .interface.settings import CdrSettings, TranslatorSettings
 from .paper import TABLE_II
@@ -41,7 +42,7 @@ from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
 from .robot.result import DeltaResult
-from .solver import LIFT_FROM_SPACERS, METHODS, TranslatorSolver
+from .solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2

@@ -25,7 +25,7 @@ from typing import Any, Optional, Tuple
 import numpy as np
 from scipy.linalg.lapack import dgeev, dgesv, dsyevd
 
-from . import stability
+from . import _linalg, stability
 from ._jit import jit
 from .problem import Problem
 
@@ -128,7 +128,7 @@ def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
 def _factorization(jacobian: np.ndarray) -> tuple:
     if not np.all(np.isfinite(jacobian)):
         raise ArithmeticError('the Jacobian at the solution is not finite')
-    return stability.factorize(jacobian)
+    return _linalg.factorize(jacobian)
 
 
 def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:

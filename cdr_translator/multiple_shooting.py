@@ -39,9 +39,9 @@ from typing import Optional
 import numpy as np
 from scipy.linalg import lu_solve
 
+from ._linalg import factorize
 from .path_following import rounding_floor
 from .problem import Problem
-from .stability import factorize
 
 #: Iterations in a row (after the first, which raises the defects from zero) whose
 #: residuals and defects grow end the iteration as not contracting.

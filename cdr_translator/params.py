@@ -58,8 +58,10 @@ PLAUSIBLE_MAX_PITCH_RATIO = 10.0
 #: with a decade of slack on each side; outside it a modulus in MPa or GPa is likely.
 PLAUSIBLE_MODULUS_PA = (1e8, 1e12)
 
-#: Most RK4 steps per disk interval the automatic refinement may use.
-MAX_REFINED_STEPS = 256
+#: Most RK4 steps per disk interval the automatic refinement may use: any valid count. The
+#: hard cases past 90 deg of bending need about 700-1000 to meet the default target; the
+#: time limit, not this cap, bounds what a solve spends (refinement.refine).
+MAX_REFINED_STEPS = MAX_STEPS_PER_SEGMENT
 
 #: Keys of the same params file that belong to the ROS node, not to the model.
 NODE_ONLY_KEYS: frozenset = frozenset((

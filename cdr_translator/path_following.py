@@ -31,8 +31,8 @@ from typing import List, Optional, Tuple
 import numpy as np
 from scipy.linalg import lu_solve
 
+from ._linalg import factorize, residual_norm
 from .problem import Problem
-from .stability import factorize
 
 #: Converged points the Hermite predictor interpolates (value and tangent at each).
 HISTORY = 3
@@ -79,11 +79,6 @@ class Tracked(_Corrected):
     steps: int = 0
 
 
-def _norm(values: np.ndarray) -> float:
-    with np.errstate(over='ignore', invalid='ignore'):
-        return float(np.sqrt(values @ values))
-
-
 def rounding_floor(jac: np.ndarray, xs: np.ndarray) -> float:
     """Return the residual that rounding the unknowns ``xs`` alone produces (NOISE_FACTOR)."""
     return NOISE_FACTOR * np.finfo(float).eps * float((np.abs(jac) @ np.abs(xs)).max())
@@ -118,13 +113,13 @@ def correct(problem: Problem, xs: np.ndarray, wrench: np.ndarray, tolerance: flo
         step = -lu_solve(lu, rs, check_finite=False)
         if not np.isfinite(step).all():
             return _Corrected(xs, rs, iteration, False, 'Newton step is not finite')
-        norm, scale = _norm(rs), 1.0
+        norm, scale = residual_norm(rs), 1.0
         for _ in range(12):
             trial = xs + scale * step
             trial_rs = problem.residual(trial, wrench)
             if shift is not None:
                 trial_rs = trial_rs - shift
-            if _norm(trial_rs) < (1.0 - 1e-4 * scale) * norm:
+            if residual_norm(trial_rs) < (1.0 - 1e-4 * scale) * norm:
                 break
             scale *= 0.5
         else:

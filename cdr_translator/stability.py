@@ -34,9 +34,9 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg.lapack import dgetrf, dgetrs
 
 from ._jit import jit
+from ._linalg import solve_lu
 
 
 @dataclass(frozen=True)
@@ -49,35 +49,6 @@ class Stability:
     compliance: np.ndarray
     critical_twist: np.ndarray
     message: str
-
-
-def factorize(matrix: np.ndarray) -> tuple:
-    """
-    LU factorization (lu, piv) of a square matrix by LAPACK getrf directly.
-
-    scipy.linalg.lu_factor's form and arithmetic (piv 0-based) without its argument handling,
-    which cost a third as much as factoring these 90x90 Jacobians (95 against 66 us). Nothing
-    is checked: a non-finite entry gives non-finite factors, an exactly singular matrix a zero
-    pivot (determinant_sign 0, non-finite solves), which the callers' finiteness checks catch.
-    """
-    lu, pivots, info = dgetrf(matrix)
-    if info < 0:
-        raise ValueError(f'getrf: illegal argument {-info}')
-    return lu, pivots
-
-
-def solve_lu(lu: tuple, rhs: np.ndarray) -> np.ndarray:
-    """
-    Solve J x = rhs with scipy's LU factorization (lu, piv) by LAPACK getrs directly.
-
-    Same arithmetic as scipy.linalg.lu_solve without its argument checking, which cost
-    ten times the solve itself for these 90x90 systems (0.46 ms against 0.04 ms measured
-    on the loaded machine).
-    """
-    solution, info = dgetrs(lu[0], lu[1], rhs)
-    if info != 0:
-        raise ValueError(f'getrs: illegal argument {-info}')
-    return solution
 
 
 def determinant_sign(lu: tuple) -> int:

@@ -84,7 +84,7 @@ def _warm_step(path_xs, path_wrenches, count, wrenches, scales, wrench_factors, 
         broyden_apply(lu, pivots, updates, taken, secant_count, change, guess)
         for i in range(size):
             guess[i] = xs[i] - guess[i]
-    for i in range(size):  # TranslatorSolver._first_step: a whole step within the reach
+    for i in range(size):  # continuation.first_step: a whole step within the reach
         if not abs(xs[i] - guess[i]) <= settings[_REACH]:
             return TOO_FAR, 0, 0, secant_count
     for i in range(size):

@@ -16,11 +16,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from .._blas import one_blas_thread
+from .._linalg import solve_lu
 from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
 from ..compliance import implicit_compliance
 from ..problem import Problem
-from ..solver import one_blas_thread
-from ..stability import solve_lu
 
 
 class TangentModel:

@@ -17,7 +17,7 @@ import numpy as np
 from .chain import ChainState, difference
 from .coupled_newton import CoupledNewton, Outcome
 from .linearization import Factorization
-from ..solver import MIN_CONTINUATION_STEP
+from ..continuation import MIN_CONTINUATION_STEP
 
 #: Largest change of the scaled unknowns (platform and legs) a continuation step of the
 #: coupled Newton may predict; a step predicting more is shortened. Ten times the leg

@@ -58,9 +58,10 @@ from .legs import ChainLegs
 from .linearization import factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult
+from .._blas import one_blas_thread
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
-from ..solver import check_wrench, one_blas_thread, TranslatorSolver
+from ..solver import check_wrench, TranslatorSolver
 
 
 class DeltaRobot:

@@ -15,7 +15,8 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..chord import apply_updates, lu_solve, norm
+from .._linalg import lu_solve, norm
+from ..chord import apply_updates
 from ..layout import N_RODS
 from ..shooting import translator_residual
 

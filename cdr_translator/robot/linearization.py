@@ -18,7 +18,8 @@ from .chain import Chain, ChainState, distance, SIZE, skew
 from .kernels import secant_update
 from .legs import ChainLegs, Deadline
 from .result import DeltaResult
-from ..stability import factorize as factorize_matrix, pose_twist, solve_lu
+from .._linalg import factorize as factorize_matrix, solve_lu
+from ..stability import pose_twist
 
 #: A factorization made within this distance of the solution (largest change of the scaled
 #: unknowns, platform and legs) serves the compliance and stability verdict there: it

@@ -193,3 +193,23 @@ def test_spacer_disks_have_an_upper_bound(params):
     assert SPECS['spacers_per_joint'].bounds == (0, MAX_SPACERS_PER_JOINT)
     assert params.with_changes(spacers_per_joint=MAX_SPACERS_PER_JOINT).spacers_per_joint \
         == MAX_SPACERS_PER_JOINT
+
+
+@pytest.mark.parametrize('force, moment', [
+    ((0.0, 0.0, 0.0), (0.0, 0.0, 40.0)),  # torsion 40 N m (the hard-case suite's)
+    ((200.0, 0.0, -400.0), (0.0, 0.0, 0.0)),  # the PJ past 100 deg: 200 N out, 400 N down
+])
+def test_a_fallback_solve_is_refined_to_the_target_within_the_time_limit(params, force, moment):
+    """
+    Loads that only the fallback continuation reaches are refined too, to the target.
+
+    At the default 8 steps per segment their estimates are degrees off; the target needs
+    several hundred steps, reached within the default time limit from a fresh solver.
+    """
+    solver = TranslatorSolver(params)
+    result = solver.solve(force, moment)
+    assert result.converged and result.accuracy_met is True, result.message
+    assert 'fallback continuation' in result.message and 'refined to' in result.message
+    assert _within(result, solver.accuracy), result.message
+    assert result.steps_per_segment > 256
+    assert result.solve_time_s <= solver.time_limit_s

@@ -1,6 +1,6 @@
 """BLAS runs on one thread inside a solve (its LAPACK factorizations) and as before after it."""
 
-from cdr_translator import solver as solver_module, stability
+from cdr_translator import _blas, _linalg
 from threadpoolctl import threadpool_info, threadpool_limits
 
 
@@ -13,13 +13,13 @@ def _blas_threads():
 def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver, monkeypatch):
     """A cold 12 N solve factors Jacobians with one BLAS thread; two are set again after."""
     seen = []
-    factor = stability.factorize
+    factor = _linalg.factorize
 
     def recording(*args, **kwargs):
         seen.append(_blas_threads())
         return factor(*args, **kwargs)
 
-    monkeypatch.setattr(stability, 'factorize', recording)
+    monkeypatch.setattr(_linalg, 'factorize', recording)
     with threadpool_limits(limits=2, user_api='blas'):
         before = _blas_threads()
         solver.reset()
@@ -34,14 +34,14 @@ def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver,
 def test_a_library_already_at_one_thread_is_left_alone(monkeypatch):
     """Nested or OPENBLAS_NUM_THREADS=1: no library is set (nor restored to anything)."""
     calls = []
-    libraries = solver_module._BLAS_LIBRARIES
+    libraries = _blas._BLAS_LIBRARIES
     assert libraries, 'threadpoolctl found no BLAS library (numpy and scipy ship OpenBLAS)'
     for library in libraries:
         monkeypatch.setattr(library, 'set_num_threads',
                             lambda threads, library=library: calls.append((library, threads)))
         monkeypatch.setattr(library, 'get_num_threads', lambda: 1)
 
-    @solver_module.one_blas_thread
+    @_blas.one_blas_thread
     def inner():
         return 'done'
 

@@ -5,7 +5,7 @@ import math
 import tracemalloc
 import warnings
 
-from cdr_translator import chord
+from cdr_translator import _linalg, chord
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor, lu_solve
@@ -26,7 +26,7 @@ def test_lu_solve_matches_lapack(factorized, order):
     assert lu.flags.f_contiguous  # lu_factor's layout: the column sweeps
     rhs = np.random.default_rng(8).normal(size=40)
     out = np.empty(40)
-    chord.lu_solve(np.asarray(lu, order=order), pivots, rhs, out)
+    _linalg.lu_solve(np.asarray(lu, order=order), pivots, rhs, out)
     assert np.allclose(out, lu_solve((lu, pivots), rhs), rtol=0, atol=1e-12)
     assert np.allclose(matrix @ out, rhs, atol=1e-10)
 
@@ -192,10 +192,10 @@ def test_chord_calls_leave_nothing_for_the_garbage_collector(solver):
 
 
 def test_norm_matches_numpy_and_overflows_quietly():
-    """chord.norm is the Euclidean norm; huge entries give inf and NaN stays NaN, no warning."""
+    """_linalg.norm is the Euclidean norm; huge entries give inf and NaN stays NaN, no warning."""
     values = np.random.default_rng(3).standard_normal(90)
-    assert chord.norm(values) == pytest.approx(np.linalg.norm(values), rel=1e-14)
+    assert _linalg.norm(values) == pytest.approx(np.linalg.norm(values), rel=1e-14)
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        assert chord.norm(np.full(90, 1e200)) == math.inf
-        assert math.isnan(chord.norm(np.array([math.nan, 1.0])))
+        assert _linalg.norm(np.full(90, 1e200)) == math.inf
+        assert math.isnan(_linalg.norm(np.array([math.nan, 1.0])))

@@ -1,6 +1,6 @@
 """Multiple shooting by the lifted Newton method (multiple_shooting and its node kernels)."""
 
-from cdr_translator import multiple_shooting, solver as solver_module, TranslatorSolver
+from cdr_translator import continuation, multiple_shooting, TranslatorSolver
 from cdr_translator.problem import Problem
 import numpy as np
 import pytest
@@ -110,7 +110,7 @@ def test_lifting_applies_to_cold_solves_with_spacer_disks(params):
     """Cold continuations lift from LIFT_FROM_SPACERS spacer disks on; both paths agree."""
     chosen = params.with_changes(spacers_per_joint=2)
     lifted_solver = TranslatorSolver(chosen)
-    assert solver_module.LIFT_FROM_SPACERS == 2 and lifted_solver._lifting()
+    assert continuation.LIFT_FROM_SPACERS == 2 and lifted_solver._lifting()
     single_solver = TranslatorSolver(chosen)
     single_solver.lift_from_spacers = None
     assert not single_solver._lifting()

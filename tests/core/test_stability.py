@@ -2,7 +2,7 @@
 
 import json
 
-from cdr_translator import cli, solver as solver_module, stability, TranslatorSolver
+from cdr_translator import _linalg, branch, cli, stability, TranslatorSolver
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor
@@ -43,7 +43,7 @@ def test_compression_past_buckling_is_never_a_silent_straight_success(params):
 
 def test_unstable_answer_is_flagged_and_exits_4(monkeypatch, capsys):
     """Without branch following the straight -40 N answer says unstable; the CLI exits 4."""
-    monkeypatch.setattr(solver_module, 'BRANCH_ATTEMPTS', 0)
+    monkeypatch.setattr(branch, 'BRANCH_ATTEMPTS', 0)
     code = cli.main(['solve', '--force', '0', '0', '-40', '--json'])
     data = json.loads(capsys.readouterr().out)
     assert code == cli.EXIT_UNSTABLE == 4
@@ -125,14 +125,14 @@ def test_factorize_equals_scipy_lu_factor_and_flags_a_singular_matrix():
     """LAPACK getrf directly gives lu_factor's factors; an exactly singular J has sign 0."""
     rng = np.random.default_rng(5)
     matrix = rng.standard_normal((90, 90))
-    lu, pivots = stability.factorize(matrix)
+    lu, pivots = _linalg.factorize(matrix)
     expected_lu, expected_pivots = lu_factor(matrix)
     assert np.array_equal(pivots, expected_pivots)
     assert np.allclose(lu, expected_lu, rtol=0.0, atol=1e-12)
     assert stability.determinant_sign((lu, pivots)) == np.sign(np.linalg.det(matrix))
     singular = matrix.copy()
     singular[:, 3] = 0.0  # a zero pivot
-    assert stability.determinant_sign(stability.factorize(singular)) == 0
+    assert stability.determinant_sign(_linalg.factorize(singular)) == 0
 
 
 def test_pose_twist_is_the_spatial_angular_velocity():

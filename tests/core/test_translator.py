@@ -2,7 +2,7 @@
 
 import math
 
-from cdr_translator import solver as solver_module, TranslatorSolver
+from cdr_translator import continuation, TranslatorSolver
 from cdr_translator.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
 from cdr_translator.params import Accuracy
 import numpy as np
@@ -216,7 +216,7 @@ def test_a_warm_sequence_extrapolates_and_ends_where_cold_solves_do(params, monk
         return [solver.solve(w[:3], w[3:]) for w in wrenches]
 
     extrapolated = sequence()
-    monkeypatch.setattr(solver_module, 'EXTRAPOLATION_MISS', -1.0)  # never extrapolate
+    monkeypatch.setattr(continuation, 'EXTRAPOLATION_MISS', -1.0)  # never extrapolate
     linear = sequence()
     assert sum(r.iterations for r in extrapolated[3:]) < sum(r.iterations for r in linear[3:])
     for result, other in zip(extrapolated, linear):

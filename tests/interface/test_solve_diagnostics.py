@@ -1,6 +1,6 @@
 """Diagnostics of a solve (node and replay alike): unstable or inaccurate answers are WARN."""
 
-from cdr_translator import solver as solver_module, TranslatorSolver
+from cdr_translator import branch, TranslatorSolver
 from cdr_translator.interface import messages
 
 
@@ -24,7 +24,7 @@ def test_stable_answer_is_ok_and_carries_its_verdict_and_error_bound(params):
 
 def test_unstable_answer_is_published_at_warn(params, monkeypatch):
     """The straight -40 N state (branch following off) converges but is WARN."""
-    monkeypatch.setattr(solver_module, 'BRANCH_ATTEMPTS', 0)
+    monkeypatch.setattr(branch, 'BRANCH_ATTEMPTS', 0)
     result = TranslatorSolver(params).solve((0.0, 0.0, -40.0))
     assert result.converged and result.stable is False
     diagnostic = _diagnostic(result)

@@ -6,7 +6,7 @@ The whole suite, with refinement, runs in `make hard-cases` (bench/hard_cases.py
 
 import math
 
-from cdr_translator import solver as solver_module, TranslatorSolver
+from cdr_translator import continuation, TranslatorSolver
 from cdr_translator.params import Accuracy
 from cdr_translator.studies import hard_cases
 from cdr_translator.studies.buckling import critical_compression
@@ -189,7 +189,7 @@ def test_non_finite_trial_states_are_survived(params, monkeypatch):
     """At 500 N full-load predictions overflow; those steps are halved, not fatal."""
     solver = TranslatorSolver(params)
     # try the whole load first, as it once did
-    monkeypatch.setattr(solver_module, '_first_step', lambda predicted: 1.0)
+    monkeypatch.setattr(continuation, 'first_step', lambda predicted: 1.0)
     messages = []
     newton = solver._newton
 
