@@ -41,7 +41,7 @@ NEARLY_CONVERGED = 1e-6
 EXTRAPOLATION_MISS = 0.5
 
 #: Cold continuations of translators with at least this many spacer disks per joint correct
-#: by the lifted Newton method (multiple shooting, lifted.py) instead of single shooting;
+#: by the lifted Newton method (multiple_shooting.newton) instead of single shooting;
 #: None: never. At one spacer disk single shooting is the faster corrector
 #: (docs/hard_cases.md).
 LIFT_FROM_SPACERS: Optional[int] = 2
