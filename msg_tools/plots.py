@@ -157,6 +157,19 @@ def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: n
     return figure
 
 
+def replay_shapes(series, params_path: Union[str, Path, None] = None,
+                  samples: Optional[Sequence[int]] = None) -> List[DeflectedShape]:
+    """Solve again (cold) the chosen messages of the replay ``series`` (replay.Series)."""
+    solver = TranslatorSolver(TranslatorParams.from_yaml(params_path or DEFAULT_PARAMS_PATH))
+    shapes = []
+    for position_in_series in choose_samples(series.index, samples):
+        wrench = series.wrench[position_in_series]
+        result = solver.solve(wrench[:3], wrench[3:], warm_start=False)
+        shapes.append(DeflectedShape(series.index[position_in_series], wrench,
+                                     result.backbones))
+    return shapes
+
+
 def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, None] = None,
                 samples: Optional[Sequence[int]] = None) -> List[int]:
     """
@@ -164,14 +177,7 @@ def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, No
 
     The deflected shapes are solved again (cold) from the wrenches the replay solved.
     """
-    positions = choose_samples(series.index, samples)
-    solver = TranslatorSolver(TranslatorParams.from_yaml(params_path or DEFAULT_PARAMS_PATH))
-    shapes = []
-    for position_in_series in positions:
-        wrench = series.wrench[position_in_series]
-        result = solver.solve(wrench[:3], wrench[3:], warm_start=False)
-        shapes.append(DeflectedShape(series.index[position_in_series], wrench,
-                                     result.backbones))
+    shapes = replay_shapes(series, params_path, samples)
     figure = replay_figure(series.time_s, np.array(series.joints), np.array(series.position),
                            shapes)
     figure.savefig(path, dpi=110)

@@ -81,9 +81,9 @@ def _volume_text(volumes: Dict[str, float]) -> str:
 
 def _label_3d(axes: Axes, title: str) -> None:
     axes.set_title(title, fontsize=9)
-    axes.set_xlabel('x (mm)', labelpad=6)
-    axes.set_ylabel('y (mm)', labelpad=6)
-    axes.set_zlabel('z (mm)', labelpad=8)
+    axes.set_xlabel('x (mm)', labelpad=10)
+    axes.set_ylabel('y (mm)', labelpad=10)
+    axes.set_zlabel('z (mm)', labelpad=10)
     thin_ticks(axes, (5, 5, 5))
 
 
@@ -124,8 +124,8 @@ def workspace_figure(block: AtlasBlock) -> Figure:
 
 def stiffness_figure(block: AtlasBlock) -> Figure:
     """Smallest translational stiffness and stiffness margin, in x-z and x-y projections."""
-    figure = Figure(figsize=(11, 10), dpi=110)
-    axes = figure.subplots(2, 2, gridspec_kw={'left': 0.07, 'right': 0.86, 'top': 0.9,
+    figure = Figure(figsize=(10.5, 10), dpi=110)
+    axes = figure.subplots(2, 2, gridspec_kw={'left': 0.07, 'right': 0.88, 'top': 0.9,
                                               'bottom': 0.1, 'hspace': 0.3, 'wspace': 0.25})
     position = 1e3 * block.position_m
     views = ((0, 2, 'side view, x-z'), (0, 1, 'top view, x-y'))
