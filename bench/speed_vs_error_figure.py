@@ -95,13 +95,15 @@ def _overlaps(box: Bbox, others: List[Bbox]) -> bool:
                and other.y0 < box.y1 for other in others)
 
 
-def place_numbers(axes: Axes, points: List[Tuple[float, float, str, float]]) -> None:
+def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
+                  points: List[Tuple[float, float, str, float]]) -> None:
     """
-    Write each text beside its point (x, y in data coordinates, text, marker half-size in
-    px), nearest free place first. Free: inside the axes, clear of every marker and of the texts already placed. A text
-    further than the nearest ring gets a leader line to its point.
+    Write each text beside its point, in the nearest free place.
+
+    ``canvas``: the Agg canvas of the axes' figure, which measures the texts. ``points``: x, y (data coordinates), text, half-size of the marker (px). Free: inside
+    the axes, clear of every marker and of the texts already placed. A text further than
+    the nearest ring gets a leader line to its point.
     """
-    canvas = FigureCanvasAgg(axes.figure)
     frame = axes.get_window_extent().padded(-3.0)
     centres = [axes.transData.transform((x, y)) for x, y, _, _ in points]
     taken = [Bbox.from_extents(cx - half, cy - half, cx + half, cy + half)
@@ -109,7 +111,7 @@ def place_numbers(axes: Axes, points: List[Tuple[float, float, str, float]]) -> 
     # crowded points first, while the places near them are still free
     crowding = [sum(np.hypot(cx - ox, cy - oy) < 40.0 for ox, oy in centres)
                 for cx, cy in centres]
-    points_per_px = 72.0 / axes.figure.dpi
+    points_per_px = 72.0 / canvas.figure.dpi
     for k in sorted(range(len(points)), key=lambda index: -crowding[index]):
         x, y, text, _ = points[k]
         (cx, cy), (width, height) = centres[k], _text_size(canvas, text)
@@ -130,7 +132,8 @@ def place_numbers(axes: Axes, points: List[Tuple[float, float, str, float]]) -> 
             chosen = (RADII_PX[-1], 0.0, Bbox.from_bounds(cx + RADII_PX[-1], cy, width, height))
         dx, dy, box = chosen
         taken.append(box)
-        leader = dict(arrowstyle='-', color='0.45', linewidth=0.5, shrinkA=0.0, shrinkB=3.0)
+        leader = {'arrowstyle': '-', 'color': '0.45', 'linewidth': 0.5, 'shrinkA': 0.0,
+                  'shrinkB': 3.0}
         axes.annotate(text, (x, y), xytext=(dx * points_per_px, dy * points_per_px),
                       textcoords='offset points', ha='center', va='center',
                       fontsize=NUMBER_SIZE, arrowprops=leader if math.hypot(dx, dy) > 10
@@ -144,6 +147,7 @@ def _limits(values: List[float], low: float, high: float) -> Tuple[float, float]
 def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) -> Figure:
     """Draw solve time against position and angle error; return the Figure."""
     figure = Figure(figsize=(13, 9), dpi=110)
+    canvas = FigureCanvasAgg(figure)
     panels = [figure.add_axes((0.07, 0.32, 0.4, 0.6)), figure.add_axes((0.57, 0.32, 0.4, 0.6))]
     for axes, (field, scale, unit, what, title) in zip(panels, (
             ('position_m', 1e3, 'mm', 'position', 'End-disk position error'),
@@ -177,7 +181,7 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) ->
         axes.set_title(title + (f'\nerrors below {FLOOR:g} {unit} drawn at {FLOOR:g} {unit}'
                                 if floored else ''), fontsize=10)
         axes.grid(True, which='major', alpha=0.3)
-        place_numbers(axes, points)
+        place_numbers(axes, canvas, points)
     handles = [Line2D([], [], color='grey', marker='o', linestyle='none'),
                Line2D([], [], markeredgecolor='grey', markerfacecolor='none', marker='s',
                       linestyle='none')]

@@ -145,12 +145,12 @@ def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: n
     figure = Figure(figsize=(15, 6), dpi=110)
     figure.subplots_adjust(left=0.05, right=0.98, top=0.92, bottom=0.22, wspace=0.4)
     grid = figure.add_gridspec(1, 7)
-    time_s = np.asarray(time_s, dtype=float)
+    seconds = np.asarray(time_s, dtype=float)
     joints = np.degrees(np.asarray(joints_rad, dtype=float))
-    _time_panel(figure.add_subplot(grid[0, :2]), time_s, joints[:, [0, 2, 4]],
+    _time_panel(figure.add_subplot(grid[0, :2]), seconds, joints[:, [0, 2, 4]],
                 ('PJ bending', 'DJ bending', 'end-disk rotation'), 'angle (deg)',
                 'Bending angles')
-    _time_panel(figure.add_subplot(grid[0, 2:4]), time_s,
+    _time_panel(figure.add_subplot(grid[0, 2:4]), seconds,
                 1e3 * np.asarray(position_m, dtype=float), ('x', 'y', 'z'),
                 'end-disk position (mm)', 'End-disk position')
     _shape_panel(figure.add_subplot(grid[0, 4:], projection='3d'), shapes)

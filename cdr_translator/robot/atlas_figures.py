@@ -12,7 +12,6 @@ from pathlib import Path
 import textwrap
 from typing import Dict, List, Sequence
 
-from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 import numpy as np
 
@@ -79,7 +78,7 @@ def _volume_text(volumes: Dict[str, float]) -> str:
     return 'workspace volume ' + ', '.join(parts) if parts else 'workspace volume not computed'
 
 
-def _label_3d(axes: Axes, title: str) -> None:
+def _label_3d(axes, title: str) -> None:  # axes: a 3-D Axes
     axes.set_title(title, fontsize=9)
     axes.set_xlabel('x (mm)', labelpad=10)
     axes.set_ylabel('y (mm)', labelpad=10)

@@ -92,7 +92,7 @@ def test_speed_vs_error_figure_is_readable_with_piled_points():
 
 
 def _block(margin_spread: float, grid: int = 3, stable: bool = True) -> AtlasBlock:
-    """A sheared slider grid of platform positions with smooth made-up fields."""
+    """Return a sheared grid of platform positions with smooth made-up fields."""
     levels = np.linspace(-0.03, 0.03, grid)
     sliders = np.array(np.meshgrid(levels, levels, levels)).reshape(3, -1).T
     position = sliders @ np.array([[0.8, 0.0, 0.3], [-0.4, 0.7, 0.3], [-0.4, -0.7, 0.3]])
