@@ -17,8 +17,8 @@ from typing import Dict, List, Sequence, Tuple
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
+from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 import numpy as np
 
@@ -85,9 +85,11 @@ def measurements(rows: Sequence[dict], paper: Dict[str, dict],
 
 
 def _text_size(canvas: FigureCanvasAgg, text: str) -> Tuple[float, float]:
-    width, height, _ = canvas.get_renderer().get_text_width_height_descent(
-        text, FontProperties(size=NUMBER_SIZE), ismath=False)
-    return width, height
+    """Return the width and height (px) a number's text takes, line spacing included."""
+    probe = Text(0.0, 0.0, text, fontsize=NUMBER_SIZE)
+    probe.set_figure(canvas.figure)
+    extent = probe.get_window_extent(canvas.get_renderer())
+    return extent.width, extent.height
 
 
 def _overlaps(box: Bbox, others: List[Bbox]) -> bool:
@@ -120,8 +122,8 @@ def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
             for degrees in DIRECTIONS_DEG:
                 dx = radius * math.cos(math.radians(degrees))
                 dy = radius * math.sin(math.radians(degrees))
-                box = Bbox.from_bounds(cx + dx - width / 2 - 1, cy + dy - height / 2 - 1,
-                                       width + 2, height + 2)
+                box = Bbox.from_bounds(cx + dx - width / 2 - 1.5, cy + dy - height / 2 - 1.5,
+                                       width + 3, height + 3)
                 if frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1) \
                         and not _overlaps(box, taken):
                     chosen = (dx, dy, box)

@@ -20,6 +20,9 @@ FEW_SAMPLES = 30
 #: Below this relative spread (max - min over |mean|) a colour scale shows % from the mean.
 RELATIVE_BELOW = 0.01
 
+#: Ticks this close to either end of a 3-D axis (fraction of its length) are left out.
+CORNER_MARGIN = 0.08
+
 #: Below this relative spread the quantity is called constant.
 CONSTANT_BELOW = 1e-9
 
@@ -64,12 +67,23 @@ def colour_scale(values: np.ndarray, name: str, unit: str) -> ColourScale:
 
 
 def thin_ticks(axes: Axes, bins: Sequence[int]) -> None:
-    """Cap the number of ticks on each axis of ``axes`` (x, y[, z]) so labels do not touch."""
-    axis_objects = [axes.xaxis, axes.yaxis]
+    """
+    Cap the number of ticks on each axis of ``axes`` (x, y[, z]) so labels do not touch.
+
+    Call it once the data are drawn. On a 3-D axes the ticks near either end of an axis go
+    too: at the corners where two axes meet their labels run into each other ('100-10').
+    """
+    axis_objects = [(axes.xaxis, axes.get_xlim()), (axes.yaxis, axes.get_ylim())]
     if hasattr(axes, 'zaxis'):
-        axis_objects.append(axes.zaxis)
-    for axis, count in zip(axis_objects, bins):
-        axis.set_major_locator(MaxNLocator(nbins=count, steps=[1, 2, 2.5, 5, 10]))
+        axis_objects.append((getattr(axes, 'zaxis'), getattr(axes, 'get_zlim')()))
+    for (axis, (low, high)), count in zip(axis_objects, bins):
+        locator = MaxNLocator(nbins=count, steps=[1, 2, 2.5, 5, 10])
+        if len(axis_objects) == 3:
+            margin = CORNER_MARGIN * (high - low)
+            axis.set_ticks([tick for tick in locator.tick_values(low, high)
+                            if low + margin <= tick <= high - margin])
+        else:
+            axis.set_major_locator(locator)
 
 
 def number_text(value: float) -> str:

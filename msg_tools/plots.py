@@ -123,15 +123,12 @@ def _shape_panel(axes, shapes: Sequence[DeflectedShape]) -> None:
     aspect = np.maximum(span, 0.3 * span.max())
     axes.set_box_aspect(aspect)
     # fewer ticks on the short sides of the box, or their labels run into each other
-    thin_ticks(axes, [max(2, int(round(5 * side / aspect.max()))) for side in aspect])
+    thin_ticks(axes, [max(3, int(round(6 * side / aspect.max()))) for side in aspect])
     axes.set_title('Deflected shape under each load (dashed: fitted arcs)')
-    for axis, name in ((axes.xaxis, 'x'), (axes.yaxis, 'y'), (axes.zaxis, 'z')):
+    for axis, name, pad in ((axes.xaxis, 'x', 12), (axes.yaxis, 'y', 12), (axes.zaxis, 'z', 18)):
         axis.set_label_text(f'{name} (mm)')
-        axis.labelpad = 12
-    box = axes.get_position()
-    axes.figure.legend(*axes.get_legend_handles_labels(), loc='lower center',
-                       bbox_to_anchor=(0.5 * (box.x0 + box.x1), 0.0), fontsize='small',
-                       title='load of each drawn shape', title_fontsize='small')
+        axis.labelpad = pad
+
 
 
 def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: np.ndarray,
@@ -153,7 +150,12 @@ def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: n
     _time_panel(figure.add_subplot(grid[0, 2:4]), seconds,
                 1e3 * np.asarray(position_m, dtype=float), ('x', 'y', 'z'),
                 'end-disk position (mm)', 'End-disk position')
-    _shape_panel(figure.add_subplot(grid[0, 4:], projection='3d'), shapes)
+    shape = figure.add_subplot(grid[0, 4:], projection='3d')
+    _shape_panel(shape, shapes)
+    # under the time panels: below the 3-D box its axis labels would meet the legend
+    figure.legend(*shape.get_legend_handles_labels(), loc='lower center',
+                  bbox_to_anchor=(0.3, 0.0), fontsize='small', ncol=2,
+                  title='load of each drawn shape', title_fontsize='small')
     return figure
 
 

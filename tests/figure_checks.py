@@ -19,8 +19,9 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 
-#: Overlaps of at most this many pixels in either direction are touching, not overlapping.
-TOLERANCE_PX = 0.5
+#: Texts closer than this many pixels (minus this number) count as overlapping: touching
+#: tick labels of two axes read as one number.
+TOLERANCE_PX = -1.0
 
 #: A unit: something in parentheses or brackets, e.g. '(mm)', '(% from its mean 5.9 kN/m)'.
 UNIT = re.compile(r'\([^()]*\S[^()]*\)|\[[^\[\]]*\S[^\[\]]*\]')

@@ -125,7 +125,7 @@ def stiffness_figure(block: AtlasBlock) -> Figure:
     """Smallest translational stiffness and stiffness margin, in x-z and x-y projections."""
     figure = Figure(figsize=(10.5, 10), dpi=110)
     axes = figure.subplots(2, 2, gridspec_kw={'left': 0.07, 'right': 0.88, 'top': 0.9,
-                                              'bottom': 0.1, 'hspace': 0.3, 'wspace': 0.25})
+                                              'bottom': 0.12, 'hspace': 0.3, 'wspace': 0.25})
     position = 1e3 * block.position_m
     views = ((0, 2, 'side view, x-z'), (0, 1, 'top view, x-y'))
     quantities = ((block.smallest_stiffness, 'smallest translational stiffness'),
