@@ -102,9 +102,10 @@ def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
     """
     Write each text beside its point, in the nearest free place.
 
-    ``canvas``: the Agg canvas of the axes' figure, which measures the texts. ``points``: x, y (data coordinates), text, half-size of the marker (px). Free: inside
-    the axes, clear of every marker and of the texts already placed. A text further than
-    the nearest ring gets a leader line to its point.
+    ``canvas``: the Agg canvas of the axes' figure, which measures the texts. ``points``:
+    x, y (data coordinates), text, half-size of the marker (px). Free: inside the axes,
+    clear of every marker and of the texts already placed. A text further than the
+    nearest ring gets a leader line to its point.
     """
     frame = axes.get_window_extent().padded(-3.0)
     centres = [axes.transData.transform((x, y)) for x, y, _, _ in points]

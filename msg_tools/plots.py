@@ -130,7 +130,6 @@ def _shape_panel(axes, shapes: Sequence[DeflectedShape]) -> None:
         axis.labelpad = pad
 
 
-
 def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: np.ndarray,
                   shapes: Sequence[DeflectedShape]) -> Figure:
     """
