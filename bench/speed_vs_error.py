@@ -3,6 +3,7 @@ Speed against error of every fidelity level; writes bench/results/.
 
 Usage: python -m bench.speed_vs_error [--skip-paper] [--skip-node] [--skip-validation]
                                       [--repeats N]
+       python -m bench.speed_vs_error --redraw
 
 Every level and discretization is timed (wall clock around ``solve``, median) and compared
 with the reference (the full model at 32 RK4 steps per disk interval, residual 1e-12) on
@@ -13,7 +14,8 @@ cases. Also measured: the compliance's cost, and translator_node's sustained wre
 over DDS. Writes speed_vs_error.md (tables), speed_vs_error.png (time against error) and
 speed_vs_error.json (every number) into bench/results/, and the validated ranges of the
 reduced levels into config/fidelity_validation.yaml (what FidelitySolver's error budget
-reads; ``--skip-validation`` keeps the file as it is).
+reads; ``--skip-validation`` keeps the file as it is). ``--redraw`` measures nothing: it
+draws speed_vs_error.png again from speed_vs_error.json.
 """
 
 import argparse
@@ -31,6 +33,7 @@ import tempfile
 import time
 from typing import Any, Callable, Dict, List, Optional
 
+from bench.speed_vs_error_figure import save_speed_error_figure
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.compliance import ComplianceAnalysis
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
@@ -39,7 +42,6 @@ from cdr_translator.fidelity.reduced import ROD_STEPS
 from cdr_translator.result import SolveResult
 from cdr_translator.studies import fidelity_validation
 from cdr_translator.studies.finite_difference import finite_difference_compliance
-from matplotlib.figure import Figure
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / 'results'
@@ -79,7 +81,6 @@ class Row:
     make: Callable[[], FidelitySolver]
     sequence_setup: Optional[Callable[[FidelitySolver, np.ndarray], object]] = None
     spacers: int = 1  # the structure whose reference the errors are measured against
-    label: str = ''  # short name on the plot
     static: Dict[str, dict] = field(default_factory=dict)
     sequence: dict = field(default_factory=dict)
 
@@ -94,32 +95,27 @@ def rows(params: TranslatorParams) -> List[Row]:
     result = []
     for steps in (2, 4, 8, 16):
         result.append(Row('full', f'{steps} steps' + (' (default)' if steps == 8 else ''), '90',
-                          _maker(params.with_changes(steps_per_segment=steps), fidelity='full'),
-                          label=f'full {steps}'))
+                          _maker(params.with_changes(steps_per_segment=steps), fidelity='full')))
     result.append(Row('full', "8 steps, tolerance 1e-6 (about the paper's)", '90',
-                      _maker(params, fidelity='full', tolerance=1e-6),
-                      label='full 8, tol 1e-6'))
+                      _maker(params, fidelity='full', tolerance=1e-6)))
     for spacers in (2, 3):
         result.append(Row('full', f'{spacers} spacer disks per joint, 8 steps (longer joints: '
                           'errors against its own reference)', str(30 + 20 * (2 * spacers + 1)),
                           _maker(params.with_changes(spacers_per_joint=spacers),
                                  fidelity='full'),
-                          spacers=spacers, label=f'full S={spacers}'))
+                          spacers=spacers))
     for steps in (1, 2, 4):
         result.append(Row('rod', f'{steps} steps per interval' + (
             ' (default)' if steps == ROD_STEPS else ''), '7',
-            _maker(params, fidelity='rod', rod_steps=steps), label=f'rod {steps}'))
-    result.append(Row('cc', 'one arc per joint', '8', _maker(params, fidelity='cc'),
-                      label='cc'))
+            _maker(params, fidelity='rod', rod_steps=steps)))
+    result.append(Row('cc', 'one arc per joint', '8', _maker(params, fidelity='cc')))
     result.append(Row('linear', "about the unloaded state / the sequence's first sample",
                       '0', _linear_solver(params),
-                      lambda solver, first: solver.cache_full_solution(first),
-                      label='linear'))
+                      lambda solver, first: solver.cache_full_solution(first)))
     for position, angle in BUDGETS:
         result.append(Row('auto', f'budget {1e3 * position:g} mm, {angle:g} deg', '-',
                           _maker(params, max_position_error=position,
-                                 max_angle_error_deg=angle),
-                          label=f'auto {1e3 * position:g} mm'))
+                                 max_angle_error_deg=angle)))
     return result
 
 
@@ -402,54 +398,6 @@ def markdown(report: dict, table_rows: List[Row]) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def plot(report: dict, table_rows: List[Row], path: Path) -> None:
-    """Median time against error, position and angle, static (cold) and sequence (warm)."""
-    figure = Figure(figsize=(13, 5.5))
-    axes = figure.subplots(1, 2)
-    colours = {'full': 'tab:blue', 'rod': 'tab:green', 'cc': 'tab:orange',
-               'linear': 'tab:red', 'auto': 'tab:purple', 'paper': 'black'}
-    floor = 1e-7
-    for axis, key, scale, unit in ((axes[0], 'position', 1e3, 'end-disk position error (mm)'),
-                                   (axes[1], 'angle', 1.0, 'angle error (°)')):
-        for row in table_rows:
-            static_time = statistics.median(row.static[name]['time_s'] for name in PAPER_SCENES)
-            static_error = max(v[f'{key}_m' if key == 'position' else 'angle_deg']
-                               for v in row.static.values()) * scale
-            sequence_error = row.sequence[f'max_{key}_m' if key == 'position'
-                                          else 'max_angle_deg'] * scale
-            colour = colours[row.level]
-            axis.scatter(1e3 * static_time, max(static_error, floor), color=colour, marker='o')
-            axis.scatter(1e3 * row.sequence['median_time_s'], max(sequence_error, floor),
-                         facecolors='none', edgecolors=colour, marker='s')
-            for time_s, error, style in ((static_time, static_error, 'normal'),
-                                         (row.sequence['median_time_s'], sequence_error,
-                                          'italic')):
-                axis.annotate(row.label, (1e3 * time_s, max(error, floor)), fontsize=6,
-                              style=style, alpha=0.8, xytext=(4, -2),
-                              textcoords='offset points')
-        for name, value in report['paper_baseline'].items():
-            error = value['position_m'] * 1e3 if key == 'position' else value['angle_deg']
-            axis.scatter(1e3 * value['time_s'], max(error, floor), color='black', marker='*',
-                         s=80)
-            axis.annotate(f'paper baseline {name[6:]}',
-                          (1e3 * value['time_s'], max(error, floor)), fontsize=7)
-        axis.set_xscale('log')
-        axis.set_yscale('log')
-        axis.set_xlabel('median solve time (ms)')
-        axis.set_ylabel(f'{unit}, worst over the scenes')
-        axis.grid(True, which='both', alpha=0.3)
-    for level, colour in colours.items():
-        axes[0].scatter([], [], color=colour, label=level)
-    axes[0].scatter([], [], color='grey', marker='o', label='static scenes, cold')
-    axes[0].scatter([], [], facecolors='none', edgecolors='grey', marker='s',
-                    label='1000-sample sequence, warm')
-    axes[0].legend(fontsize=7, loc='upper right')
-    figure.suptitle('Translator: speed against error of every fidelity level '
-                    f'(errors below {floor:g} drawn at {floor:g})')
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-
-
 def targets(report: dict, table_rows: List[Row]) -> list:
     """Measured against the issue's targets."""
     default = next(row for row in table_rows if row.setting == '8 steps (default)')
@@ -482,7 +430,13 @@ def main() -> None:
     parser.add_argument('--skip-validation', action='store_true',
                         help='keep config/fidelity_validation.yaml as it is')
     parser.add_argument('--repeats', type=int, default=5, help='cold solves per scene')
+    parser.add_argument('--redraw', action='store_true',
+                        help='only draw speed_vs_error.png again from speed_vs_error.json')
     args = parser.parse_args()
+    if args.redraw:
+        save_speed_error_figure(json.loads((RESULTS / 'speed_vs_error.json').read_text()),
+                                PAPER_SCENES, SEQUENCE_LENGTH, RESULTS / 'speed_vs_error.png')
+        return
     started = time.perf_counter()
     params = TranslatorParams.from_yaml()
     report: Dict[str, Any] = {
@@ -528,7 +482,8 @@ def main() -> None:
     report['runtime_s'] = time.perf_counter() - started
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / 'speed_vs_error.md').write_text(markdown(report, table_rows))
-    plot(report, table_rows, RESULTS / 'speed_vs_error.png')
+    save_speed_error_figure(report, PAPER_SCENES, SEQUENCE_LENGTH,
+                            RESULTS / 'speed_vs_error.png')
     (RESULTS / 'speed_vs_error.json').write_text(json.dumps(report, indent=1, default=str))
     print((RESULTS / 'speed_vs_error.md').read_text())
     print(f"benchmark took {report['runtime_s']:.0f} s")

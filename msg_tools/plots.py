@@ -7,6 +7,7 @@ few chosen messages with the least-squares circular arc fitted to each backbone 
 joint (``cdr_translator.geometry.fit_circle``), as in the paper's Fig. 4.
 """
 
+from dataclasses import dataclass
 import math
 from pathlib import Path
 from typing import List, Optional, Sequence, Union
@@ -14,11 +15,11 @@ from typing import List, Optional, Sequence, Union
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.geometry import fit_circle
 from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.plotting import load_text, sample_marker, thin_ticks
 import matplotlib
-matplotlib.use('Agg')
-from matplotlib.backend_bases import FigureCanvasBase  # noqa: E402,I100 - after the backend
-import matplotlib.pyplot as plt  # noqa: E402 - after choosing the backend
-import numpy as np  # noqa: E402
+from matplotlib.backend_bases import FigureCanvasBase
+from matplotlib.figure import Figure
+import numpy as np
 
 #: Shapes drawn when no samples are chosen: this many, evenly spread over the run.
 DEFAULT_SHAPES = 3
@@ -83,6 +84,93 @@ def check_plot_path(path: Union[str, Path]) -> None:
                          f'{", ".join(formats)}')
 
 
+@dataclass
+class DeflectedShape:
+    """One drawn shape: its message, its wrench [f (N); m (N m)] and backbones (m)."""
+
+    message: int
+    wrench: Sequence[float]
+    backbones: np.ndarray  # (rods, points, 3); rod 0 is the central backbone
+
+
+def _time_panel(axes, time_s: np.ndarray, columns: np.ndarray, labels: Sequence[str],
+                ylabel: str, title: str) -> None:
+    marker = sample_marker(len(time_s))
+    for values, label in zip(columns.T, labels):
+        axes.plot(time_s, values, label=label, marker=marker, markersize=4)
+    axes.set(xlabel='time (s)', ylabel=ylabel, title=title)
+    axes.legend(fontsize='small')
+    axes.grid(True, alpha=0.3)
+
+
+def _shape_panel(axes, shapes: Sequence[DeflectedShape]) -> None:
+    colours = matplotlib.rcParams['axes.prop_cycle'].by_key()['color']
+    every_point = []
+    for number, shape in enumerate(shapes):
+        colour = colours[number % len(colours)]
+        backbones = 1e3 * np.asarray(shape.backbones)
+        half = backbones.shape[1] // 2
+        for rod_number, rod in enumerate(backbones):
+            axes.plot(*rod.T, color=colour, linewidth=2.0 if rod_number == 0 else 1.0,
+                      label=(f'{load_text(shape.wrench)} (message {shape.message})'
+                             if rod_number == 0 else None))
+            for rows in (slice(0, half), slice(half, None)):
+                axes.plot(*arc_points(rod[rows]).T, color='black', linewidth=0.6,
+                          linestyle='--')
+            every_point.append(rod)
+    points = np.concatenate(every_point)
+    span = np.ptp(points, axis=0)
+    aspect = np.maximum(span, 0.3 * span.max())
+    axes.set_box_aspect(aspect)
+    # fewer ticks on the short sides of the box, or their labels run into each other
+    thin_ticks(axes, [max(3, int(round(6 * side / aspect.max()))) for side in aspect])
+    axes.set_title('Deflected shape under each load (dashed: fitted arcs)')
+    for axis, name, pad in ((axes.xaxis, 'x', 12), (axes.yaxis, 'y', 12), (axes.zaxis, 'z', 18)):
+        axis.set_label_text(f'{name} (mm)')
+        axis.labelpad = pad
+
+
+def replay_figure(time_s: Sequence[float], joints_rad: np.ndarray, position_m: np.ndarray,
+                  shapes: Sequence[DeflectedShape]) -> Figure:
+    """
+    Draw a replay: angles and end-disk position against time, and deflected shapes.
+
+    ``joints_rad`` has the columns of replay.Series.joints (0 PJ bending, 2 DJ bending,
+    4 end-disk rotation), ``position_m`` is (n, 3).
+    """
+    figure = Figure(figsize=(15, 6), dpi=110)
+    figure.subplots_adjust(left=0.05, right=0.98, top=0.92, bottom=0.22, wspace=0.4)
+    grid = figure.add_gridspec(1, 7)
+    seconds = np.asarray(time_s, dtype=float)
+    joints = np.degrees(np.asarray(joints_rad, dtype=float))
+    _time_panel(figure.add_subplot(grid[0, :2]), seconds, joints[:, [0, 2, 4]],
+                ('PJ bending', 'DJ bending', 'end-disk rotation'), 'angle (deg)',
+                'Bending angles')
+    _time_panel(figure.add_subplot(grid[0, 2:4]), seconds,
+                1e3 * np.asarray(position_m, dtype=float), ('x', 'y', 'z'),
+                'end-disk position (mm)', 'End-disk position')
+    shape = figure.add_subplot(grid[0, 4:], projection='3d')
+    _shape_panel(shape, shapes)
+    # under the time panels: below the 3-D box its axis labels would meet the legend
+    figure.legend(*shape.get_legend_handles_labels(), loc='lower center',
+                  bbox_to_anchor=(0.3, 0.0), fontsize='small', ncol=2,
+                  title='load of each drawn shape', title_fontsize='small')
+    return figure
+
+
+def replay_shapes(series, params_path: Union[str, Path, None] = None,
+                  samples: Optional[Sequence[int]] = None) -> List[DeflectedShape]:
+    """Solve again (cold) the chosen messages of the replay ``series`` (replay.Series)."""
+    solver = TranslatorSolver(TranslatorParams.from_yaml(params_path or DEFAULT_PARAMS_PATH))
+    shapes = []
+    for position_in_series in choose_samples(series.index, samples):
+        wrench = series.wrench[position_in_series]
+        result = solver.solve(wrench[:3], wrench[3:], warm_start=False)
+        shapes.append(DeflectedShape(series.index[position_in_series], wrench,
+                                     result.backbones))
+    return shapes
+
+
 def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, None] = None,
                 samples: Optional[Sequence[int]] = None) -> List[int]:
     """
@@ -90,46 +178,8 @@ def plot_replay(series, path: Union[str, Path], params_path: Union[str, Path, No
 
     The deflected shapes are solved again (cold) from the wrenches the replay solved.
     """
-    positions = choose_samples(series.index, samples)
-    time_s = np.array(series.time_s)
-    joints = np.degrees(np.array(series.joints))
-    figure = plt.figure(figsize=(14, 5.5))
-    angles = figure.add_subplot(1, 3, 1)
-    for column, label in ((0, 'PJ bending'), (2, 'DJ bending'), (4, 'end-disk rotation')):
-        angles.plot(time_s, joints[:, column], label=label)
-    angles.set(xlabel='time (s)', ylabel='angle (deg)', title='Bending angles')
-    angles.legend()
-    angles.grid(True, alpha=0.3)
-    position = figure.add_subplot(1, 3, 2)
-    for column, axis in enumerate('xyz'):
-        position.plot(time_s, 1e3 * np.array(series.position)[:, column], label=axis)
-    position.set(xlabel='time (s)', ylabel='end-disk position (mm)', title='End-disk position')
-    position.legend()
-    position.grid(True, alpha=0.3)
-    shape = figure.add_subplot(1, 3, 3, projection='3d')
-    solver = TranslatorSolver(TranslatorParams.from_yaml(params_path or DEFAULT_PARAMS_PATH))
-    colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    every_point = []
-    for number, position_in_series in enumerate(positions):
-        wrench = series.wrench[position_in_series]
-        result = solver.solve(wrench[:3], wrench[3:], warm_start=False)
-        colour = colours[number % len(colours)]
-        half = result.backbones.shape[1] // 2
-        for rod_number, rod in enumerate(1e3 * result.backbones):
-            shape.plot(*rod.T, color=colour, linewidth=2.0 if rod_number == 0 else 1.0,
-                       label=(f'message {series.index[position_in_series]}'
-                              if rod_number == 0 else None))
-            for rows in (slice(0, half), slice(half, None)):
-                shape.plot(*arc_points(rod[rows]).T, color='black', linewidth=0.6,
-                           linestyle='--')
-            every_point.append(rod)
-    points = np.concatenate(every_point)
-    span = np.ptp(points, axis=0)
-    shape.set_box_aspect(np.maximum(span, 0.3 * span.max()))
-    shape.set(xlabel='x (mm)', ylabel='y (mm)', zlabel='z (mm)',
-              title='Deflected shape (dashed: fitted arcs)')
-    shape.legend(loc='upper left', fontsize='small')
-    figure.tight_layout()
+    shapes = replay_shapes(series, params_path, samples)
+    figure = replay_figure(series.time_s, np.array(series.joints), np.array(series.position),
+                           shapes)
     figure.savefig(path, dpi=110)
-    plt.close(figure)
-    return [series.index[position] for position in positions]
+    return [shape.message for shape in shapes]

@@ -237,67 +237,13 @@ def plot_atlas(out: Path) -> List[Path]:
     Workspace: platform positions of the first (variant, payload) block coloured by the
     stability verdict and by the parasitic rotation, with the workspace volume in the
     title. Stiffness: the smallest translational stiffness (1 / largest translational
-    compliance eigenvalue, N/m) and the stiffness margin in xz and xy projections.
+    compliance eigenvalue) and the stiffness margin in x-z and x-y projections.
     """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    # matplotlib takes most of a second to import: only ``atlas --plot`` pays for it
+    from .atlas_figures import atlas_block, save_atlas_figures
     spec, results = load_results(out)
-    volume = workspace_volumes(spec, results)[0]
-    block = slice(0, spec.block)
-    position = 1e3 * results['platform_position'][block]
-    converged = results['converged'][block]
-    stable = results['stable'][block]
-    rotation = np.degrees(results['parasitic_rotation'][block])
-    stem = out.with_suffix('')
-    paths = [Path(f'{stem}_workspace.png'), Path(f'{stem}_stiffness.png')]
-    payload = ', '.join(f'{v:g}' for v in spec.payloads[0])
-    figure = plt.figure(figsize=(12, 5.5))
-    axes = figure.add_subplot(1, 2, 1, projection='3d')
-    colours = np.where(~converged, 'grey', np.where(stable, 'tab:green', 'tab:red'))
-    axes.scatter(*position.T, c=colours, s=8)
-    axes.set_title(f'stability (green stable, red unstable, grey not converged)\n'
-                   f'{int(stable.sum())}/{spec.block} stable', fontsize=9)
-    axes.set_xlabel('x (mm)')
-    axes.set_ylabel('y (mm)')
-    axes.set_zlabel('z (mm)')
-    axes = figure.add_subplot(1, 2, 2, projection='3d')
-    points = axes.scatter(*position[converged].T, c=rotation[converged], s=8, cmap='viridis')
-    figure.colorbar(points, ax=axes, shrink=0.6, label='parasitic rotation (deg)')
-    axes.set_title('parasitic rotation of the platform', fontsize=9)
-    axes.set_xlabel('x (mm)')
-    axes.set_ylabel('y (mm)')
-    axes.set_zlabel('z (mm)')
-    figure.suptitle(
-        f'CDR workspace, grid {spec.grid}^3 over +-{1e3 * spec.strokes[0]:g} mm sliders, '
-        f'payload [{payload}] N\nworkspace volume '
-        f'{1e6 * volume["convex_hull_m3"]:.1f} cm^3 (convex '
-        f'hull of converged stable samples), {1e6 * volume["jacobian_m3"]:.1f} cm^3 '
-        '(integral of |det dp/dq| over the slider box)', fontsize=9)
-    figure.tight_layout()
-    figure.savefig(paths[0], dpi=110)
-    plt.close(figure)
-    stiffness = 1.0 / results['compliance_eigenvalues_translation'][block][:, -1]
-    margin = results['stiffness_margin'][block]
-    figure, axes = plt.subplots(2, 2, figsize=(11, 9))
-    for row, (values, label) in enumerate(((stiffness, 'smallest translational stiffness '
-                                                       '(N/m)'),
-                                           (margin, 'stiffness margin (N/m)'))):
-        for column, (i, j, names) in enumerate(((0, 2, ('x', 'z')), (0, 1, ('x', 'y')))):
-            plot = axes[row, column]
-            shown = converged & np.isfinite(values)
-            points = plot.scatter(position[shown, i], position[shown, j], c=values[shown],
-                                  s=12, cmap='plasma')
-            figure.colorbar(points, ax=plot, label=label)
-            plot.set_xlabel(f'{names[0]} (mm)')
-            plot.set_ylabel(f'{names[1]} (mm)')
-            plot.set_aspect('equal', adjustable='datalim')
-    figure.suptitle(f'CDR stiffness maps, payload [{payload}] N (projections of the '
-                    f'{spec.grid}^3 slider grid)', fontsize=10)
-    figure.tight_layout()
-    figure.savefig(paths[1], dpi=110)
-    plt.close(figure)
-    return paths
+    block = atlas_block(spec, results, workspace_volumes(spec, results)[0])
+    return save_atlas_figures(block, out.with_suffix(''))
 
 
 def run_cli(args: argparse.Namespace) -> int:

@@ -17,13 +17,14 @@ from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
 from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
 from chunked import chunk_offsets, write_chunked, write_undecodable
+from figure_checks import assert_readable
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
 from msg_tools.__main__ import main
 from msg_tools.errors import ReplayError
 from msg_tools.mcap_log import McapLog
-from msg_tools.plots import arc_points
+from msg_tools.plots import arc_points, plot_replay, replay_figure, replay_shapes
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 import numpy as np
@@ -436,3 +437,17 @@ def test_fidelity_setting_reaches_the_diagnostics(params, tmp_path):
     status = next(message for topic, _, message in outcome.outputs
                   if topic == messages.DIAGNOSTICS_TOPIC)['status'][0]
     assert {kv['key']: kv['value'] for kv in status['values']}['fidelity'] == 'cc'
+
+
+def test_plot_of_the_paper_cases_is_readable(tmp_path):
+    """The plot of the paper's two loads: markers, the loads named, no text on text."""
+    bag = tmp_path / 'paper.mcap'
+    synth.write_wrenches(bag, synth.generate('paper'))
+    series = replay(bag, tmp_path / 'out.mcap', compliance=False).series
+    assert plot_replay(series, tmp_path / 'plot.png') == [0, 1]
+    assert (tmp_path / 'plot.png').stat().st_size > 20_000
+    figure = replay_figure(series.time_s, np.array(series.joints), np.array(series.position),
+                           replay_shapes(series))
+    assert_readable(figure)
+    legend = [text.get_text() for text in figure.legends[0].get_texts()]
+    assert legend == ['F = (12, 0, 0) N (message 0)', 'F = (20, 0, 0) N (message 1)']

@@ -9,9 +9,12 @@ import sys
 import time
 
 from cdr_translator.cli import main as cli_main
-from cdr_translator.robot.atlas import load_results, run_atlas
+from cdr_translator.robot.atlas import (load_results, open_or_create, plot_atlas, run_atlas,
+                                        write_chunk)
+from cdr_translator.robot.atlas_figures import atlas_block, stiffness_figure, workspace_figure
 from cdr_translator.robot.delta import DeltaRobot
-from cdr_translator.robot.samples import AtlasSpec, serpentine
+from cdr_translator.robot.samples import AtlasSpec, serpentine, solve_chunk, workspace_volumes
+from figure_checks import assert_readable
 import numpy as np
 import pytest
 import zarr
@@ -173,3 +176,18 @@ def test_bad_atlas_input(tmp_path, capsys):
     assert 'grid must be an integer of at least 2, got 1' in capsys.readouterr().err
     assert main(['--grid', '2', '--chunk-size', '0', '--out', str(tmp_path / 'a.zarr')]) == 2
     assert '--chunk-size must be at least 1, got 0' in capsys.readouterr().err
+
+
+def test_plot_atlas_of_a_small_store(tmp_path):
+    """A 2x2x2 atlas written and plotted: both pictures, each figure readable."""
+    spec = AtlasSpec.build(2, [GRAVITY_1KG])
+    out = tmp_path / 'atlas.zarr'
+    open_or_create(out, spec, spec.size)
+    write_chunk(out, 0, 0, spec.size, solve_chunk(spec, 0, spec.size))
+    paths = plot_atlas(out)
+    assert [path.name for path in paths] == ['atlas_workspace.png', 'atlas_stiffness.png']
+    assert all(path.stat().st_size > 20_000 for path in paths)
+    spec, results = load_results(out)
+    block = atlas_block(spec, results, workspace_volumes(spec, results)[0])
+    for figure in (workspace_figure(block), stiffness_figure(block)):
+        assert_readable(figure)

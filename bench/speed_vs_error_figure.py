@@ -1,0 +1,210 @@
+"""
+The figure of bench.speed_vs_error: solve time against error of every fidelity level.
+
+Drawn from the report's rows (``speed_vs_error.json`` holds them, so the figure can be
+redrawn without measuring again). Every configuration is a number on the plot and a line
+of the key below it; a number that has no room beside its point moves away along a leader
+line, so no label covers another.
+"""
+
+from dataclasses import dataclass
+import math
+from pathlib import Path
+import re
+import statistics
+from typing import Dict, List, Sequence, Tuple
+
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
+from matplotlib.transforms import Bbox
+import numpy as np
+
+COLOURS = {'full': 'tab:blue', 'rod': 'tab:green', 'cc': 'tab:orange', 'linear': 'tab:red',
+           'auto': 'tab:purple', 'paper': 'black'}
+
+#: Smaller errors are drawn at this value (of the panel's unit): a log axis has no zero.
+FLOOR = 1e-7
+
+#: Font size of the point numbers (pt).
+NUMBER_SIZE = 7
+
+#: Distances (px) and directions (deg) tried for a number around its point, nearest first.
+RADII_PX = (8, 13, 19, 27, 37, 50, 66, 85, 110, 140)
+DIRECTIONS_DEG = (0, 45, -45, 90, -90, 135, -135, 180, 22, -22, 158, -158, 68, -68, 112, -112)
+
+#: Half the size (px) of the box a marker (a star) keeps free of numbers.
+MARKER_HALF_PX, STAR_HALF_PX = 4.5, 7.5
+
+
+@dataclass
+class Measurement:
+    """One configuration: cold solves of the static scenes, warm solves of the sequence."""
+
+    level: str
+    label: str
+    static_time_s: float
+    static_position_m: float
+    static_angle_deg: float
+    sequence_time_s: float = math.nan
+    sequence_position_m: float = math.nan
+    sequence_angle_deg: float = math.nan
+
+
+def key_label(level: str, setting: str) -> str:
+    """Return a key line: the level and its setting without long asides in parentheses."""
+    return f"{level}: {re.sub(r' [(](?!default)[^)]{12,}[)]', '', setting)}"
+
+
+def measurements(rows: Sequence[dict], paper: Dict[str, dict],
+                 paper_scenes: Sequence[str]) -> List[Measurement]:
+    """
+    Return the plotted numbers of the report's ``rows`` and ``paper`` baseline.
+
+    Static: the median time over ``paper_scenes`` and the worst error over every scene;
+    sequence: the median time and the worst error.
+    """
+    result = []
+    for row in rows:
+        static, sequence = row['static'], row['sequence']
+        result.append(Measurement(
+            row['level'], key_label(row['level'], row['setting']),
+            statistics.median(static[name]['time_s'] for name in paper_scenes),
+            max(value['position_m'] for value in static.values()),
+            max(value['angle_deg'] for value in static.values()),
+            sequence['median_time_s'], sequence['max_position_m'],
+            sequence['max_angle_deg']))
+    for name, value in paper.items():
+        result.append(Measurement(
+            'paper', f"paper's numerics, {name} case, cold (method='paper': "
+            'Levenberg-Marquardt, finite-difference Jacobian)',
+            value['time_s'], value['position_m'], value['angle_deg']))
+    return result
+
+
+def _text_size(canvas: FigureCanvasAgg, text: str) -> Tuple[float, float]:
+    """Return the width and height (px) a number's text takes, line spacing included."""
+    probe = Text(0.0, 0.0, text, fontsize=NUMBER_SIZE)
+    probe.set_figure(canvas.figure)
+    extent = probe.get_window_extent(canvas.get_renderer())
+    return extent.width, extent.height
+
+
+def _overlaps(box: Bbox, others: List[Bbox]) -> bool:
+    return any(box.x0 < other.x1 and other.x0 < box.x1 and box.y0 < other.y1
+               and other.y0 < box.y1 for other in others)
+
+
+def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
+                  points: List[Tuple[float, float, str, float]]) -> None:
+    """
+    Write each text beside its point, in the nearest free place.
+
+    ``canvas``: the Agg canvas of the axes' figure, which measures the texts. ``points``:
+    x, y (data coordinates), text, half-size of the marker (px). Free: inside the axes,
+    clear of every marker and of the texts already placed. A text further than the
+    nearest ring gets a leader line to its point.
+    """
+    frame = axes.get_window_extent().padded(-3.0)
+    centres = [axes.transData.transform((x, y)) for x, y, _, _ in points]
+    taken = [Bbox.from_extents(cx - half, cy - half, cx + half, cy + half)
+             for (cx, cy), (_, _, _, half) in zip(centres, points)]
+    # crowded points first, while the places near them are still free
+    crowding = [sum(np.hypot(cx - ox, cy - oy) < 40.0 for ox, oy in centres)
+                for cx, cy in centres]
+    points_per_px = 72.0 / canvas.figure.dpi
+    for k in sorted(range(len(points)), key=lambda index: -crowding[index]):
+        x, y, text, _ = points[k]
+        (cx, cy), (width, height) = centres[k], _text_size(canvas, text)
+        chosen = None
+        for radius in RADII_PX:
+            for degrees in DIRECTIONS_DEG:
+                dx = radius * math.cos(math.radians(degrees))
+                dy = radius * math.sin(math.radians(degrees))
+                box = Bbox.from_bounds(cx + dx - width / 2 - 1.5, cy + dy - height / 2 - 1.5,
+                                       width + 3, height + 3)
+                if frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1) \
+                        and not _overlaps(box, taken):
+                    chosen = (dx, dy, box)
+                    break
+            if chosen is not None:
+                break
+        if chosen is None:  # no room anywhere: the readability test reports it
+            chosen = (RADII_PX[-1], 0.0, Bbox.from_bounds(cx + RADII_PX[-1], cy, width, height))
+        dx, dy, box = chosen
+        taken.append(box)
+        leader = {'arrowstyle': '-', 'color': '0.45', 'linewidth': 0.5, 'shrinkA': 0.0,
+                  'shrinkB': 3.0}
+        axes.annotate(text, (x, y), xytext=(dx * points_per_px, dy * points_per_px),
+                      textcoords='offset points', ha='center', va='center',
+                      fontsize=NUMBER_SIZE, arrowprops=leader if math.hypot(dx, dy) > 10
+                      else None, annotation_clip=False)
+
+
+def _limits(values: List[float], low: float, high: float) -> Tuple[float, float]:
+    return min(values) / low, max(values) * high
+
+
+def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) -> Figure:
+    """Draw solve time against position and angle error; return the Figure."""
+    figure = Figure(figsize=(13, 9), dpi=110)
+    canvas = FigureCanvasAgg(figure)
+    panels = [figure.add_axes((0.07, 0.32, 0.4, 0.6)), figure.add_axes((0.57, 0.32, 0.4, 0.6))]
+    for axes, (field, scale, unit, what, title) in zip(panels, (
+            ('position_m', 1e3, 'mm', 'position', 'End-disk position error'),
+            ('angle_deg', 1.0, 'deg', 'angle',
+             'Angle error (PJ, DJ bending and end-disk orientation)'))):
+        points, floored = [], False
+        for number, value in enumerate(measured, start=1):
+            colour = COLOURS[value.level]
+            pairs = [(value.static_time_s, getattr(value, f'static_{field}'), True)]
+            if math.isfinite(value.sequence_time_s):
+                pairs.append((value.sequence_time_s, getattr(value, f'sequence_{field}'),
+                              False))
+            for seconds, error, cold in pairs:
+                shown = max(scale * error, FLOOR)
+                floored |= scale * error < FLOOR
+                if value.level == 'paper':
+                    axes.scatter(1e3 * seconds, shown, color=colour, marker='*', s=90)
+                elif cold:
+                    axes.scatter(1e3 * seconds, shown, color=colour, marker='o', s=30)
+                else:
+                    axes.scatter(1e3 * seconds, shown, facecolors='none', edgecolors=colour,
+                                 marker='s', s=30)
+                points.append((1e3 * seconds, shown, str(number),
+                               STAR_HALF_PX if value.level == 'paper' else MARKER_HALF_PX))
+        axes.set_xscale('log')
+        axes.set_yscale('log')
+        axes.set_xlim(*_limits([point[0] for point in points], 2.0, 2.5))
+        axes.set_ylim(*_limits([point[1] for point in points], 4.0, 4.0))
+        axes.set_xlabel('median solve time (ms)')
+        axes.set_ylabel(f'{what} error, worst over the scenes ({unit})')
+        axes.set_title(title + (f'\nerrors below {FLOOR:g} {unit} drawn at {FLOOR:g} {unit}'
+                                if floored else ''), fontsize=10)
+        axes.grid(True, which='major', alpha=0.3)
+        place_numbers(axes, canvas, points)
+    handles = [Line2D([], [], color='grey', marker='o', linestyle='none'),
+               Line2D([], [], markeredgecolor='grey', markerfacecolor='none', marker='s',
+                      linestyle='none')]
+    labels = ['static scenes, solved cold: worst error, median time of the paper cases',
+              f'{sequence_length}-wrench sequence, warm-started: worst error, median time']
+    for number, value in enumerate(measured, start=1):
+        handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
+                              marker='*' if value.level == 'paper' else 'o'))
+        labels.append(f'{number}  {value.label}')
+    figure.legend(handles, labels, loc='lower center', ncol=2, fontsize=8,
+                  bbox_to_anchor=(0.5, 0.005), title='key: colour = fidelity level',
+                  title_fontsize=8)
+    figure.suptitle('Translator: solve time against error of every fidelity level '
+                    '(reference: the full model at 32 RK4 steps per disk interval, '
+                    'residual 1e-12)', fontsize=11)
+    return figure
+
+
+def save_speed_error_figure(report: dict, paper_scenes: Sequence[str],
+                            sequence_length: int, path: Path) -> None:
+    """Draw the figure of a speed_vs_error report (its JSON form) to ``path``."""
+    measured = measurements(report['rows'], report['paper_baseline'], paper_scenes)
+    speed_error_figure(measured, sequence_length).savefig(path, dpi=110)

@@ -1,0 +1,180 @@
+"""
+Every figure the project draws reads without the docs, drawn here from small inputs.
+
+No text covers another or lies on another panel, every panel has a title, every axis a
+unit, short series have markers, legends name the physical case, and colour scales say
+when a quantity hardly varies (figure_checks has the geometric checks).
+"""
+
+from bench.speed_vs_error_figure import Measurement, speed_error_figure
+from cdr_translator.plotting import colour_scale, load_text
+from cdr_translator.robot.atlas_figures import AtlasBlock, stiffness_figure, workspace_figure
+from figure_checks import assert_readable, label_problems, text_problems
+from matplotlib.figure import Figure
+from msg_tools.plots import DeflectedShape, replay_figure
+import numpy as np
+import pytest
+
+
+def _legend_texts(figure: Figure) -> list:
+    legends = list(figure.legends) + [axes.get_legend() for axes in figure.axes
+                                      if axes.get_legend() is not None]
+    return [text.get_text() for legend in legends for text in legend.get_texts()]
+
+
+def test_the_checks_find_overlaps_missing_units_and_bare_lines():
+    """A figure with piled labels, a unitless axis and a 2-point line fails every check."""
+    figure = Figure(figsize=(4, 3))
+    axes = figure.add_subplot()
+    axes.plot([0.0, 1.0], [0.0, 1.0])
+    axes.annotate('rod 2', (0.5, 0.5))
+    axes.annotate('rod 4', (0.5, 0.5), xytext=(3, 0), textcoords='offset points')
+    axes.set_xlabel('time')
+    problems = text_problems(figure) + label_problems(figure)
+    assert any("'rod 2' overlaps 'rod 4'" in problem for problem in problems)
+    assert any("'time'" in problem and 'no unit' in problem for problem in problems)
+    assert any('has no marker' in problem for problem in problems)
+    assert any('without a title' in problem for problem in problems)
+
+
+def test_the_checks_find_a_label_under_a_colour_bar():
+    """An axis label drawn on a colour bar's area is reported."""
+    figure = Figure(figsize=(4, 3))
+    axes = figure.add_subplot()
+    figure.colorbar(axes.scatter([0, 1], [0, 1], c=[0, 1]), ax=axes, label='value (N)')
+    axes.set(title='panel', xlabel='x (mm)', ylabel='y (mm)')
+    axes.yaxis.set_label_position('right')
+    axes.yaxis.labelpad = 14
+    assert any('lies on the axes' in problem for problem in text_problems(figure))
+
+
+def test_colour_scale_is_relative_below_one_percent_and_says_constant():
+    """Under 1 % of spread: per cent from the mean; no spread: constant; else as given."""
+    small = colour_scale(np.array([5.88, 5.90, 5.93]), 'stiffness margin', 'kN/m')
+    assert small.label == 'stiffness margin (% from its mean 5.9 kN/m)'
+    assert np.ptp(small.values) == pytest.approx(100 * 0.05 / 5.903333, rel=1e-3)
+    assert 'varies by only 0.85 %' in small.note
+    constant = colour_scale(np.full(4, 2.5), 'rotation', 'deg')
+    assert constant.constant and constant.note == 'constant: 2.5 deg at every sample'
+    wide = colour_scale(np.array([180.0, 270.0]), 'stiffness', 'kN/m')
+    assert wide.label == 'stiffness (kN/m)' and not wide.constant
+    assert np.array_equal(wide.values, [180.0, 270.0])
+
+
+def test_load_text_names_force_and_moment():
+    """The load reads 'F = (12, 0, 0) N', with the moment only when there is one."""
+    assert load_text([12.0, -0.0, 0.0, 0.0, 0.0, 0.0]) == 'F = (12, 0, 0) N'
+    assert load_text([15, -8, -5, 0.3, 0.2, 0.25]) == \
+        'F = (15, -8, -5) N; M = (0.3, 0.2, 0.25) N m'
+
+
+def test_speed_vs_error_figure_is_readable_with_piled_points():
+    """Points on top of each other get numbers that do not cover each other, and a key."""
+    measured = [Measurement('rod', f'rod: {steps} steps', 2e-4, 1.5e-3, 0.6, 1e-4, 9e-4, 0.3)
+                for steps in (1, 2, 4)]
+    measured += [Measurement('full', 'full: 8 steps (default)', 5e-3, 8e-8, 1e-4,
+                             1.8e-4, 9e-8, 1e-4),
+                 Measurement('auto', 'auto: budget 0.01 mm, 0.01 deg', 5e-3, 8e-8, 1e-4,
+                             1.8e-4, 9e-8, 1e-4),
+                 Measurement('linear', 'linear: about the unloaded state', 1e-4, 0.07, 18.0,
+                             1e-4, 7e-3, 1.4),
+                 Measurement('full', 'full: 16 steps', 7e-3, 0.0, 0.0, 2e-4, 3e-9, 4e-6),
+                 Measurement('paper', "paper's numerics, paper 12 N case", 20.0, 1e-8, 5e-5)]
+    figure = speed_error_figure(measured, 1000)
+    assert_readable(figure)
+    key = _legend_texts(figure)
+    assert key[2:] == [f'{number}  {value.label}' for number, value in
+                       enumerate(measured, start=1)]
+    titles = [axes.get_title() for axes in figure.axes]
+    assert 'drawn at 1e-07 mm' in titles[0] and 'drawn at 1e-07 deg' in titles[1]
+    numbers = [text.get_text() for text in figure.axes[0].texts]
+    assert sorted(numbers, key=int) == [str(n) for n in range(1, 9) for _ in range(2)][:-1]
+
+
+def _block(margin_spread: float, grid: int = 3, stable: bool = True) -> AtlasBlock:
+    """Return a sheared grid of platform positions with smooth made-up fields."""
+    levels = np.linspace(-0.03, 0.03, grid)
+    sliders = np.array(np.meshgrid(levels, levels, levels)).reshape(3, -1).T
+    position = sliders @ np.array([[0.8, 0.0, 0.3], [-0.4, 0.7, 0.3], [-0.4, -0.7, 0.3]])
+    position += (0.0, 0.0, -0.13)
+    radius = np.hypot(position[:, 0], position[:, 1])
+    count = len(position)
+    converged = np.ones(count, dtype=bool)
+    is_stable = np.ones(count, dtype=bool)
+    if not stable:
+        converged[0] = False
+        is_stable[1:3] = False
+    return AtlasBlock(position, converged, is_stable, np.radians(0.7) * radius / radius.max(),
+                      2.7e5 - 8e5 * radius, 5930.0 * (1.0 - margin_spread * radius / 0.04),
+                      grid, 0.03, (0.0, 0.0, -9.81),
+                      {'convex_hull_m3': 8.4e-5, 'jacobian_m3': 7.7e-5})
+
+
+@pytest.mark.parametrize('stable', [True, False])
+def test_atlas_workspace_figure_is_readable(stable):
+    """The stability panel says when it is one colour; the verdicts are counted."""
+    figure = workspace_figure(_block(0.006, stable=stable))
+    assert_readable(figure)
+    title = figure.axes[0].get_title()
+    legend = _legend_texts(figure)
+    if stable:
+        assert 'all 27 samples stable: one colour' in title and legend == ['stable (27)']
+    else:
+        assert 'one colour' not in title
+        assert legend == ['stable (24)', 'unstable (2)', 'not converged (1)']
+    assert 'F = (0, 0, -9.81) N' in figure.get_suptitle()
+    assert '84.0 cm\u00b3' in figure.get_suptitle()
+
+
+def test_atlas_stiffness_figure_is_readable_and_honest():
+    """kN/m ticks; a margin that varies by under 1 % is shown as % from its mean."""
+    figure = stiffness_figure(_block(0.006))
+    assert_readable(figure)
+    colour_bars = [axes for axes in figure.axes if axes.get_label() == '<colorbar>']
+    labels = [axes.get_ylabel() for axes in colour_bars]
+    assert labels[0] == 'smallest translational stiffness (kN/m)'
+    assert labels[1].startswith('stiffness margin (% from its mean 5.9')
+    titles = [axes.get_title() for axes in figure.axes if axes not in colour_bars]
+    assert len(titles) == 4 and all('varies by only' in title for title in titles[2:])
+    assert any('Stiffness margin: smallest eigenvalue' in text.get_text()
+               for text in figure.texts)
+
+
+def test_atlas_stiffness_figure_says_when_a_quantity_is_constant():
+    """A constant margin gets no colour bar and a title that says it is constant."""
+    figure = stiffness_figure(_block(0.0))
+    assert_readable(figure)
+    colour_bars = [axes for axes in figure.axes if axes.get_label() == '<colorbar>']
+    assert len(colour_bars) == 1
+    assert 'constant: 5.93 kN/m at every sample' in figure.axes[2].get_title()
+
+
+def _bent_backbones(force: float) -> np.ndarray:
+    """Five rods bending in x-z like the translator's under a lateral force (m)."""
+    s = np.linspace(0.0, 0.17, 41)
+    angle = 0.4 * force / 12.0 * s / 0.17
+    rods = []
+    for offset in (0.0, 0.008, -0.008):
+        for side in (0.0, 0.005) if offset else (0.0,):
+            rods.append(np.stack([0.1 * np.sin(angle) * s + offset * np.cos(angle),
+                                  side + 0 * s, s], axis=1))
+    return np.array(rods)
+
+
+@pytest.mark.parametrize('count', [2, 200])
+def test_replay_figure_is_readable(count):
+    """Markers on a 2-message replay; the legend names each shape's load."""
+    time_s = np.linspace(0.0, 1.0, count)
+    force = np.linspace(12.0, 20.0, count)
+    joints = np.radians(np.outer(force / 12.0, [22.4, 0.0, 11.0, 0.0, 33.0, 0.0]))
+    position = np.stack([0.01 * force / 12.0, 0 * force, 0.05 + 0 * force], axis=1)
+    shapes = [DeflectedShape(0, (12.0, 0.0, 0.0, 0.0, 0.0, 0.0), _bent_backbones(12.0)),
+              DeflectedShape(count - 1, (20.0, 0.0, 0.0, 0.0, 0.0, 0.1),
+                             _bent_backbones(20.0))]
+    figure = replay_figure(time_s, joints, position, shapes)
+    assert_readable(figure)
+    legend = _legend_texts(figure)
+    assert 'F = (12, 0, 0) N (message 0)' in legend
+    assert f'F = (20, 0, 0) N; M = (0, 0, 0.1) N m (message {count - 1})' in legend
+    markers = {line.get_marker() for axes in figure.axes[:2] for line in axes.get_lines()}
+    assert markers == ({'o'} if count == 2 else {'None'})
