@@ -13,7 +13,7 @@ import os
 import re
 
 from cdr_translator import cli
-from guide_blocks import assert_shows, Block, checkout_env, commands, COMMAND_KINDS
+from guide_blocks import assert_shows, Block, checkout_env, COMMAND_KINDS, commands
 from guide_blocks import fenced_blocks, GUIDE, guide_blocks, KINDS, ROOT, run_commands
 import msg_tools.__main__ as msg_tools_main
 import pytest

@@ -12,7 +12,7 @@ import subprocess
 import sys
 
 from cdr_translator.ros.client import NodeProcess, SCRIPT_COMMAND
-from guide_blocks import assert_shows, checkout_env, commands, COMMAND_TIMEOUT_S, guide_blocks
+from guide_blocks import assert_shows, checkout_env, COMMAND_TIMEOUT_S, commands, guide_blocks
 from guide_blocks import run_commands
 
 #: What a node may take to exit after SIGINT (the solve in hand, closing its log).
