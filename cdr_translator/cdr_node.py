@@ -3,7 +3,7 @@
 import sys
 import warnings
 
-from cdr_translator.ros.cdr_node import *  # noqa: F401,F403
+from cdr_translator.ros.cdr_robot import *  # noqa: F401,F403
 
 warnings.warn('cdr_translator.cdr_node is deprecated; import cdr_translator.ros.cdr_node',
               DeprecationWarning, stacklevel=2)

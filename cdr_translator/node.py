@@ -3,7 +3,7 @@
 import sys
 import warnings
 
-from cdr_translator.ros.translator_node import *  # noqa: F401,F403
+from cdr_translator.ros.translator import *  # noqa: F401,F403
 
 warnings.warn('cdr_translator.node is deprecated; import cdr_translator.ros.translator_node',
               DeprecationWarning, stacklevel=2)
