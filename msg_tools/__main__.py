@@ -18,11 +18,14 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from cdr_translator.console import EXIT_BROKEN_PIPE, run_command
-from msg_tools import synth
-from msg_tools.info import describe
-from msg_tools.replay import main_replay
-from msg_tools.synth import PROFILES
+from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
+
+quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
+
+from msg_tools import synth  # noqa: E402
+from msg_tools.info import describe  # noqa: E402
+from msg_tools.replay import main_replay  # noqa: E402
+from msg_tools.synth import PROFILES  # noqa: E402
 
 __all__ = ['EXIT_BROKEN_PIPE', 'main']
 
