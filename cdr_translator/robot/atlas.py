@@ -23,13 +23,16 @@ Dask, xarray and zarr.
 """
 
 import argparse
+from contextlib import contextmanager
 import json
 import math
 import os
 from pathlib import Path
+import signal
 import sys
+import threading
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -135,6 +138,27 @@ def write_chunk(path: Path, index: int, start: int, stop: int,
         path, region={'chunk': slice(index, index + 1)}, consolidated=False)
 
 
+@contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """
+    Block SIGINT in this thread for the block: the worker processes started in it keep it so.
+
+    A Ctrl-C reaches the whole process group: workers that took it would each print a
+    traceback, and one dying mid-task would be restarted by its nanny. The signal mask is
+    inherited through fork and exec by every process and thread started meanwhile, so the
+    workers never see SIGINT; this process takes the one that waited here when the block
+    ends, and tears them down (``run_atlas``).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _client(workers: Optional[int], scheduler: Optional[str]):
     """Return a Dask client of the running cluster at ``scheduler`` or of a new LocalCluster."""
     from distributed import Client, LocalCluster
@@ -145,9 +169,16 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
     count = workers if workers is not None else (os.cpu_count() or 1)
     if count < 1:
         raise ValueError(f'workers must be at least 1, got {count}')
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                           dashboard_address=None, memory_limit='2GiB')
-    return Client(cluster), cluster
+    cluster = None
+    try:
+        with _sigint_blocked():
+            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, memory_limit='2GiB')
+        return Client(cluster), cluster
+    except KeyboardInterrupt:  # the Ctrl-C that waited for the cluster: tear it down
+        if cluster is not None:
+            cluster.close()
+        raise
 
 
 def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
