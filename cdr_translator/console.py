@@ -50,9 +50,15 @@ def json_text(data: Any) -> str:
 
 
 def _exit_interrupted(number: int, frame: Optional[FrameType]) -> None:
-    """SIGINT handler of an entry point that is still importing: one line, exit 130."""
-    print(INTERRUPTED_LINE, file=sys.stderr)
-    raise SystemExit(EXIT_INTERRUPTED)
+    """
+    SIGINT handler of an entry point that is still importing: one line, exit 130 at once.
+
+    No exception: raised inside an extension module's import (numpy's), it comes out as
+    that module's ImportError, a traceback again. Nothing needs cleaning up yet.
+    """
+    sys.stdout.flush()
+    print(INTERRUPTED_LINE, file=sys.stderr, flush=True)
+    os._exit(EXIT_INTERRUPTED)
 
 
 def quiet_sigint() -> None:
@@ -60,8 +66,7 @@ def quiet_sigint() -> None:
     Make Ctrl-C print one line and exit EXIT_INTERRUPTED, until ``run_command`` starts.
 
     An entry point calls it before its heavy imports: a KeyboardInterrupt raised inside
-    them would print the import chain as a traceback. SystemExit ends the imports as
-    quietly. Only the main thread's default handler is replaced (another one is someone's
+    them would print the import chain as a traceback. Only the main thread's default handler is replaced (another one is someone's
     choice); ``run_command`` puts the default back, so the command itself sees
     KeyboardInterrupt, which its cleanup expects.
     """

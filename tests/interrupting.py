@@ -25,18 +25,19 @@ GROUP_GRACE_S = 10.0
 
 @dataclass
 class Ending:
-    """How an interrupted command ended: exit code, stderr, processes it left behind."""
+    """How an interrupted command ended: exit code, output, processes it left behind."""
 
     returncode: int
+    stdout: str
     stderr: str
     leftovers: List[int]
 
-    def assert_quiet(self) -> None:
-        """Exit code 130, one line on stderr, no traceback, no process left."""
+    def assert_quiet(self, stderr_lines: int = 1) -> None:
+        """Exit code 130, ``stderr_lines`` on stderr, no traceback, no process left."""
         lines = self.stderr.strip().splitlines()
         assert self.returncode == 130, (self.returncode, self.stderr[-3000:])
         assert 'Traceback' not in self.stderr, self.stderr[-3000:]
-        assert len(lines) == 1, self.stderr[-3000:]
+        assert len(lines) == stderr_lines, self.stderr[-3000:]
         assert not self.leftovers, f'left behind: {self.leftovers}'
 
 
@@ -88,7 +89,7 @@ def interrupt(command: Sequence[str], when: Callable[[subprocess.Popen], bool],
     command that ends before it is an AssertionError too.
     """
     process = subprocess.Popen(list(command), env=dict(env or environment()), cwd=cwd,
-                               start_new_session=True, stdout=subprocess.DEVNULL,
+                               start_new_session=True, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + wait_s
@@ -97,11 +98,11 @@ def interrupt(command: Sequence[str], when: Callable[[subprocess.Popen], bool],
             assert time.monotonic() < deadline, f'no moment to interrupt in {wait_s} s'
             time.sleep(0.01)
         os.killpg(process.pid, signal.SIGINT)
-        _, stderr = process.communicate(timeout=END_TIMEOUT_S)
+        stdout, stderr = process.communicate(timeout=END_TIMEOUT_S)
         deadline = time.monotonic() + GROUP_GRACE_S
         while group_members(process.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
-        return Ending(process.returncode, stderr, group_members(process.pid))
+        return Ending(process.returncode, stdout, stderr, group_members(process.pid))
     finally:
         if process.poll() is None or group_members(process.pid):
             try:
