@@ -25,6 +25,7 @@ Dask, xarray and zarr.
 import argparse
 from contextlib import contextmanager
 import json
+import logging
 import math
 import os
 from pathlib import Path
@@ -172,8 +173,11 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
     cluster = None
     try:
         with _sigint_blocked():
+            # its WARNINGs (a task cancelled, a busy worker killed at close after Ctrl-C) are
+            # the cluster's business, not the command's: only its errors are printed
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, memory_limit='2GiB')
+                                   dashboard_address=None, memory_limit='2GiB',
+                                   silence_logs=logging.ERROR)
         return Client(cluster), cluster
     except KeyboardInterrupt:  # the Ctrl-C that waited for the cluster: tear it down
         if cluster is not None:

@@ -12,6 +12,7 @@ from cdr_translator.cli import main as cli_main
 from cdr_translator.robot.atlas import load_results, run_atlas
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import AtlasSpec, serpentine
+from interrupting import interrupt
 import numpy as np
 import pytest
 import zarr
@@ -173,3 +174,50 @@ def test_bad_atlas_input(tmp_path, capsys):
     assert 'grid must be an integer of at least 2, got 1' in capsys.readouterr().err
     assert main(['--grid', '2', '--chunk-size', '0', '--out', str(tmp_path / 'a.zarr')]) == 2
     assert '--chunk-size must be at least 1, got 0' in capsys.readouterr().err
+
+
+def _interrupted_after_a_chunk(out: Path, arguments) -> None:
+    """Run the atlas as a process, Ctrl-C it once a chunk is written: quiet, exit 130."""
+    interrupt([sys.executable, '-m', 'cdr_translator', 'atlas', *arguments, '--out', str(out),
+               '--no-progress'], lambda process: _done_chunks(out) >= 1,
+              _environment()).assert_quiet()
+    assert 1 <= _done_chunks(out) < 9
+
+
+def test_ctrl_c_stops_a_local_cluster_quietly_and_the_rerun_resumes(tmp_path, capsys):
+    """Ctrl-C to the whole group: one line, exit 130, no worker left; the rest resumes."""
+    out = tmp_path / 'atlas.zarr'
+    arguments = ['--grid', '3', '--chunk-size', '3', '--workers', '1']
+    _interrupted_after_a_chunk(out, arguments)
+    done = _done_chunks(out)
+    assert main([*arguments, '--out', str(out), '--no-progress']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['already_done'] == done and summary['computed_chunks'] == 9 - done
+
+
+def test_ctrl_c_with_a_separate_cluster_is_quiet(tmp_path):
+    """With --scheduler, Ctrl-C ends the command quietly; the cluster keeps running."""
+    scheduler_file = tmp_path / 'scheduler.json'
+    environment = _environment()
+    processes = []
+    try:
+        processes.append(subprocess.Popen(
+            [sys.executable, '-m', 'distributed.cli.dask_scheduler', '--host', '127.0.0.1',
+             '--port', '0', '--no-dashboard', '--scheduler-file', str(scheduler_file)],
+            env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL))
+        deadline = time.monotonic() + 60.0
+        while (scheduler := _parsed(scheduler_file)) is None:
+            assert time.monotonic() < deadline, 'no complete scheduler file in 60 s'
+            time.sleep(0.1)
+        processes.append(subprocess.Popen(
+            [sys.executable, '-m', 'distributed.cli.dask_worker', scheduler['address'],
+             '--nworkers', '1', '--nthreads', '1', '--no-dashboard', '--host', '127.0.0.1'],
+            env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL))
+        _interrupted_after_a_chunk(tmp_path / 'atlas.zarr', [
+            '--grid', '3', '--chunk-size', '3', '--scheduler', scheduler['address']])
+        assert all(process.poll() is None for process in processes)
+    finally:
+        for process in reversed(processes):
+            _stop(process)
