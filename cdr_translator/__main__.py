@@ -6,6 +6,6 @@ from .console import quiet_sigint
 
 quiet_sigint()
 
-from .cli import main  # noqa: E402 - after quiet_sigint: the solver takes seconds to load
+from .cli import main  # noqa: E402,I100 - after quiet_sigint: the solver takes seconds to load
 
 sys.exit(main())

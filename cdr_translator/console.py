@@ -66,9 +66,9 @@ def quiet_sigint() -> None:
     Make Ctrl-C print one line and exit EXIT_INTERRUPTED, until ``run_command`` starts.
 
     An entry point calls it before its heavy imports: a KeyboardInterrupt raised inside
-    them would print the import chain as a traceback. Only the main thread's default handler is replaced (another one is someone's
-    choice); ``run_command`` puts the default back, so the command itself sees
-    KeyboardInterrupt, which its cleanup expects.
+    them would print the import chain as a traceback. Only the main thread's default
+    handler is replaced (another one is someone's choice); ``run_command`` puts the
+    default back, so the command itself sees KeyboardInterrupt, which its cleanup expects.
     """
     if (threading.current_thread() is threading.main_thread()
             and signal.getsignal(signal.SIGINT) is signal.default_int_handler):

@@ -11,7 +11,7 @@ from ..console import quiet_sigint
 
 quiet_sigint()
 
-from .cdr_robot import main  # noqa: E402 - after quiet_sigint: rclpy and the solver load slowly
+from .cdr_robot import main  # noqa: E402,I100 - rclpy and the solver load slowly
 
 __all__ = ['main']
 

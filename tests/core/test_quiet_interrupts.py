@@ -22,8 +22,8 @@ def start_s() -> float:
     return interpreter_start_s()
 
 
-@pytest.mark.parametrize('command', [['cdr_translator', 'paper'], ['msg_tools', 'info',
-                                                                  'missing.mcap']],
+@pytest.mark.parametrize('command', [['cdr_translator', 'paper'],
+                                     ['msg_tools', 'info', 'missing.mcap']],
                          ids=['cdr_translator', 'msg_tools'])
 @pytest.mark.parametrize('moment', IMPORT_MOMENTS_S)
 def test_ctrl_c_while_importing(command, moment, start_s, tmp_path):

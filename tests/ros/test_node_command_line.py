@@ -32,8 +32,8 @@ def _run(script: str, arguments, env, cwd: Path) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize('script', sorted(NODES))
-def test_help_lists_parameters_topics_and_exit_codes_and_starts_nothing(script, ros_env,
-                                                                       tmp_path):
+def test_help_lists_parameters_topics_and_exit_codes_and_starts_nothing(
+        script, ros_env, tmp_path):
     """--help: exit 0, every parameter and topic on its own line, no file written."""
     specs, topics = NODES[script]
     process = _run(script, ['--help', '--ros-args', '-p', f'log_dir:={tmp_path / "logs"}'],
