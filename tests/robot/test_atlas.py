@@ -1,5 +1,6 @@
 """The atlas: equal to direct solves, resumable after a kill, and on a separate Dask cluster."""
 
+from contextlib import contextmanager
 import json
 import os
 from pathlib import Path
@@ -7,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from typing import Iterator
 
 from cdr_translator.cli import main as cli_main
 from cdr_translator.robot.atlas import load_results, run_atlas
@@ -130,8 +132,9 @@ def _parsed(path: Path):
         return None
 
 
-def test_scheduler_path_with_separate_processes(tmp_path, capsys):
-    """`dask scheduler` and `dask worker` as processes on 127.0.0.1; the atlas uses them."""
+@contextmanager
+def _separate_cluster(tmp_path: Path) -> Iterator[str]:
+    """`dask scheduler` and one `dask worker` as processes on 127.0.0.1; yield the address."""
     scheduler_file = tmp_path / 'scheduler.json'
     environment = _environment()
     processes = []
@@ -153,6 +156,15 @@ def test_scheduler_path_with_separate_processes(tmp_path, capsys):
              '--nthreads', '1', '--no-dashboard', '--host', '127.0.0.1'],
             env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL))
+        yield address
+    finally:
+        for process in reversed(processes):
+            _stop(process)
+
+
+def test_scheduler_path_with_separate_processes(tmp_path, capsys):
+    """`dask scheduler` and `dask worker` as processes on 127.0.0.1; the atlas uses them."""
+    with _separate_cluster(tmp_path) as address:
         out = tmp_path / 'atlas.zarr'
         assert main(['--grid', '2', '--payload', '0', '0', '-9.81', '--payload', '0', '0', '0',
                      '--out', str(out), '--scheduler', address, '--no-progress']) == 0
@@ -163,9 +175,6 @@ def test_scheduler_path_with_separate_processes(tmp_path, capsys):
         assert np.all(results['converged'])
         assert np.allclose(results['payload'][:8], GRAVITY_1KG)
         assert np.allclose(results['payload'][8:], 0.0)
-    finally:
-        for process in reversed(processes):
-            _stop(process)
 
 
 def test_bad_atlas_input(tmp_path, capsys):
@@ -196,28 +205,7 @@ def test_ctrl_c_stops_a_local_cluster_quietly_and_the_rerun_resumes(tmp_path, ca
 
 
 def test_ctrl_c_with_a_separate_cluster_is_quiet(tmp_path):
-    """With --scheduler, Ctrl-C ends the command quietly; the cluster keeps running."""
-    scheduler_file = tmp_path / 'scheduler.json'
-    environment = _environment()
-    processes = []
-    try:
-        processes.append(subprocess.Popen(
-            [sys.executable, '-m', 'distributed.cli.dask_scheduler', '--host', '127.0.0.1',
-             '--port', '0', '--no-dashboard', '--scheduler-file', str(scheduler_file)],
-            env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL))
-        deadline = time.monotonic() + 60.0
-        while (scheduler := _parsed(scheduler_file)) is None:
-            assert time.monotonic() < deadline, 'no complete scheduler file in 60 s'
-            time.sleep(0.1)
-        processes.append(subprocess.Popen(
-            [sys.executable, '-m', 'distributed.cli.dask_worker', scheduler['address'],
-             '--nworkers', '1', '--nthreads', '1', '--no-dashboard', '--host', '127.0.0.1'],
-            env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL))
+    """With --scheduler, Ctrl-C ends the command quietly (the cluster is not its own)."""
+    with _separate_cluster(tmp_path) as address:
         _interrupted_after_a_chunk(tmp_path / 'atlas.zarr', [
-            '--grid', '3', '--chunk-size', '3', '--scheduler', scheduler['address']])
-        assert all(process.poll() is None for process in processes)
-    finally:
-        for process in reversed(processes):
-            _stop(process)
+            '--grid', '3', '--chunk-size', '3', '--scheduler', address])
