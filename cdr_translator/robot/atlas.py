@@ -160,6 +160,20 @@ def _sigint_blocked() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
+def dask_setup(worker: object) -> None:
+    """
+    Start-up of each local worker (Dask's preload hook): Ctrl-C is ignored for good.
+
+    The SIGINT mask the worker inherits (``_sigint_blocked``) keeps Ctrl-C out while it
+    starts, but does not last (the started worker's main thread was seen with SIGINT
+    unblocked), and asyncio's runner would turn one into a KeyboardInterrupt traceback.
+    Ignoring it is process-wide and lasting; the preload runs in the worker's main thread,
+    where handlers may be set.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _client(workers: Optional[int], scheduler: Optional[str]):
     """Return a Dask client of the running cluster at ``scheduler`` or of a new LocalCluster."""
     from distributed import Client, LocalCluster
@@ -177,7 +191,7 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
             # the cluster's business, not the command's: only its errors are printed
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                    dashboard_address=None, memory_limit='2GiB',
-                                   silence_logs=logging.ERROR)
+                                   silence_logs=logging.ERROR, preload=[__name__])
         return Client(cluster), cluster
     except KeyboardInterrupt:  # the Ctrl-C that waited for the cluster: tear it down
         if cluster is not None:
