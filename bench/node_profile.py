@@ -24,7 +24,7 @@ from typing import Any, Callable, Dict, List
 
 from bench.node_latency import child_pids
 from cdr_translator.interface import messages
-from cdr_translator.ros import runtime, serialization, translator_node
+from cdr_translator.ros import runtime, serialization, translator
 from rclpy.publisher import Publisher
 
 #: stage -> [calls, thread CPU s, wall s]
@@ -123,7 +123,7 @@ def report(out: Path, node: Any, threads: Dict[int, tuple]) -> None:
 
 def install(out: Path) -> None:
     """Put the timers around the node's stages; the report is written when it closes."""
-    node_class = translator_node.TranslatorNode
+    node_class = translator.TranslatorNode
     callback = timed('callback (executor thread)', node_class._on_wrench)
 
     def on_wrench(self: Any, data: Any) -> None:
@@ -135,12 +135,12 @@ def install(out: Path) -> None:
     wrap(node_class, '_counts', 'counts')
     wrap(node_class, '_wanted', 'subscription counts')  # before the CDR encoding
     wrap(runtime.SubscriberCounts, 'subscribed', 'subscription counts')
-    wrap(translator_node, 'deserialize_message', 'decode')
+    wrap(translator, 'deserialize_message', 'decode')
     wrap(serialization, 'decode', 'decode')
-    wrap(translator_node, 'solve_wrench', 'solve')
-    wrap(translator_node, 'fill_message', 'fill rclpy message')
-    wrap(translator_node, 'serialize_message', 'serialize')
-    if hasattr(translator_node, 'serialization'):
+    wrap(translator, 'solve_wrench', 'solve')
+    wrap(translator, 'fill_message', 'fill rclpy message')
+    wrap(translator, 'serialize_message', 'serialize')
+    if hasattr(translator, 'serialization'):
         make_encoder = serialization.encoder
         serialization.encoder = lambda message_class: timed('encode', make_encoder(message_class))
     if hasattr(serialization, 'decoder'):  # a decoder bound at start, not the wrapped decode
@@ -173,7 +173,7 @@ def main() -> int:
     """Run translator_node with the timers; the report goes to the first argument."""
     out = Path(sys.argv[1])
     install(out)
-    return translator_node.main([sys.argv[0], *sys.argv[2:]])
+    return translator.main([sys.argv[0], *sys.argv[2:]])
 
 
 if __name__ == '__main__':

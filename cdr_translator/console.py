@@ -6,6 +6,8 @@ What every command line of the project prints and how it ends at the console's e
 * ``run_command``: a closed standard output (``| head -1``) ends quietly with
   ``EXIT_BROKEN_PIPE``, Ctrl-C with one line and ``EXIT_INTERRUPTED``, never a traceback;
   a warning (an implausible parameter) is one line, ``warning: ...``, on stderr.
+* ``quiet_sigint``: the same for a Ctrl-C while an entry point still imports (numpy,
+  numba, scipy, rclpy take seconds), until ``run_command`` takes over.
 * ``unwritable_reason``: whether an output path can be written, asked before any work.
 """
 
@@ -13,8 +15,11 @@ import json
 import math
 import os
 from pathlib import Path
+import signal
 import sys
 import tempfile
+import threading
+from types import FrameType
 from typing import Any, Callable, Optional, TextIO, Type, Union
 import warnings
 
@@ -23,8 +28,11 @@ EXIT_INTERRUPTED = 130
 #: Standard output closed early (128 + SIGPIPE), as a shell reports a process SIGPIPE ended.
 EXIT_BROKEN_PIPE = 141
 
-__all__ = ['EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED', 'finite_or_none', 'json_text',
-           'one_line_warning', 'run_command', 'unwritable_reason']
+#: What a command prints on stderr when Ctrl-C ends it.
+INTERRUPTED_LINE = 'interrupted (Ctrl-C)'
+
+__all__ = ['EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED', 'finite_or_none', 'INTERRUPTED_LINE',
+           'json_text', 'one_line_warning', 'quiet_sigint', 'run_command', 'unwritable_reason']
 
 
 def finite_or_none(data: Any) -> Any:
@@ -43,16 +51,45 @@ def json_text(data: Any) -> str:
     return json.dumps(finite_or_none(data), allow_nan=False)
 
 
+def _exit_interrupted(number: int, frame: Optional[FrameType]) -> None:
+    """
+    SIGINT handler of an entry point that is still importing: one line, exit 130 at once.
+
+    No exception: raised inside an extension module's import (numpy's), it comes out as
+    that module's ImportError, a traceback again. Nothing needs cleaning up yet.
+    """
+    sys.stdout.flush()
+    print(INTERRUPTED_LINE, file=sys.stderr, flush=True)
+    os._exit(EXIT_INTERRUPTED)
+
+
+def quiet_sigint() -> None:
+    """
+    Make Ctrl-C print one line and exit EXIT_INTERRUPTED, until ``run_command`` starts.
+
+    An entry point calls it before its heavy imports: a KeyboardInterrupt raised inside
+    them would print the import chain as a traceback. Only the main thread's default
+    handler is replaced (another one is someone's choice); ``run_command`` puts the
+    default back, so the command itself sees KeyboardInterrupt, which its cleanup expects.
+    """
+    if (threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+        signal.signal(signal.SIGINT, _exit_interrupted)
+
+
 def run_command(command: Callable[[], int]) -> int:
     """
     Run a command-line ``command``; return its exit code, or the console's own.
 
     A BrokenPipeError (the reader of stdout went away) returns EXIT_BROKEN_PIPE after
     pointing stdout at /dev/null, so the interpreter's final flush cannot raise again; a
-    KeyboardInterrupt prints 'interrupted' on stderr and returns EXIT_INTERRUPTED. Warnings
+    KeyboardInterrupt prints 'interrupted' on stderr and returns EXIT_INTERRUPTED. A
+    ``quiet_sigint`` handler gives way to Python's default one for the command. Warnings
     print as one line each (``one_line_warning``).
     """
     try:
+        if signal.getsignal(signal.SIGINT) is _exit_interrupted:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         with warnings.catch_warnings():
             warnings.showwarning = one_line_warning
             return command()
@@ -60,7 +97,7 @@ def run_command(command: Callable[[], int]) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
-        print('interrupted (Ctrl-C)', file=sys.stderr)
+        print(INTERRUPTED_LINE, file=sys.stderr)
         return EXIT_INTERRUPTED
 
 

@@ -18,14 +18,18 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from cdr_translator.console import EXIT_BROKEN_PIPE, run_command
-from msg_tools import synth
-from msg_tools.errors import ReplayError
-from msg_tools.info import describe
-from msg_tools.plots import check_plot_path, plot_replay
-from msg_tools.replay import replay
-from msg_tools.replay_summary import EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE
-from msg_tools.synth import PROFILES
+from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
+
+quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
+
+from msg_tools import synth  # noqa: E402
+from msg_tools.errors import ReplayError  # noqa: E402
+from msg_tools.info import describe  # noqa: E402
+from msg_tools.plots import check_plot_path, plot_replay  # noqa: E402
+from msg_tools.replay import replay  # noqa: E402
+from msg_tools.replay_summary import (  # noqa: E402
+    EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE)
+from msg_tools.synth import PROFILES  # noqa: E402
 
 __all__ = ['EXIT_BROKEN_PIPE', 'main']
 

@@ -29,6 +29,9 @@ __all__ = ['CDR_SPECS', 'CdrSettings', 'check_value', 'MODEL_KEYS', 'ParameterSp
 
 PathLike = Union[str, Path]
 
+#: Units a spec's description may open with, before a comma ('m, radius of ...').
+UNITS = ('m', 'Pa', 'N', 'N m', 's', 'deg')
+
 
 @dataclass(frozen=True)
 class ParameterSpec:
@@ -39,6 +42,18 @@ class ParameterSpec:
     read_only: bool = False
     bounds: Optional[Tuple[float, float]] = None
     choices: Optional[Tuple[str, ...]] = None
+
+    @property
+    def unit(self) -> str:
+        """Return the unit the description opens with ('' for none)."""
+        head, separator, _ = self.description.partition(', ')
+        return head if separator and head in UNITS else ''
+
+    @property
+    def meaning(self) -> str:
+        """Return the description without its unit."""
+        unit = self.unit
+        return self.description[len(unit) + 2:] if unit else self.description
 
     def check(self, value: Any) -> None:
         """Raise ParameterError naming the key for a value outside its bounds or choices."""

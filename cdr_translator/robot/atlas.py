@@ -23,13 +23,17 @@ Dask, xarray and zarr.
 """
 
 import argparse
+from contextlib import contextmanager
 import json
+import logging
 import math
 import os
 from pathlib import Path
+import signal
 import sys
+import threading
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -135,6 +139,41 @@ def write_chunk(path: Path, index: int, start: int, stop: int,
         path, region={'chunk': slice(index, index + 1)}, consolidated=False)
 
 
+@contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """
+    Block SIGINT in this thread for the block: the worker processes started in it keep it so.
+
+    A Ctrl-C reaches the whole process group: workers that took it would each print a
+    traceback, and one dying mid-task would be restarted by its nanny. The signal mask is
+    inherited through fork and exec by every process and thread started meanwhile, so the
+    workers never see SIGINT; this process takes the one that waited here when the block
+    ends, and tears them down (``run_atlas``).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def dask_setup(worker: object) -> None:
+    """
+    Start-up of each local worker (Dask's preload hook): Ctrl-C is ignored for good.
+
+    The SIGINT mask the worker inherits (``_sigint_blocked``) keeps Ctrl-C out while it
+    starts, but does not last (the started worker's main thread was seen with SIGINT
+    unblocked), and asyncio's runner would turn one into a KeyboardInterrupt traceback.
+    Ignoring it is process-wide and lasting; the preload runs in the worker's main thread,
+    where handlers may be set.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _client(workers: Optional[int], scheduler: Optional[str]):
     """Return a Dask client of the running cluster at ``scheduler`` or of a new LocalCluster."""
     from distributed import Client, LocalCluster
@@ -145,9 +184,19 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
     count = workers if workers is not None else (os.cpu_count() or 1)
     if count < 1:
         raise ValueError(f'workers must be at least 1, got {count}')
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                           dashboard_address=None, memory_limit='2GiB')
-    return Client(cluster), cluster
+    cluster = None
+    try:
+        with _sigint_blocked():
+            # its WARNINGs (a task cancelled, a busy worker killed at close after Ctrl-C) are
+            # the cluster's business, not the command's: only its errors are printed
+            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, memory_limit='2GiB',
+                                   silence_logs=logging.ERROR, preload=[__name__])
+        return Client(cluster), cluster
+    except KeyboardInterrupt:  # the Ctrl-C that waited for the cluster: tear it down
+        if cluster is not None:
+            cluster.close()
+        raise
 
 
 def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,

@@ -10,7 +10,7 @@ where rcl alone would ignore or refuse it differently.
 """
 
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import yaml
@@ -19,9 +19,15 @@ from ..errors import ParameterError
 from ..interface.settings import check_value, MODEL_KEYS, ParameterSpec, SPECS
 from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
+from ..params_file import read_document
 
-__all__ = ['check_value', 'default_values', 'descriptor', 'MODEL_KEYS', 'model_params',
-           'NodeSettings', 'ParameterSpec', 'ros_parameter_sources', 'SPECS']
+__all__ = ['check_command_line', 'check_value', 'default_values', 'descriptor', 'MODEL_KEYS',
+           'model_params', 'NodeSettings', 'node_arguments', 'ParameterSpec',
+           'ros_parameter_sources', 'SPECS']
+
+#: The ROS arguments that take a value, which ``ros_parameter_sources`` reads.
+_PARAMS_FILE_FLAG = '--params-file'
+_PARAM_FLAGS = ('-p', '--param')
 
 #: The node-only snapshot type of earlier versions: now every key is in TranslatorSettings.
 NodeSettings = TranslatorSettings
@@ -51,6 +57,28 @@ def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str
     """
     files: List[str] = []
     overrides: Dict[str, Any] = {}
+    for token, following in _ros_pairs(arguments):
+        if token in (_PARAMS_FILE_FLAG, *_PARAM_FLAGS) and following is None:
+            raise ParameterError(f'{token} at the end of the command line: it needs a value')
+        if token == _PARAMS_FILE_FLAG:
+            files.append(str(following))
+        elif token in _PARAM_FLAGS:
+            name, separator, text = str(following).partition(':=')
+            if not separator or not name:
+                raise ParameterError(f'-p {following!r}: expected name:=value')
+            if ':' in name:  # node:name targets one node by name
+                continue
+            try:
+                overrides[name] = yaml.safe_load(text)
+            except yaml.YAMLError as error:
+                raise ParameterError(f'-p {name}: {text!r} is not a YAML value ('
+                                     f'{" ".join(str(error).split())})') from error
+    return files, overrides
+
+
+def _ros_pairs(arguments: Sequence[str]) -> List[Tuple[str, Optional[str]]]:
+    """Return each ROS argument (between ``--ros-args`` and ``--``) with the next token."""
+    pairs: List[Tuple[str, Optional[str]]] = []
     inside = False
     tokens = list(arguments)
     for index, token in enumerate(tokens):
@@ -58,18 +86,37 @@ def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str
             inside = True
         elif token == '--':
             inside = False
-        elif inside and index + 1 < len(tokens):
-            following = tokens[index + 1]
-            if token == '--params-file':
-                files.append(following)
-            elif token in ('-p', '--param'):
-                name, separator, text = following.partition(':=')
-                if not separator or not name:
-                    raise ParameterError(f'-p {following!r}: expected name:=value')
-                if ':' in name:  # node:name targets one node by name
-                    continue
-                overrides[name] = yaml.safe_load(text)
-    return files, overrides
+        elif inside:
+            pairs.append((token, tokens[index + 1] if index + 1 < len(tokens) else None))
+    return pairs
+
+
+def node_arguments(arguments: Sequence[str]) -> List[str]:
+    """Return the arguments that are not ROS's (outside ``--ros-args`` ... ``--``)."""
+    ours: List[str] = []
+    inside = False
+    for token in arguments:
+        if token == '--ros-args':
+            inside = True
+        elif token == '--' and inside:
+            inside = False
+        elif not inside:
+            ours.append(token)
+    return ours
+
+
+def check_command_line(arguments: Sequence[str]) -> None:
+    """
+    Check the ``--params-file`` and ``-p`` of a node's command line before rcl reads them.
+
+    Every file must be a readable params file (the checks the CLI applies to ``--params``)
+    and every ``-p`` a ``name:=value`` with a YAML value: ParameterError naming the file or
+    parameter otherwise, where rcl would fail to initialize with a traceback. Which keys a
+    file may hold is judged later, with the node's namespace known.
+    """
+    files, _ = ros_parameter_sources(arguments)
+    for path in files:
+        read_document(path)
 
 
 def default_values(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:

@@ -29,6 +29,7 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as rclpy_extension
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import serialize_message
@@ -37,7 +38,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
-from .parameters import check_value
+from .node_help import EXIT_CANNOT_START, wants_help
+from .parameters import check_command_line, check_value
+from ..console import run_command
 from ..interface import messages
 from ..params import ParameterError
 
@@ -339,28 +342,63 @@ def freeze_heap() -> int:
     return gc.get_freeze_count()
 
 
-def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None) -> int:
+def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] = None,
+        help_text: Optional[Callable[[], str]] = None) -> int:
     """
     Run the node ``factory(ros_arguments=...)`` builds until SIGINT or SIGTERM.
 
     ``ros_arguments`` is the command line (``args``, or sys.argv), from which the node reads
-    its ``--params-file`` and ``-p`` values. The exit code is 2 when it cannot start (bad
-    parameters, unwritable log), else 0 after its ``close()`` (which must stop its threads
-    and finalize its log) and a clean shutdown. What the started node holds is frozen
-    (``freeze_heap``) before it spins.
+    its ``--params-file`` and ``-p`` values. ``-h``/``--help`` (outside ``--ros-args``)
+    prints ``help_text()`` and returns 0 before anything starts. The exit code is
+    EXIT_CANNOT_START (2, one line on stderr) when it cannot start (a missing or
+    unparsable params file, a bad ``-p``, bad parameters, an unwritable log),
+    EXIT_INTERRUPTED (130) after a Ctrl-C during start-up (console.run_command), else 0
+    after its ``close()`` (which must stop its threads and finalize its log) and a clean
+    shutdown. What the started node holds is frozen (``freeze_heap``) before it spins.
     """
-    rclpy.init(args=None if args is None else list(args),
-               signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, lambda *_: stop.set())
+    arguments = list(sys.argv if args is None else args)
+    return run_command(lambda: _start(factory, name, arguments, help_text))
+
+
+def _cannot_start(name: str, error: BaseException) -> int:
+    """Print why node ``name`` cannot start, on one line; return EXIT_CANNOT_START."""
+    print(f'{name}: {" ".join(str(error).split())}', file=sys.stderr)
+    return EXIT_CANNOT_START
+
+
+def _start(factory: Callable[..., Node], name: str, arguments: List[str],
+           help_text: Optional[Callable[[], str]]) -> int:
+    """Answer ``--help``, check the parameter sources, then initialize rclpy and spin."""
+    if help_text is not None and wants_help(arguments):
+        print(help_text())
+        return 0
     try:
-        node: Any = factory(ros_arguments=list(sys.argv if args is None else args))
+        # rcl would refuse these with a traceback: the CLI's checks name the file or -p
+        check_command_line(arguments)
+        rclpy.init(args=arguments, signal_handler_options=SignalHandlerOptions.NO)
+    except (ParameterError, rclpy_extension.RCLError) as error:
+        return _cannot_start(name, error)
+    try:
+        return _spin(factory, name, arguments)
+    finally:
+        rclpy.try_shutdown()
+
+
+def _spin(factory: Callable[..., Node], name: str, arguments: List[str]) -> int:
+    """
+    Build the node and spin it until SIGINT or SIGTERM; return the exit code.
+
+    SIGTERM during start-up stops the node once built; SIGINT is a KeyboardInterrupt until
+    the node is built (Ctrl-C need not wait for the warm-up), then a stop request.
+    """
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        node: Any = factory(ros_arguments=arguments)
     except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException,
             OSError) as error:
-        print(f'{name}: {error}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
+        return _cannot_start(name, error)
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
     freeze_heap()
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     executor = EventsExecutor()
@@ -372,5 +410,4 @@ def run(factory: Callable[..., Node], name: str, args: Optional[Sequence[str]] =
         node.close()
         executor.shutdown()
         node.destroy_node()
-        rclpy.try_shutdown()
     return 0

@@ -1,5 +1,6 @@
 """The atlas: equal to direct solves, resumable after a kill, and on a separate Dask cluster."""
 
+from contextlib import contextmanager
 import json
 import os
 from pathlib import Path
@@ -7,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from typing import Iterator
 
 from cdr_translator.cli import main as cli_main
 from cdr_translator.robot.atlas import (load_results, open_or_create, plot_atlas, run_atlas,
@@ -15,6 +17,7 @@ from cdr_translator.robot.atlas_figures import atlas_block, stiffness_figure, wo
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import AtlasSpec, serpentine, solve_chunk, workspace_volumes
 from figure_checks import assert_readable
+from interrupting import interrupt
 import numpy as np
 import pytest
 import zarr
@@ -132,8 +135,9 @@ def _parsed(path: Path):
         return None
 
 
-def test_scheduler_path_with_separate_processes(tmp_path, capsys):
-    """`dask scheduler` and `dask worker` as processes on 127.0.0.1; the atlas uses them."""
+@contextmanager
+def _separate_cluster(tmp_path: Path) -> Iterator[str]:
+    """`dask scheduler` and one `dask worker` as processes on 127.0.0.1; yield the address."""
     scheduler_file = tmp_path / 'scheduler.json'
     environment = _environment()
     processes = []
@@ -155,6 +159,15 @@ def test_scheduler_path_with_separate_processes(tmp_path, capsys):
              '--nthreads', '1', '--no-dashboard', '--host', '127.0.0.1'],
             env=environment, start_new_session=True, stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL))
+        yield address
+    finally:
+        for process in reversed(processes):
+            _stop(process)
+
+
+def test_scheduler_path_with_separate_processes(tmp_path, capsys):
+    """`dask scheduler` and `dask worker` as processes on 127.0.0.1; the atlas uses them."""
+    with _separate_cluster(tmp_path) as address:
         out = tmp_path / 'atlas.zarr'
         assert main(['--grid', '2', '--payload', '0', '0', '-9.81', '--payload', '0', '0', '0',
                      '--out', str(out), '--scheduler', address, '--no-progress']) == 0
@@ -165,9 +178,6 @@ def test_scheduler_path_with_separate_processes(tmp_path, capsys):
         assert np.all(results['converged'])
         assert np.allclose(results['payload'][:8], GRAVITY_1KG)
         assert np.allclose(results['payload'][8:], 0.0)
-    finally:
-        for process in reversed(processes):
-            _stop(process)
 
 
 def test_bad_atlas_input(tmp_path, capsys):
@@ -191,3 +201,29 @@ def test_plot_atlas_of_a_small_store(tmp_path):
     block = atlas_block(spec, results, workspace_volumes(spec, results)[0])
     for figure in (workspace_figure(block), stiffness_figure(block)):
         assert_readable(figure)
+
+
+def _interrupted_after_a_chunk(out: Path, arguments) -> None:
+    """Run the atlas as a process, Ctrl-C it once a chunk is written: quiet, exit 130."""
+    interrupt([sys.executable, '-m', 'cdr_translator', 'atlas', *arguments, '--out', str(out),
+               '--no-progress'], lambda process: _done_chunks(out) >= 1,
+              _environment()).assert_quiet()
+    assert 1 <= _done_chunks(out) < 9
+
+
+def test_ctrl_c_stops_a_local_cluster_quietly_and_the_rerun_resumes(tmp_path, capsys):
+    """Ctrl-C to the whole group: one line, exit 130, no worker left; the rest resumes."""
+    out = tmp_path / 'atlas.zarr'
+    arguments = ['--grid', '3', '--chunk-size', '3', '--workers', '1']
+    _interrupted_after_a_chunk(out, arguments)
+    done = _done_chunks(out)
+    assert main([*arguments, '--out', str(out), '--no-progress']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['already_done'] == done and summary['computed_chunks'] == 9 - done
+
+
+def test_ctrl_c_with_a_separate_cluster_is_quiet(tmp_path):
+    """With --scheduler, Ctrl-C ends the command quietly (the cluster is not its own)."""
+    with _separate_cluster(tmp_path) as address:
+        _interrupted_after_a_chunk(tmp_path / 'atlas.zarr', [
+            '--grid', '3', '--chunk-size', '3', '--scheduler', address])

@@ -2,8 +2,8 @@
 
 from contextlib import contextmanager
 
-from cdr_translator.ros.cdr_node import CdrNode
-from cdr_translator.ros.translator_node import TranslatorNode
+from cdr_translator.ros.cdr_robot import CdrNode
+from cdr_translator.ros.translator import TranslatorNode
 import pytest
 import rclpy
 from rclpy.context import Context

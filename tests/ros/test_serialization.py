@@ -14,7 +14,7 @@ from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
 from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
-from cdr_translator.ros.translator_node import TranslatorNode
+from cdr_translator.ros.translator import TranslatorNode
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 import pytest
 import rclpy

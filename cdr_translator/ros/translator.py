@@ -1,0 +1,318 @@
+"""
+translator_node: wrenches in, the translator's loaded shape out, every run logged to MCAP.
+
+Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
+with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
+``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
+defines their content). The subscription callback only counts and logs a wrench and hands
+its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
+one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
+one solve are both answered and, when they keep arriving faster than the solver, the newest
+wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
+(cdr_translator.interface.wrench_processing: the same checks, frames and follower-load solve as the
+offline replay). The subscription's queue is
+``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
+it. Outputs are built only for topics someone subscribes to (all of them while logging),
+one by one with the pose first (it is published before the others are built), encoded
+straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
+and the same bytes logged: every received wrench and every output goes to an MCAP file
+written by a child process (runtime.NodeLog), so that the writing takes no time from the
+solve. Only cdr_translator.ros imports rclpy or ROS message classes.
+"""
+
+from pathlib import Path
+import sys
+import threading
+import time
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
+
+from geometry_msgs.msg import WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from . import node_help, serialization
+from .parameters import descriptor, ros_parameter_sources, SPECS
+from .runtime import check_parameters, LatestMailbox, log_health, log_lost
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, NodeLog, open_log, OUTPUTS, run
+from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
+from .._jit import timed_warm_up
+from ..interface import messages
+from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
+from ..interface.wrench_processing import solve_wrench
+from ..interface.settings import TranslatorSettings
+from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
+from ..result import SolveResult
+from ..solver import check_wrench
+
+
+#: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.
+WARM_UP_FORCES = (1.0, 1.5, 2.0, 2.5)
+
+
+class TranslatorNode(Node):
+    """The translator as a ROS 2 node; ``close()`` stops it and finalizes the MCAP log."""
+
+    def __init__(self, params_path: Path = DEFAULT_PARAMS_PATH,
+                 ros_arguments: Sequence[str] = (), **kwargs: Any) -> None:
+        """
+        Declare parameters, warm up, then subscribe.
+
+        The values are TranslatorSettings' reading of ``params_path`` (the shipped defaults)
+        and of the ``--params-file``/``-p`` of ``ros_arguments`` (the command line), for this
+        node's fully qualified name: the rules the CLI and replay apply to the same files.
+        """
+        super().__init__(NODE_NAME, **kwargs)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        files, overrides = ros_parameter_sources(ros_arguments)
+        settings = TranslatorSettings.from_params_files(
+            files, namespace=self.get_namespace(), defaults_path=params_path,
+            node_name=self.get_name(), overrides=overrides)
+        values = {name: self.declare_parameter(name, value,
+                                               descriptor(SPECS[name], value)).value
+                  for name, value in settings.values().items()}
+        self._settings = TranslatorSettings.from_values(values)
+        self.solver = node_solver(self._settings.params, self._settings)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
+        self.received = self.rejected = self.solved = self.failed = 0
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
+                                                                  reliable)
+                                     for topic, message_class in OUTPUTS.items()}
+        self._subscribers = SubscriberCounts(self._publishers_by_topic)
+        self._encoders = {topic: serialization.encoder(message_class)
+                          for topic, message_class in OUTPUTS.items()}
+        # built now: reading the layout takes about 17 ms, which the first wrench would wait
+        self._decode_wrench = serialization.decoder(WrenchStamped)
+        self._type_names = {topic: type_name(message_class)
+                            for topic, message_class in OUTPUTS.items()}
+        self._mailbox = LatestMailbox(self._settings.pending_wrenches)
+        timed_warm_up(self._warm_up, self.get_logger().info)
+        self._log, self.mcap_path = self._open_log()
+        self._log_watch = LogWatch(self._log) if self._log is not None else None
+        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
+                           if self._log is not None else None)
+        self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
+        self._worker.start()
+        self._subscription = self.create_subscription(
+            WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
+            sensor_qos(self._settings.wrench_queue_depth), raw=True)
+        self.get_logger().info(
+            f'ready: {self._subscription.topic_name} -> '
+            f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
+            f'MCAP log {self.mcap_path or "off"}')
+
+    # parameters ------------------------------------------------------------------------------
+    def _check_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
+        """Reject a change with the reason (descriptors have checked read-only and ranges)."""
+        return check_parameters(self, SPECS, parameters)
+
+    def _apply_parameters(self, parameters: List[Parameter]) -> None:
+        """Take accepted run-time values into a new settings snapshot."""
+        self._settings = self._settings.with_values(
+            **{parameter.name: parameter.value for parameter in parameters})
+        self.solver.time_limit_s = self._settings.solve_time_limit_s
+
+    # start-up --------------------------------------------------------------------------------
+    def _warm_up(self) -> None:
+        """
+        Solve along a short path and build every output (compiles or loads the kernels).
+
+        Four solves: the fourth is the usual warm solve of a stream (warm_step.py), whose
+        kernel would otherwise load while a wrench waits. Then the solver forgets them.
+        """
+        for force in WARM_UP_FORCES[:-1]:
+            self.solver.solve([force, 0.0, 0.0])
+        result = self.solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
+        for topic, _, values in messages.output_messages(
+                result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
+                backbones_params=self.solver.params, extra_values=self._counts()):
+            self._encoders[topic](values)
+        self.solver.reset()
+
+    def _open_log(self) -> Tuple[Optional[NodeLog], str]:
+        """Open the MCAP log (unless disabled) and register the wrench and output topics."""
+        topics = [(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
+                   'sensor_data')]
+        topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
+                   for topic, publisher in self._publishers_by_topic.items()]
+        return open_log(self._settings, 'translator', topics)
+
+    def _check_log(self) -> None:
+        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
+        self._publish_all(self._serialized(log_health(self._log_watch, self.get_logger(),
+                                                      NODE_NAME, self._counts())))
+
+    # input -----------------------------------------------------------------------------------
+    def _on_wrench(self, data: bytes) -> None:
+        """
+        Count and log the wrench as received, and leave its bytes for the solver thread.
+
+        Nothing more happens here: decoding and checking wait until the solver takes the
+        wrench, so one that a newer wrench replaces first (latest wins) costs no more. The
+        EventsExecutor passes no message info: the log time is taken here, and the MCAP
+        publish time equals it (it was the DDS source timestamp before).
+        """
+        received_ns = time.time_ns()
+        self.received += 1
+        if self._log is not None:
+            self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
+                             received_ns)
+        self._mailbox.put(data)
+
+    # solving ---------------------------------------------------------------------------------
+    def _work(self) -> None:
+        """Solver thread: check the newest wrench, then solve it, publish and log the outputs."""
+        while True:
+            data = self._mailbox.take()
+            if data is None:
+                return
+            stamp = {'sec': 0, 'nanosec': 0}
+            try:
+                try:
+                    wrench = self._decode_wrench(data)
+                except ValueError as error:  # cdr's readers raise nothing else on bad bytes
+                    self._reject(stamp, f'malformed message: {error}')
+                    continue
+                force, moment, frame_id, stamp = messages.wrench_from_message(wrench)
+                end_disk = self._checked(force, moment, frame_id, stamp)
+                if end_disk is not None:
+                    self._process(stamp, force, moment, end_disk)
+            except Exception as error:  # noqa: B902 - a bug must not silence the node
+                self.failed += 1
+                self.get_logger().error(f'solver thread: {error!r}')
+                self._publish_all(self._serialized(messages.rejection_messages(
+                    stamp, f'internal error: {error!r}', self._counts())))
+
+    def _checked(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
+                 stamp: dict) -> Optional[bool]:
+        """Return whether the wrench is in the end-disk frame; None (and a diagnostic) if bad."""
+        settings = self._settings
+        try:
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+            return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+        except ValueError as error:
+            self._reject(stamp, str(error))
+            return None
+
+    def _reject(self, stamp: dict, reason: str) -> None:
+        """Count a rejected wrench, warn (throttled) and publish the ERROR diagnostic."""
+        self.rejected += 1
+        self.get_logger().warning(f'wrench rejected: {reason}', throttle_duration_sec=1.0)
+        self._publish_all(self._serialized(messages.rejection_messages(
+            stamp, f'rejected: {reason}', self._counts())))
+
+    def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
+                 end_disk: bool) -> None:
+        """Solve one wrench; publish and log what it gives."""
+        subscribed = self._subscribers.subscribed()
+        want_compliance = self._settings.log_compliance or bool(
+            subscribed & {messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC})
+        want_backbones = (self._settings.log_backbones
+                          or messages.BACKBONES_TOPIC in subscribed)
+        result, solves = solve_wrench(self.solver, force, moment, end_disk, self._rotation,
+                                      want_compliance)
+        if result.converged:
+            self.solved += 1
+            self._rotation = result.frames['de'][:3, :3]
+        else:
+            self.failed += 1
+            self.get_logger().error(f'no equilibrium: {result.message}',
+                                    throttle_duration_sec=1.0)
+        extra = self._counts()
+        if end_disk:
+            extra['follower_solves'] = solves
+        self._publish_all(self._output_messages(result, stamp, want_compliance,
+                                                want_backbones, extra))
+
+    # output ----------------------------------------------------------------------------------
+    def _counts(self) -> Dict[str, int]:
+        """Return the running message counts reported with every diagnostic."""
+        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
+                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
+                **log_lost(getattr(self, '_log', None))}
+
+    def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
+                         want_backbones: bool, extra: Dict[str, Any]
+                         ) -> Iterator[Tuple[str, bytes]]:
+        """
+        Build and serialize the messages of one solve one by one, the pose first.
+
+        interface.messages defines their content; each is built when the one before has
+        been published, so the pose goes out before the others are even built.
+        """
+        return self._serialized(messages.iter_output_messages(
+            result, stamp, self._settings.base_frame, compliance=want_compliance,
+            backbones_params=self.solver.params if want_backbones else None,
+            extra_values=extra))
+
+    def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
+        """
+        CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
+
+        Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
+        straight from the dict, no rclpy message in between).
+        """
+        logged = self._log is not None
+        subscribed = self._subscribers.subscribed()
+        return ((topic, self._encoders[topic](values)) for topic, _, values in built
+                if logged or topic in subscribed)
+
+    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:
+        """Publish each serialized output that someone subscribes to; log all of them."""
+        subscribed = self._subscribers.subscribed()
+        records = []
+        for topic, data in topic_data:
+            publisher = self._publishers_by_topic[topic]
+            if topic in subscribed:
+                publisher.publish(data)
+            if self._log is not None:
+                records.append((publisher.topic_name, self._type_names[topic], data,
+                                time.time_ns(), None))
+        if records:
+            assert self._log is not None
+            self._log.submit_many(records)
+
+    # shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop taking wrenches, let the running solve finish, finalize the MCAP file."""
+        self.destroy_subscription(self._subscription)
+        self._mailbox.close()
+        self._worker.join(SHUTDOWN_JOIN_S)
+        if self._log_timer is not None:
+            self.destroy_timer(self._log_timer)
+        if self._log is not None:
+            log = self._log
+            log.close()
+            complete, line = log.closing_line()
+            text = (f'{line}; handing a record to the log process took '
+                    f'{1e6 * log.enqueue_wait_s / max(log.submitted, 1):.1f} us on average, '
+                    f'{1e3 * log.max_enqueue_wait_s:.3f} ms at most; writing '
+                    f'{1e6 * log.write_time_s / max(log.written, 1):.1f} us per record; '
+                    f'{log.reordered} log times held back to keep each channel in order')
+            if complete:
+                self.get_logger().info(text)
+            else:
+                self.get_logger().error(text)
+
+
+def help_text() -> str:
+    """Return translator_node's ``--help``: its parameters, topics and exit codes."""
+    return node_help.help_text(
+        NODE_NAME, __doc__.strip().splitlines()[0], SPECS,
+        TranslatorSettings.from_params_file().values(),
+        {messages.WRENCH_TOPIC: type_name(WrenchStamped)},
+        {topic: type_name(message_class) for topic, message_class in OUTPUTS.items()})
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Run translator_node until SIGINT or SIGTERM; return the process exit code."""
+    return run(TranslatorNode, NODE_NAME, args, help_text)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
