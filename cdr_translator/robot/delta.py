@@ -58,6 +58,7 @@ from .legs import ChainLegs
 from .linearization import factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult
+from ..held import held_critical_load, held_reference, HeldReference
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, one_blas_thread, TranslatorSolver
@@ -106,6 +107,7 @@ class DeltaRobot:
         self._inverse = InverseSolver(self)
         home = self._chain_legs.home_state(self.home_position)
         self._home = (home, factorize(self._chain, self._chain_legs, home, np.zeros(12)))
+        self._held: Optional[HeldReference] = None  # made by the first compliance solve
 
     @property
     def leg_solvers(self) -> Tuple[TranslatorSolver, ...]:
@@ -185,7 +187,8 @@ class DeltaRobot:
         if compliance and outcome.converged:
             with np.errstate(over='ignore', invalid='ignore'):
                 made = linearize(result, self._chain, self._chain_legs, outcome.state,
-                                 outcome.factorization, inputs, self.params.stack_height)
+                                 outcome.factorization, inputs, self.params.stack_height,
+                                 self._held_reference())
             if made is not None:  # exact at the solution: the next solve iterates on it
                 path.factorization = made
             result.solve_time_s = time.perf_counter() - started
@@ -209,6 +212,24 @@ class DeltaRobot:
                                    payload_offset, warm_start)
 
     # private ---------------------------------------------------------------------------------
+    def _held_reference(self) -> HeldReference:
+        """
+        The unloaded leg and its held buckling load, which the legs' held verdicts compare with.
+
+        Made once, at the first compliance solve: the buckling load takes a march along
+        straight compression (held.held_critical_load, a few hundred ms, cached per
+        parameter set); none found leaves the legs' verdicts unknown.
+        """
+        if self._held is None:
+            try:
+                critical: Optional[float] = held_critical_load(self.params).load_n
+            except ArithmeticError:
+                critical = None
+            home = self._home[1].legs[0]
+            self._held = held_reference(home.lu, home.compliance, self.params.stack_height,
+                                        critical)
+        return self._held
+
     def _limits(self) -> Limits:
         """Return the Newton's tolerances and iteration cap as this robot's attributes set them."""
         return Limits(self.equilibrium_tolerance, self.position_tolerance,
