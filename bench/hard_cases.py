@@ -6,7 +6,7 @@ Usage: python -m bench.hard_cases [--quick] [--no-docs]
 Every case of ``cdr_translator.studies.hard_cases`` (``--quick``: only those ``make test`` runs) is
 solved, each converged state verified independently and, if only its discretization is too
 coarse, re-solved on a finer grid; the axial buckling load is found and compared with the
-Euler estimate. The whole report (per-case table and summary) goes to
+Euler estimate, free and with both end disks held. The whole report (per-case table and summary) goes to
 bench/results/hard_cases.md; its summary (everything after the table) replaces the text between
 the ``hard-cases`` markers of docs/hard_cases.md. Takes one to two minutes on one core.
 """
@@ -49,8 +49,9 @@ def main() -> None:
     started = time.perf_counter()
     reports = hard_cases.run_suite(params, quick_only=args.quick, refine=True)
     critical = buckling.critical_compression(params)
+    held = buckling.held_critical_compression(params)
     elapsed = time.perf_counter() - started
-    body = hard_case_report.markdown_report(reports, critical)
+    body = hard_case_report.markdown_report(reports, critical, held)
     footer = (f'\n_{len(reports)} cases, {elapsed:.0f} s in all (solves, verification, '
               f'refinement, stability) on {platform.machine()} with Python '
               f'{platform.python_version()}; each solve capped at '
