@@ -6,9 +6,10 @@ Usage: python -m bench.hard_cases [--quick] [--no-docs]
 Every case of ``cdr_translator.studies.hard_cases`` (``--quick``: only those ``make test`` runs) is
 solved, each converged state verified independently and, if only its discretization is too
 coarse, re-solved on a finer grid; the axial buckling load is found and compared with the
-Euler estimate, free and with both end disks held. The whole report (per-case table and summary) goes to
-bench/results/hard_cases.md; its summary (everything after the table) replaces the text between
-the ``hard-cases`` markers of docs/hard_cases.md. Takes one to two minutes on one core.
+Euler estimate, with the end disk free and with both end disks held. The whole report
+(per-case table and summary) goes to bench/results/hard_cases.md; its summary (everything
+after the table) replaces the text between the ``hard-cases`` markers of docs/hard_cases.md.
+Takes one to two minutes on one core.
 """
 
 import argparse

@@ -153,7 +153,7 @@ class HeldCritical:
 
 
 def _compression_solver(params: TranslatorParams) -> TranslatorSolver:
-    """A solver that follows the straight branch (no stable-branch switching, no refinement)."""
+    """Return a solver that follows the straight branch (no branch switching, no refinement)."""
     return TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0), follow_stable_branch=False,
                             judge=False)
 
@@ -262,7 +262,7 @@ def _compliance_signs(compliance: np.ndarray, length: float) -> Tuple[int, int]:
 
 def held_reference(lu: tuple, compliance: np.ndarray, length: float,
                    critical_load_n: Optional[float]) -> HeldReference:
-    """Reference from the unloaded translator's factorization and compliance."""
+    """Build the reference from the unloaded translator's factorization and compliance."""
     return HeldReference(determinant_sign(lu), _compliance_signs(compliance, length)[0],
                          length, critical_load_n)
 

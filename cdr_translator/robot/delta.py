@@ -214,7 +214,7 @@ class DeltaRobot:
     # private ---------------------------------------------------------------------------------
     def _held_reference(self) -> HeldReference:
         """
-        The unloaded leg and its held buckling load, which the legs' held verdicts compare with.
+        Return the unloaded leg and its held buckling load, which the held verdicts compare with.
 
         Made once, at the first compliance solve: the buckling load takes a march along
         straight compression (held.held_critical_load, a few hundred ms, cached per

@@ -182,7 +182,7 @@ def platform_jacobian(chain: Chain, state: ChainState, inputs: np.ndarray,
 def chain_verdict(platform_stable: bool,
                   legs: Tuple[HeldVerdict, ...]) -> Optional[bool]:
     """
-    The closed chain's verdict: the platform stiffness and every leg held at both ends.
+    Return the closed chain's verdict: the platform stiffness and every leg held at both ends.
 
     The platform stiffness is the legs' condensed into the platform pose, valid only when
     each leg's internal equilibrium is stable with its ends held: False if any part is

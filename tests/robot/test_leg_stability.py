@@ -24,7 +24,7 @@ PAYLOAD_500N = (0.0, 0.0, 500.0)
 
 @pytest.fixture(scope='module')
 def held(params):
-    """The held buckling load and the perturbed held re-solves on both sides of it."""
+    """Find the held buckling load and re-solve perturbed on both sides of it."""
     return held_critical_compression(params)
 
 
