@@ -147,14 +147,17 @@ class DeltaRobot:
         exact linearization at the solution: reused when the last factorization was made
         there (within linearization.REUSE_DISTANCE), else three exact leg Jacobians (one
         tangent-linear shot each; the dominant cost of a warm solve with ``compliance``),
-        which the next solve then iterates on. Bad input raises ValueError;
-        non-convergence is a result.
+        which the next solve then iterates on; the first one also finds the legs' held
+        buckling load (held.held_critical_load, not in ``solve_time_s``). Bad input raises
+        ValueError; non-convergence is a result.
         """
         offset = np.asarray(payload_offset, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
             raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
         inputs = np.concatenate([check_sliders(sliders, self.geometry.slider_stroke),
                                  check_wrench(payload_force, payload_moment), offset])
+        # made once, apart from the solve's time (the legs' held buckling load)
+        held = self._held_reference() if compliance else None
         started = time.perf_counter()
         self._chain_legs.begin(started, self.time_limit_s)
         self._newton.limits = self._limits()
@@ -184,11 +187,10 @@ class DeltaRobot:
         if outcome.converged:
             path.previous = (outcome.state, inputs)
         result = self._result(outcome, legs, inputs, time.perf_counter() - started)
-        if compliance and outcome.converged:
+        if held is not None and outcome.converged:
             with np.errstate(over='ignore', invalid='ignore'):
                 made = linearize(result, self._chain, self._chain_legs, outcome.state,
-                                 outcome.factorization, inputs, self.params.stack_height,
-                                 self._held_reference())
+                                 outcome.factorization, inputs, self.params.stack_height, held)
             if made is not None:  # exact at the solution: the next solve iterates on it
                 path.factorization = made
             result.solve_time_s = time.perf_counter() - started
