@@ -213,8 +213,12 @@ def _stability_rows(data: dict) -> List[Tuple[str, str]]:
     eigenvalues = data['platform_compliance_eigenvalues']
     if eigenvalues is None:
         return [('stable', 'not computed')]
+    legs = data['leg_stability'] or []
     return [('stable (closed chain)', f"{data['stable']} (stiffness margin "
                                       f"{data['stiffness_margin_n_per_m']:.4g} N/m)"),
+            ('legs held at both ends', ', '.join(
+                f"{leg['stable']} ({leg['axial_load_n']:.4g} / {leg['critical_load_n']:.4g} N)"
+                if leg['critical_load_n'] is not None else str(leg['stable']) for leg in legs)),
             ('compliance eig. transl.', '  '.join(
                 f'{v:.4e}' for v in eigenvalues['translation_m_per_n']) + ' m/N'),
             ('compliance eig. rot.', '  '.join(

@@ -59,6 +59,7 @@ from .linearization import factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult
 from .._blas import one_blas_thread
+from ..held import held_critical_load, held_reference, HeldReference
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
 from ..solver import check_wrench, TranslatorSolver
@@ -107,6 +108,7 @@ class DeltaRobot:
         self._inverse = InverseSolver(self)
         home = self._chain_legs.home_state(self.home_position)
         self._home = (home, factorize(self._chain, self._chain_legs, home, np.zeros(12)))
+        self._held: Optional[HeldReference] = None  # made by the first compliance solve
 
     @property
     def leg_solvers(self) -> Tuple[TranslatorSolver, ...]:
@@ -146,14 +148,17 @@ class DeltaRobot:
         exact linearization at the solution: reused when the last factorization was made
         there (within linearization.REUSE_DISTANCE), else three exact leg Jacobians (one
         tangent-linear shot each; the dominant cost of a warm solve with ``compliance``),
-        which the next solve then iterates on. Bad input raises ValueError;
-        non-convergence is a result.
+        which the next solve then iterates on; the first one also finds the legs' held
+        buckling load (held.held_critical_load, not in ``solve_time_s``). Bad input raises
+        ValueError; non-convergence is a result.
         """
         offset = np.asarray(payload_offset, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
             raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
         inputs = np.concatenate([check_sliders(sliders, self.geometry.slider_stroke),
                                  check_wrench(payload_force, payload_moment), offset])
+        # made once, apart from the solve's time (the legs' held buckling load)
+        held = self._held_reference() if compliance else None
         started = time.perf_counter()
         self._chain_legs.begin(started, self.time_limit_s)
         self._newton.limits = self._limits()
@@ -183,10 +188,10 @@ class DeltaRobot:
         if outcome.converged:
             path.previous = (outcome.state, inputs)
         result = self._result(outcome, legs, inputs, time.perf_counter() - started)
-        if compliance and outcome.converged:
+        if held is not None and outcome.converged:
             with np.errstate(over='ignore', invalid='ignore'):
                 made = linearize(result, self._chain, self._chain_legs, outcome.state,
-                                 outcome.factorization, inputs, self.params.stack_height)
+                                 outcome.factorization, inputs, self.params.stack_height, held)
             if made is not None:  # exact at the solution: the next solve iterates on it
                 path.factorization = made
             result.solve_time_s = time.perf_counter() - started
@@ -210,6 +215,24 @@ class DeltaRobot:
                                    payload_offset, warm_start)
 
     # private ---------------------------------------------------------------------------------
+    def _held_reference(self) -> HeldReference:
+        """
+        Return the unloaded leg and its held buckling load, which the held verdicts compare with.
+
+        Made once, at the first compliance solve: the buckling load takes a march along
+        straight compression (held.held_critical_load, a few hundred ms, cached per
+        parameter set); none found leaves the legs' verdicts unknown.
+        """
+        if self._held is None:
+            try:
+                critical: Optional[float] = held_critical_load(self.params).load_n
+            except ArithmeticError:
+                critical = None
+            home = self._home[1].legs[0]
+            self._held = held_reference(home.lu, home.compliance, self.params.stack_height,
+                                        critical)
+        return self._held
+
     def _limits(self) -> Limits:
         """Return the Newton's tolerances and iteration cap as this robot's attributes set them."""
         return Limits(self.equilibrium_tolerance, self.position_tolerance,

@@ -5,7 +5,8 @@ Each leg enters through its 6x6 compliance at the end disk, from one tangent-lin
 (its shooting Jacobian and end-disk pose derivative; implicit differentiation). The
 platform Jacobian's LU with the legs' factorizations (``Factorization``) serves the coupled
 Newton's steps and, at a solution, the platform compliance, the input sensitivity and the
-stability verdict of a DeltaResult (``linearize``).
+stability verdict of a DeltaResult (``linearize``): the condensed platform stiffness and each
+leg held at both ends (cdr_translator/held.py), which the condensation presumes stable.
 """
 
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ from .kernels import secant_update
 from .legs import ChainLegs, Deadline
 from .result import DeltaResult
 from .._linalg import factorize as factorize_matrix, solve_lu
+from ..held import held_verdict, HeldReference, HeldVerdict
 from ..stability import pose_twist
 
 #: A factorization made within this distance of the solution (largest change of the scaled
@@ -178,11 +180,28 @@ def platform_jacobian(chain: Chain, state: ChainState, inputs: np.ndarray,
     return jacobian
 
 
+def chain_verdict(platform_stable: bool,
+                  legs: Tuple[HeldVerdict, ...]) -> Optional[bool]:
+    """
+    Return the closed chain's verdict: the platform stiffness and every leg held at both ends.
+
+    The platform stiffness is the legs' condensed into the platform pose, valid only when
+    each leg's internal equilibrium is stable with its ends held: False if any part is
+    unstable, else None (unknown) if a leg's verdict could not be made, else True.
+    """
+    verdicts = [platform_stable] + [leg.stable for leg in legs]
+    if False in verdicts:
+        return False
+    return None if None in verdicts else True
+
+
 def linearize(result: DeltaResult, chain: Chain, legs: ChainLegs, state: ChainState,
               factorization: Optional[Factorization], inputs: np.ndarray,
-              stack_height: float) -> Optional[Factorization]:
+              stack_height: float, held: HeldReference) -> Optional[Factorization]:
     """
     Add the compliance, input sensitivity and stability verdict at solution ``state``.
+
+    The legs' held verdicts compare with ``held``, the unloaded leg's reference.
 
     ``factorization`` (the solve's last) is reused when made within REUSE_DISTANCE of the
     state; else one is made there and returned (exact at the solution: the next solve's
@@ -217,5 +236,11 @@ def linearize(result: DeltaResult, chain: Chain, legs: ChainLegs, state: ChainSt
         return made
     scaled = scale[:, None] * stiffness * scale[None, :]
     result.stiffness_margin = float(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[0])
-    result.stable = bool(result.stiffness_margin > 0.0)
+    result.leg_stability = tuple(
+        held_verdict(leg.lu, leg.compliance, wrench, held)
+        for leg, wrench in zip(factorization.legs, state.wrenches))
+    result.stable = chain_verdict(bool(result.stiffness_margin > 0.0), result.leg_stability)
+    for k, verdict in enumerate(result.leg_stability, start=1):
+        if verdict.stable is not True:
+            result.message += f'; leg {k}: {verdict.message}'
     return made

@@ -8,6 +8,7 @@ import numpy as np
 
 from .kernels import small_rotation_vector
 from .. import geometry
+from ..held import HeldVerdict
 from ..result import SolveResult
 
 __all__ = ['DeltaResult', 'INPUT_NAMES', 'LegResults', 'rotation_vector']
@@ -120,9 +121,14 @@ class DeltaResult:
       Newton uses its slider columns.
     * ``stable``: the robot's stability verdict: the symmetric part of the platform
       stiffness K = C^-1, rotations expressed as displacements over the leg stack height H
-      (K_s = S K S, S = diag(1, 1, 1, 1/H, 1/H, 1/H)), is positive definite; its smallest
-      eigenvalue is ``stiffness_margin`` (N/m). A singular J (no compliance) is unstable
-      (``stable`` False, ``message`` says so). None when not computed.
+      (K_s = S K S, S = diag(1, 1, 1, 1/H, 1/H, 1/H)), is positive definite (its smallest
+      eigenvalue is ``stiffness_margin``, N/m) and every leg is stable with both ends held
+      (``leg_stability``), which that condensation presumes. A singular J (no compliance)
+      is unstable (``stable`` False, ``message`` says so); a leg whose verdict could not be
+      made leaves it None (unknown) unless another part is unstable. None when not computed.
+    * ``leg_stability``: per leg, its verdict with both end disks held
+      (cdr_translator/held.py: parity of det J_d and the axial compression against the
+      held buckling load of the straight leg, with a margin).
     """
 
     converged: bool
@@ -147,6 +153,7 @@ class DeltaResult:
     stiffness_margin: float = math.nan
     leg_shots: int = 0
     leg_jacobians: int = 0
+    leg_stability: Optional[Tuple[HeldVerdict, ...]] = None
 
     @property
     def compliance_eigenvalues(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -228,13 +235,16 @@ class DeltaResult:
 
     def _linearization_dict(self) -> dict:
         """Return the compliance / stability keys (None when not computed)."""
+        legs = (None if self.leg_stability is None
+                else [verdict.to_dict() for verdict in self.leg_stability])
         if self.platform_compliance is None:
             return {'stable': self.stable, 'platform_compliance': None,
                     'platform_compliance_eigenvalues': None,
-                    'stiffness_margin_n_per_m': None}
+                    'stiffness_margin_n_per_m': None, 'leg_stability': legs}
         translation, rotation = self.compliance_eigenvalues
         return {
-            'stable': bool(self.stable),
+            'stable': None if self.stable is None else bool(self.stable),
+            'leg_stability': legs,
             'platform_compliance': self.platform_compliance.tolist(),
             'platform_compliance_eigenvalues': {
                 'translation_m_per_n': translation.tolist(),

@@ -3,7 +3,7 @@
 import math
 from typing import Optional, Sequence
 
-from .buckling import Buckling
+from .buckling import Buckling, HeldBuckling
 from .hard_cases import CaseReport, Wrench
 
 
@@ -19,8 +19,25 @@ def _yes_no(value: Optional[bool]) -> str:
     return 'unknown' if value is None else ('yes' if value else 'no')
 
 
-def markdown_report(reports: Sequence[CaseReport], buckling: Optional[Buckling] = None) -> str:
-    """Return the report: per-case table, convergence rates, buckling, failures."""
+def _held_text(held: HeldBuckling, free: Optional[Buckling]) -> str:
+    ratio = ('' if free is None else
+             f', {held.critical_load_n / free.critical_load_n:.1f} times the free-end load')
+    above = held.above
+    return (
+        f'**Axial buckling load with both end disks held: {held.critical_load_n:.1f} N**'
+        f'{ratio} (smallest singular value of J_d {held.smallest_singular_value:.1e}, '
+        f'against {held.unloaded_singular_value:.1e} unloaded); clamped-guided estimate '
+        f'{held.estimate_n:.1f} N '
+        f'({100.0 * (held.critical_load_n / held.estimate_n - 1.0):+.1f} %). Held re-solves '
+        f'perturbed along the buckling mode: 2 % below, back to the straight state: '
+        f'{_yes_no(held.below.converged and not held.below.left_straight)}; 2 % above, to a '
+        f'buckled state: {_yes_no(above.left_straight)} (compression '
+        f'{above.compression_n:.1f} -> {above.compression_after_n:.1f} N).')
+
+
+def markdown_report(reports: Sequence[CaseReport], buckling: Optional[Buckling] = None,
+                    held: Optional[HeldBuckling] = None) -> str:
+    """Return the report: per-case table, convergence rates, buckling (free, held), failures."""
     solves = [outcome for report in reports for outcome in report.loads]
     converged = sum(outcome.converged for outcome in solves)
     lines = [
@@ -54,6 +71,8 @@ def markdown_report(reports: Sequence[CaseReport], buckling: Optional[Buckling] 
             f'Stable 2 % below: {_yes_no(buckling.stable_below)}; 2 % above: '
             f'{_yes_no(buckling.stable_above)}.',
         ]
+    if held is not None:
+        lines += ['', _held_text(held, buckling)]
     unstable = [report for report in reports if report.stable is False]
     unknown = [report for report in reports if report.converged and report.stable is None]
     failing = [report for report in reports if not report.verified]
