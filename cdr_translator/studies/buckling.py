@@ -18,9 +18,9 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from .hard_cases import stability, study_solver
+from .._blas import one_blas_thread
 from ..held import held_critical_load, held_jacobian, held_solve, HeldCritical
 from ..params import TranslatorParams
-from .._blas import one_blas_thread
 
 #: Amplitudes (in the unit null vector of J_d, nondimensional unknowns and wrench) of the
 #: perturbations a held re-solve starts from: within the buckled branch's reach 2 % past the
