@@ -338,3 +338,40 @@ def test_node_inverse_round_trip(tmp_path):
     by_topic = topic_counts(mcap)
     assert by_topic['/target_position'] >= 3
     assert by_topic['/slider_command'] >= 1 and by_topic['/predicted_platform_pose'] >= 1
+
+
+def test_node_rejections_name_their_stage_and_log_at_their_level(tmp_path):
+    """
+    A rejected input is an ERROR of the stage it was for, logged as an ERROR.
+
+    Targets (wrong frame, unreadable) are the inverse statics', payloads the forward's.
+    """
+    with node_session(tmp_path) as (node, client, _):
+        elsewhere = client.send_until_answered(
+            lambda stamp: client.publish_target((0.0, 0.0, -0.13), stamp, 'elsewhere'),
+            START_TIMEOUT_S)
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, elsewhere)[-1].status[0]
+        assert status.name == robot_messages.INVERSE_DIAGNOSTIC_NAME
+        level, text, _ = diagnostic(client, elsewhere)
+        assert level == messages.ERROR and "target frame_id 'elsewhere'" in text
+        payload = client.send_until_answered(
+            lambda stamp: client.publish_wrench((0.0, 0.0, -1.0), stamp, 'elsewhere'),
+            ANSWER_TIMEOUT_S)
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, payload)[-1].status[0]
+        assert status.name == robot_messages.DIAGNOSTIC_NAME
+        zero = {'sec': 0, 'nanosec': 0}
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while not client.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero):
+            assert time.monotonic() < deadline, 'malformed target not answered'
+            client.target.publish(b'\x00\x01\x00\x00\x07')
+            client.executor.spin_once(timeout_sec=0.25)
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero)[-1].status[0]
+        assert status.name == robot_messages.INVERSE_DIAGNOSTIC_NAME
+        assert 'target rejected: malformed message' in status.message
+        assert node.stop(signal.SIGINT) == 0, node.text()
+    lines = [line for line in node.text().splitlines() if 'rejected' in line]
+    assert any(line.startswith('[ERROR]') and "inverse statics: target rejected: target "
+               "frame_id 'elsewhere'" in line for line in lines), lines
+    assert any(line.startswith('[ERROR]') and 'forward statics: payload rejected' in line
+               for line in lines), lines
+    assert all(line.startswith('[ERROR]') for line in lines), lines

@@ -163,6 +163,6 @@ def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
     assert pose.header.stamp.sec == STAMP['sec']
     assert pose.pose.position.x == pytest.approx(float(solved.end_disk_position[0]))
     node._subscribers = SubscriberCounts({})
-    node._publish_all(node._serialized(log_health(None, None, 'n', {})))
+    node._publish_all(node._serialized(log_health(None, 'n', {})))
     node._publish_all(node._output_messages(solved, STAMP, True, True, {}))
     assert len(sent) == 1 and len(encoded) == 1
