@@ -74,10 +74,10 @@ class JointSummary:
         low, high = np.degrees(self.low), np.degrees(self.high)
         for column, name in enumerate(messages.JOINT_NAMES):
             if name in CIRCULAR_JOINT_NAMES:
-                rows.append((f'{name} deg circular mean / std',
-                             f'{mean[column]:.3f} / {spread[column]:.3f}'
-                             if math.isfinite(mean[column]) else
-                             f'none (the directions cancel) / {spread[column]:.3f}'))
+                middle = (f'{mean[column]:.3f}' if math.isfinite(mean[column])
+                          else 'none (the directions cancel)')
+                rows.append((f'{name} deg', f'circular mean {middle}, '
+                                            f'circular std {spread[column]:.3f}'))
             else:
                 rows.append((f'{name} deg min..max',
                              f'{low[column]:.3f} .. {high[column]:.3f}'))

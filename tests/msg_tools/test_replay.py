@@ -282,14 +282,12 @@ def test_summary_gives_directions_by_circular_statistics(tmp_path, capsys):
                      'translator_base') for k, side in enumerate((1e-6, -1e-6))])
     assert main(['replay', str(bag), '--out', str(tmp_path / 'o.mcap'),
                  '--progress', 'never']) == 0
-    rows = dict(line.split('  ', 1) for line in capsys.readouterr().out.splitlines()
+    rows = dict(line.split(None, 2)[::2] for line in capsys.readouterr().out.splitlines()
                 if line.startswith(('pj_direction', 'dj_direction')))
-    mean, spread = (float(text) for text in rows['pj_direction deg circular mean / std'].split('/'))
-    assert abs(mean) == pytest.approx(180.0, abs=1e-3) and spread < 1e-3
-    mean, spread = (float(text) for text in rows['dj_direction deg circular mean / std'].split('/'))
-    assert abs(mean) < 1e-3 and spread < 1e-3
-    assert set(rows) == {'pj_direction deg circular mean / std',
-                         'dj_direction deg circular mean / std'}
+    assert rows['pj_direction'] in ('circular mean 180.000, circular std 0.000',
+                                    'circular mean -180.000, circular std 0.000')
+    assert rows['dj_direction'] in ('circular mean 0.000, circular std 0.000',
+                                    'circular mean -0.000, circular std 0.000')
 
 
 def test_missing_topic_and_wrong_schema(tmp_path, capsys):
