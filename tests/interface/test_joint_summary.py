@@ -5,7 +5,6 @@ import math
 from cdr_translator.interface import messages
 from cdr_translator.interface.joint_summary import CIRCULAR_JOINT_NAMES, JointSummary
 import numpy as np
-import pytest
 from scipy import stats
 
 DIRECTIONS = [messages.JOINT_NAMES.index(name) for name in CIRCULAR_JOINT_NAMES]
