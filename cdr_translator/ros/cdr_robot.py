@@ -36,8 +36,8 @@ from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, open_log
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
 from ..interface import messages, robot_messages
-from ..interface.wrench_processing import check_magnitude
 from ..interface.settings import CDR_SPECS, CdrSettings
+from ..interface.wrench_processing import check_magnitude
 from ..params import DEFAULT_PARAMS_PATH
 from ..robot.delta import DeltaRobot
 from ..robot.inverse import check_target

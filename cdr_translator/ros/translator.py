@@ -41,9 +41,9 @@ from .runtime import OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
+from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
 from ..interface.wrench_processing import solve_wrench
-from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
 from ..solver import check_wrench

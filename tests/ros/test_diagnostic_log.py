@@ -5,10 +5,6 @@ import time
 from cdr_translator.interface import messages
 from cdr_translator.ros import diagnostic_log, runtime
 from cdr_translator.ros.diagnostic_log import DiagnosticLog
-from cdr_translator.ros.translator import TranslatorNode
-import pytest
-import rclpy
-from rclpy.context import Context
 
 STAMP = {'sec': 5, 'nanosec': 6}
 
@@ -81,21 +77,6 @@ def test_mcap_log_status_gets_its_own_throttle():
     assert logger.lines == [('error', 'mcap_log: disk full'), ('error', 'solve: no equilibrium'),
                             ('error', 'solve: no equilibrium')]
     assert runtime.log_health(None, 'n', {}) == []
-
-
-@pytest.fixture
-def node(ros_env):
-    """Run a translator_node in this process (own context, no log); close it afterwards."""
-    context = Context()
-    rclpy.init(args=[], context=context)
-    made = TranslatorNode(context=context,
-                          ros_arguments=['--ros-args', '-p', 'log_to_mcap:=false'])
-    try:
-        yield made
-    finally:
-        made.close()
-        made.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def test_translator_node_logs_a_rejection_at_the_diagnostics_level(node, capfd):
