@@ -227,7 +227,9 @@ def _stability_rows(data: dict) -> List[Tuple[str, str]]:
 
 def _inverse_table(result: InverseResult) -> str:
     data = result.to_dict()
-    rows = [('converged', f"{data['converged']} ({data['message']})"),
+    # the message says what happened (reached, nearest reachable point, failure): a bare
+    # 'converged True' beside an unreachable target would read as a contradiction
+    rows = [('result', data['message']),
             ('reachable', str(data['reachable'])),
             ('sliders', _mm(data['sliders_m'])),
             ('target', _mm(data['target_m'])),

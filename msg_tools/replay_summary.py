@@ -1,9 +1,11 @@
 """
-What a replay did: counts, solve-time percentiles, joint and position ranges, its exit code.
+What a replay did: counts, solve-time percentiles, joint angles, positions, its exit code.
 
 Constant memory however long the input: the solve-time percentiles come from a log-spaced
 histogram (``TimeStats``), the plotted series is thinned to at most ``SERIES_LIMIT`` points
-and at most ``WARNING_LIMIT`` per-message warnings are kept. ``ReplaySummary.table`` is
+and at most ``WARNING_LIMIT`` per-message warnings are kept; the joint angles are summarized
+by ``JointSummary`` (ranges, and the bending directions, which wrap at ±180°, by circular
+mean and circular standard deviation). ``ReplaySummary.table`` is
 the table ``python -m msg_tools replay`` prints; ``EXIT_CODES`` its exit codes
 (docs/replay.md).
 """
@@ -12,7 +14,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Collection, Dict, List, Optional
 
-from cdr_translator.interface import messages
+from cdr_translator.interface.joint_summary import JointSummary
 from msg_tools.log_status import LogStatus
 from msg_tools.reader import ReadReport
 import numpy as np
@@ -111,7 +113,7 @@ class TimeStats:
 
 @dataclass
 class ReplaySummary:
-    """Counts, timings and ranges of one replay (constant memory whatever the input)."""
+    """Counts, timings, joint and position statistics of one replay (constant memory)."""
 
     input_report: ReadReport
     topics: List[str]
@@ -126,7 +128,7 @@ class ReplaySummary:
     interrupted: bool = False
     series: Series = field(default_factory=Series)
     warnings_dropped: int = 0
-    joints_range: Optional[np.ndarray] = None
+    joints: JointSummary = field(default_factory=JointSummary)
     position_range: Optional[np.ndarray] = None
     output_status: Optional[LogStatus] = None
     output_error: str = ''
@@ -158,16 +160,14 @@ class ReplaySummary:
             self.warnings_dropped += 1
 
     def converged(self, joints: List[float], position: List[float]) -> None:
-        """Widen the running joint (rad) and position (m) ranges."""
-        values = np.array(joints + position)
-        if self.joints_range is None or self.position_range is None:
-            self.joints_range = np.array([values[:5], values[:5]])
-            self.position_range = np.array([values[5:], values[5:]])
+        """Count a converged message's joint angles (rad); widen the position (m) range."""
+        self.joints.add(joints)
+        values = np.array(position)
+        if self.position_range is None:
+            self.position_range = np.array([values, values])
             return
-        self.joints_range = np.array([np.minimum(self.joints_range[0], values[:5]),
-                                      np.maximum(self.joints_range[1], values[:5])])
-        self.position_range = np.array([np.minimum(self.position_range[0], values[5:]),
-                                        np.maximum(self.position_range[1], values[5:])])
+        self.position_range = np.array([np.minimum(self.position_range[0], values),
+                                        np.maximum(self.position_range[1], values)])
 
     def exit_code(self) -> int:
         """Return the exit code (``EXIT_CODES``) this replay ends with."""
@@ -197,11 +197,8 @@ class ReplaySummary:
             rows.append(('solve time ms p50/p90/p99/max',
                          f'{p50:.3f} / {p90:.3f} / {p99:.3f} / '
                          f'{1e3 * self.solve_times.max_s:.3f}'))
-        if self.joints_range is not None and self.position_range is not None:
-            joints = np.degrees(self.joints_range)
-            for column, name in enumerate(messages.JOINT_NAMES):
-                rows.append((f'{name} deg min..max',
-                             f'{joints[0, column]:.3f} .. {joints[1, column]:.3f}'))
+        rows.extend(self.joints.rows())
+        if self.position_range is not None:
             position = 1e3 * self.position_range
             for column, axis in enumerate('xyz'):
                 rows.append((f'end disk {axis} mm min..max',

@@ -9,7 +9,8 @@ the hard cases with their four bad messages) to ``wrench`` with the bags' timing
 (restamped now, so the latency from stamp to pose can be measured), waits for the last
 answer, stops
 the node with SIGINT and prints a summary of the recorded run: messages per topic, the
-node's counts, solve-time and latency percentiles, angle and end-disk position ranges.
+node's counts, solve-time and latency percentiles, angle ranges (the bending directions by
+circular mean and standard deviation: they wrap) and end-disk position ranges.
 Exit code 0 when the node answered and exited cleanly.
 """
 
@@ -23,6 +24,7 @@ import time
 from typing import Any, Dict, List, Sequence, Tuple
 
 from cdr_translator.interface import messages
+from cdr_translator.interface.joint_summary import JointSummary
 from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
 from cdr_translator.ros.client import TranslatorClient
 from geometry_msgs.msg import WrenchStamped
@@ -87,10 +89,10 @@ def summary(recorded: Path, latencies_ms: Sequence[float]) -> List[Tuple[str, st
                 if 'solve_time_ms' in diagnostic_values(d)]
     rows.append(('solve time ms p50/p90/p99/max', percentiles_ms(solve_ms)))
     rows.append(('latency stamp->pose ms p50/p90/p99/max', percentiles_ms(latencies_ms)))
-    angles = np.degrees([list(j.position) for j in by_topic.get('/bending_angles', [])])
-    for column, name in enumerate(messages.JOINT_NAMES if len(angles) else ()):
-        rows.append((f'{name} deg min..max',
-                     f'{angles[:, column].min():.3f} .. {angles[:, column].max():.3f}'))
+    joints = JointSummary()
+    for angles in by_topic.get('/bending_angles', []):
+        joints.add(list(angles.position))
+    rows += joints.rows()
     positions = 1e3 * np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
                                 for p in by_topic.get('/end_disk_pose', [])])
     for column, axis in enumerate('xyz' if len(positions) else ''):

@@ -352,10 +352,14 @@ def iter_output_messages(result: SolveResult, stamp: Mapping[str, int], base_fra
 
 
 def rejection_messages(stamp: Mapping[str, int], reason: str,
-                       extra_values: Optional[Mapping[str, Any]] = None
-                       ) -> List[Tuple[str, str, dict]]:
-    """Return (topic, type, message) published for a wrench that was not solved (ERROR)."""
+                       extra_values: Optional[Mapping[str, Any]] = None, *,
+                       name: str = DIAGNOSTIC_NAME) -> List[Tuple[str, str, dict]]:
+    """
+    Return (topic, type, message) published for an input that was not solved (ERROR).
+
+    ``name`` is the status of the stage the input was for (the translator's solve).
+    """
     values = {'converged': False}
     values.update(extra_values or {})
     return [(DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
-             diagnostics_message(stamp, ERROR, reason, values))]
+             diagnostics_message(stamp, ERROR, reason, values, name=name))]

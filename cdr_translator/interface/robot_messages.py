@@ -48,6 +48,10 @@ LEG_JOINT_NAMES = tuple(f'leg{leg}_{name}' for leg in (1, 2, 3)
 DIAGNOSTIC_NAME = 'cdr_node: forward statics'
 #: DiagnosticStatus name of an inverse-statics answer.
 INVERSE_DIAGNOSTIC_NAME = 'cdr_node: inverse statics'
+#: The status that reports an input's rejection (unreadable, wrong frame, bad value): the
+#: stage it was for. The payload is the forward statics' input (the inverse takes the latest).
+INPUT_DIAGNOSTIC_NAMES = {SLIDERS_TOPIC: DIAGNOSTIC_NAME, PLATFORM_WRENCH_TOPIC: DIAGNOSTIC_NAME,
+                          TARGET_TOPIC: INVERSE_DIAGNOSTIC_NAME}
 
 
 def sliders_from_joint_state(names: Sequence[str], positions: Sequence[float]) -> np.ndarray:
@@ -205,10 +209,12 @@ def output_messages(result: DeltaResult, stamp: Mapping[str, int], frame_id: str
 
 
 def rejection_messages(stamp: Mapping[str, int], reason: str,
-                       extra_values: Optional[Mapping[str, Any]] = None
-                       ) -> List[Tuple[str, str, dict]]:
-    """Return (topic, type, message) published for an input that was not used (ERROR)."""
-    built = messages.rejection_messages(stamp, reason, extra_values)
-    for _, _, message in built:
-        message['status'][0]['name'] = DIAGNOSTIC_NAME
-    return built
+                       extra_values: Optional[Mapping[str, Any]] = None, *,
+                       name: str = DIAGNOSTIC_NAME) -> List[Tuple[str, str, dict]]:
+    """
+    Return (topic, type, message) published for an input that was not used (ERROR).
+
+    ``name`` is the status of the stage the input was for: ``DIAGNOSTIC_NAME`` (sliders,
+    payload) or ``INVERSE_DIAGNOSTIC_NAME`` (a target), as ``INPUT_DIAGNOSTIC_NAMES`` says.
+    """
+    return messages.rejection_messages(stamp, reason, extra_values, name=name)

@@ -59,6 +59,9 @@ LIMIT_TOLERANCE = 1e-12
 #: to the target by less than this (m).
 STALL_TOLERANCE = 1e-12
 
+#: How the message of a converged but unreachable result starts: what happened, first.
+UNREACHABLE = 'nearest reachable point found, target unreachable'
+
 
 @dataclass
 class InverseResult:
@@ -70,7 +73,9 @@ class InverseResult:
     ``reachable``: the platform origin is within ``tolerance`` of ``target``.
     ``binding``: the stroke limits the sliders sit on, e.g. ``('slider 2 upper',)``.
     ``forward``: the forward solve at ``sliders`` (platform pose, legs, compliance, stability),
-    None when no forward solve converged. Failures are results with a ``message``.
+    None when no forward solve converged. Failures are results with a ``message``, which
+    says what happened first: target reached, ``UNREACHABLE`` (the nearest reachable point),
+    or why the target was not reached.
     """
 
     converged: bool
@@ -226,7 +231,7 @@ class InverseSolver:
         converged = False
         while True:
             if distance <= self.tolerance:
-                converged, message = True, 'converged: the platform is at the target'
+                converged, message = True, 'target reached: the platform is at the target'
                 break
             if iterations >= self.max_iterations:
                 message = f'no convergence in {self.max_iterations} iterations'
@@ -270,9 +275,9 @@ class InverseSolver:
         elif converged:
             limits = ', '.join(f'{name} stroke limit ({"+" if "upper" in name else "-"}'
                                f'{1e3 * stroke:g} mm)' for name in binding)
-            message = (f'target {_mm(goal)} is unreachable: the nearest reachable platform '
-                       f'position is {_mm(result.platform_position)}, '
-                       f'{1e3 * distance:.3f} mm away; binding: {limits}')
+            message = (f'{UNREACHABLE}: {_mm(goal)} is {1e3 * distance:.3f} mm from the '
+                       f'nearest reachable platform position {_mm(result.platform_position)}; '
+                       f'binding: {limits}')
         else:
             message = (f'target {_mm(goal)} not reached ({1e3 * distance:.3g} mm away at '
                        f'sliders {_mm(sliders)}): {message}')

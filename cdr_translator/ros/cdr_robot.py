@@ -32,12 +32,12 @@ from sensor_msgs.msg import JointState
 from . import node_help, serialization
 from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogWatch, open_log, OUTPUTS, run
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, open_log, OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
 from ..interface import messages, robot_messages
-from ..interface.wrench_processing import check_magnitude
 from ..interface.settings import CDR_SPECS, CdrSettings
+from ..interface.wrench_processing import check_magnitude
 from ..params import DEFAULT_PARAMS_PATH
 from ..robot.delta import DeltaRobot
 from ..robot.inverse import check_target
@@ -97,6 +97,7 @@ class CdrNode(Node):
                                                                   reliable)
                                      for topic, message_class in CDR_OUTPUTS.items()}
         self._mailbox = LatestMailbox()
+        self._diagnostic_log = node_diagnostic_log(self.get_logger(), CDR_NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
         topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
                   for topic, message_class in CDR_INPUTS.items()]
@@ -137,8 +138,7 @@ class CdrNode(Node):
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        self._publish(log_health(self._log_watch, self.get_logger(), CDR_NODE_NAME,
-                                 self._counts()))
+        self._publish(log_health(self._log_watch, CDR_NODE_NAME, self._counts()))
 
     # input -----------------------------------------------------------------------------------
     def _warm_up(self) -> None:
@@ -157,7 +157,8 @@ class CdrNode(Node):
     def _on_wrench(self, data: bytes) -> None:
         """Log the payload as received; reject it with a diagnostic or solve with it."""
         self._log_input(0, data)
-        message = self._decoded(data, WrenchStamped, 'payload')
+        message = self._decoded(data, robot_messages.PLATFORM_WRENCH_TOPIC, WrenchStamped,
+                                'payload')
         if message is None:
             return
         force, moment, frame_id, stamp = messages.wrench_from_message(message)
@@ -169,7 +170,7 @@ class CdrNode(Node):
             check_wrench(force, moment)
             check_magnitude(force, moment, settings.max_force, settings.max_moment)
         except ValueError as error:
-            self._reject(stamp, 'payload', error)
+            self._reject(stamp, robot_messages.PLATFORM_WRENCH_TOPIC, 'payload', error)
             return
         with self._inputs_lock:
             self._payload = (force, moment)
@@ -178,7 +179,7 @@ class CdrNode(Node):
     def _on_sliders(self, data: bytes) -> None:
         """Log the slider positions as received; reject them with a diagnostic or solve."""
         self._log_input(1, data)
-        message = self._decoded(data, JointState, 'sliders')
+        message = self._decoded(data, robot_messages.SLIDERS_TOPIC, JointState, 'sliders')
         if message is None:
             return
         stamp = dict(message['header']['stamp'])
@@ -187,7 +188,7 @@ class CdrNode(Node):
                 robot_messages.sliders_from_joint_state(message['name'], message['position']),
                 self.robot.geometry.slider_stroke)
         except ValueError as error:
-            self._reject(stamp, 'sliders', error)
+            self._reject(stamp, robot_messages.SLIDERS_TOPIC, 'sliders', error)
             return
         with self._inputs_lock:
             self._sliders = sliders
@@ -196,7 +197,7 @@ class CdrNode(Node):
     def _on_target(self, data: bytes) -> None:
         """Log the target as received; reject it with a diagnostic or solve the inverse."""
         self._log_input(2, data)
-        message = self._decoded(data, PointStamped, 'target')
+        message = self._decoded(data, robot_messages.TARGET_TOPIC, PointStamped, 'target')
         if message is None:
             return
         target, frame_id, stamp = robot_messages.target_from_point(message)
@@ -207,12 +208,13 @@ class CdrNode(Node):
                                  f'{world!r} (no tf here)')
             check_target(target)
         except ValueError as error:
-            self._reject(stamp, 'target', error)
+            self._reject(stamp, robot_messages.TARGET_TOPIC, 'target', error)
             return
         with self._inputs_lock:
             self._mailbox.put((INVERSE, stamp, target, *self._payload))
 
-    def _decoded(self, data: bytes, message_class: type, what: str) -> Optional[dict]:
+    def _decoded(self, data: bytes, topic: str, message_class: type, what: str
+                 ) -> Optional[dict]:
         """
         Return the message in ``data`` as a dict; None, rejected with a diagnostic, if malformed.
 
@@ -222,15 +224,16 @@ class CdrNode(Node):
         try:
             return self._decoders[message_class](data)
         except ValueError as error:  # cdr's readers raise nothing else on bad bytes
-            self._reject({'sec': 0, 'nanosec': 0}, what,
+            self._reject({'sec': 0, 'nanosec': 0}, topic, what,
                          ValueError(f'malformed message: {error}'))
             return None
 
-    def _reject(self, stamp: dict, what: str, error: Exception) -> None:
+    def _reject(self, stamp: dict, topic: str, what: str, error: Exception) -> None:
+        """Count an input of ``topic`` not used; an ERROR of the stage it was for says why."""
         self.rejected += 1
-        self.get_logger().warning(f'{what} rejected: {error}', throttle_duration_sec=1.0)
-        self._publish(robot_messages.rejection_messages(stamp, f'{what} rejected: {error}',
-                                                      self._counts()))
+        self._publish(robot_messages.rejection_messages(
+            stamp, f'{what} rejected: {error}', self._counts(),
+            name=robot_messages.INPUT_DIAGNOSTIC_NAMES[topic]))
 
     # solving ---------------------------------------------------------------------------------
     def _work(self) -> None:
@@ -247,16 +250,15 @@ class CdrNode(Node):
                 result = self.robot.solve(inputs, force, moment)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
-                self.get_logger().error(f'solver thread: {error!r}')
                 self._publish(robot_messages.rejection_messages(
-                    stamp, f'internal error: {error!r}', self._counts()))
+                    stamp, f'internal error: {error!r}', self._counts(),
+                    name=(robot_messages.INVERSE_DIAGNOSTIC_NAME if kind == INVERSE
+                          else robot_messages.DIAGNOSTIC_NAME)))
                 continue
             if result.converged:
                 self.solved += 1
             else:
                 self.failed += 1
-                self.get_logger().error(f'no equilibrium: {result.message}',
-                                        throttle_duration_sec=1.0)
             self._publish(robot_messages.output_messages(
                 result, stamp, self._settings.world_frame, self._counts()))
 
@@ -268,8 +270,6 @@ class CdrNode(Node):
             self.solved += 1
         else:
             self.failed += 1
-            self.get_logger().error(f'target not reached: {result.message}',
-                                    throttle_duration_sec=1.0)
         self._publish(robot_messages.inverse_output_messages(
             result, stamp, self._settings.world_frame, self._counts()))
 
@@ -281,8 +281,12 @@ class CdrNode(Node):
                 **log_lost(getattr(self, '_log', None))}
 
     def _publish(self, built: Sequence[Tuple[str, str, dict]]) -> None:
-        """Fill, publish and queue for the MCAP log the (topic, type, dict) of robot_messages."""
-        for topic, name, values in built:
+        """
+        Fill, publish and queue for the MCAP log the (topic, type, dict) of robot_messages.
+
+        Every diagnostic is logged here at its level (DiagnosticLog), and nowhere else.
+        """
+        for topic, name, values in self._diagnostic_log.logged(built):
             message = fill_message(CDR_OUTPUTS[topic](), values)
             publisher = self._publishers_by_topic[topic]
             publisher.publish(message)

@@ -38,6 +38,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
+from .diagnostic_log import DiagnosticLog
 from .node_help import EXIT_CANNOT_START, wants_help
 from .parameters import check_command_line, check_value
 from ..console import run_command
@@ -59,6 +60,9 @@ SHUTDOWN_JOIN_S = 5.0
 
 #: How often a node checks its MCAP log (an ERROR diagnostic while writing fails).
 LOG_CHECK_PERIOD_S = 1.0
+
+#: Least time between two log lines of the MCAP log's status (s).
+LOG_ERROR_THROTTLE_S = 10.0
 
 #: How long a node trusts its count of an output topic's subscribers before counting again
 #: (s): a count costs 10-15 us, and a node publishes several outputs per input at 1 kHz.
@@ -254,26 +258,38 @@ class LogWatch:
         return None
 
 
-def log_health(watch: Optional[LogWatch], logger: Any, node_name: str,
-               counts: Mapping[str, Any]) -> List[Tuple[str, str, dict]]:
+def log_status_name(node_name: str) -> str:
+    """Return the DiagnosticStatus name of a node's MCAP log health."""
+    return f'{node_name}: mcap_log'
+
+
+def node_diagnostic_log(logger: Any, node_name: str) -> DiagnosticLog:
+    """
+    Return the DiagnosticLog of a node: each status one line a second at most.
+
+    The MCAP log's status gets one line in ``LOG_ERROR_THROTTLE_S``: while writing fails
+    it is an ERROR at every check.
+    """
+    return DiagnosticLog(logger, throttle_s_by_name={
+        log_status_name(node_name): LOG_ERROR_THROTTLE_S})
+
+
+def log_health(watch: Optional[LogWatch], node_name: str, counts: Mapping[str, Any]
+               ) -> List[Tuple[str, str, dict]]:
     """
     Check the MCAP log (a node's timer work); return the diagnostic to publish, if any.
 
-    The status is named '<node_name>: mcap_log'; ERROR is also logged (throttled), WARN
-    once. ``counts`` (the node's running counts) are added to its values.
+    The status is named ``log_status_name(node_name)``; ``counts`` (the node's running
+    counts) are added to its values. The node logs it as it publishes it (DiagnosticLog).
     """
     found = watch.check() if watch is not None else None
     if found is None:
         return []
     level, text, values = found
-    if level == messages.ERROR:
-        logger.error(text, throttle_duration_sec=10.0)
-    else:
-        logger.warning(text)
     return [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
              messages.diagnostics_message(messages.stamp_from_ns(time.time_ns()), level, text,
                                           {**values, **counts},
-                                          name=f'{node_name}: mcap_log'))]
+                                          name=log_status_name(node_name)))]
 
 
 def log_lost(log: Optional[NodeLog]) -> Dict[str, int]:

@@ -36,13 +36,14 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from . import node_help, serialization
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogWatch, NodeLog, open_log, OUTPUTS, run
+from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
+from .runtime import OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
+from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
 from ..interface.wrench_processing import solve_wrench
-from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
 from ..result import SolveResult
 from ..solver import check_wrench
@@ -90,6 +91,7 @@ class TranslatorNode(Node):
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in OUTPUTS.items()}
         self._mailbox = LatestMailbox(self._settings.pending_wrenches)
+        self._diagnostic_log = node_diagnostic_log(self.get_logger(), NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._log_watch = LogWatch(self._log) if self._log is not None else None
@@ -143,8 +145,8 @@ class TranslatorNode(Node):
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        self._publish_all(self._serialized(log_health(self._log_watch, self.get_logger(),
-                                                      NODE_NAME, self._counts())))
+        self._publish_all(self._serialized(log_health(self._log_watch, NODE_NAME,
+                                                      self._counts())))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes) -> None:
@@ -183,7 +185,6 @@ class TranslatorNode(Node):
                     self._process(stamp, force, moment, end_disk)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self.failed += 1
-                self.get_logger().error(f'solver thread: {error!r}')
                 self._publish_all(self._serialized(messages.rejection_messages(
                     stamp, f'internal error: {error!r}', self._counts())))
 
@@ -200,9 +201,8 @@ class TranslatorNode(Node):
             return None
 
     def _reject(self, stamp: dict, reason: str) -> None:
-        """Count a rejected wrench, warn (throttled) and publish the ERROR diagnostic."""
+        """Count a rejected wrench and publish (and so log) the ERROR diagnostic."""
         self.rejected += 1
-        self.get_logger().warning(f'wrench rejected: {reason}', throttle_duration_sec=1.0)
         self._publish_all(self._serialized(messages.rejection_messages(
             stamp, f'rejected: {reason}', self._counts())))
 
@@ -221,8 +221,6 @@ class TranslatorNode(Node):
             self._rotation = result.frames['de'][:3, :3]
         else:
             self.failed += 1
-            self.get_logger().error(f'no equilibrium: {result.message}',
-                                    throttle_duration_sec=1.0)
         extra = self._counts()
         if end_disk:
             extra['follower_solves'] = solves
@@ -255,11 +253,13 @@ class TranslatorNode(Node):
         CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
         Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
-        straight from the dict, no rclpy message in between).
+        straight from the dict, no rclpy message in between). Every diagnostic, wanted or
+        not, is logged here at its level (DiagnosticLog), and nowhere else.
         """
         logged = self._log is not None
         subscribed = self._subscribers.subscribed()
-        return ((topic, self._encoders[topic](values)) for topic, _, values in built
+        return ((topic, self._encoders[topic](values))
+                for topic, _, values in self._diagnostic_log.logged(built)
                 if logged or topic in subscribed)
 
     def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:

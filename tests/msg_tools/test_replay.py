@@ -274,6 +274,22 @@ def test_bad_messages_are_reported_and_the_rest_processed(tmp_path):
     assert counts['received'] == '12' and counts['rejected'] == '4'
 
 
+def test_summary_gives_directions_by_circular_statistics(tmp_path, capsys):
+    """Two loads along -x bend towards +180 and -180 deg: the summary says 180, spread ~0."""
+    bag = tmp_path / 'reversed.mcap'
+    synth.write_wrenches(bag, [
+        synth.Sample(synth.DEFAULT_START_NS + k, np.array([-12.0, side, 0.0]), np.zeros(3),
+                     'translator_base') for k, side in enumerate((1e-6, -1e-6))])
+    assert main(['replay', str(bag), '--out', str(tmp_path / 'o.mcap'),
+                 '--progress', 'never']) == 0
+    rows = dict(line.split(None, 2)[::2] for line in capsys.readouterr().out.splitlines()
+                if line.startswith(('pj_direction', 'dj_direction')))
+    assert rows['pj_direction'] in ('circular mean 180.000, circular std 0.000',
+                                    'circular mean -180.000, circular std 0.000')
+    assert rows['dj_direction'] in ('circular mean 0.000, circular std 0.000',
+                                    'circular mean -0.000, circular std 0.000')
+
+
 def test_missing_topic_and_wrong_schema(tmp_path, capsys):
     """A missing topic or a non-wrench schema: exit 2 naming what the file holds."""
     bag = tmp_path / 'ramp.mcap'

@@ -140,6 +140,21 @@ def test_cli_delta_ik_json_and_exit_codes(capsys):
     assert 'target y coordinate is nan' in capsys.readouterr().err
 
 
+def test_cli_delta_ik_table_says_what_happened(capsys):
+    """The table of an unreachable target names the outcome; it never says 'converged True'."""
+    assert main(['delta-ik', '--target', '10', '0', '-130']) == 3   # mm typed as m
+    out = capsys.readouterr().out
+    first, second = out.splitlines()[:2]
+    assert first.split(None, 1)[0] == 'result'
+    assert first.split(None, 1)[1].startswith(
+        'nearest reachable point found, target unreachable: [10000.000, 0.000, -130000.000] mm')
+    assert 'stroke limit' in first and second.split() == ['reachable', 'False']
+    assert 'converged' not in out
+    assert main(['delta-ik', '--target', '0.01', '0', '-0.13']) == 0
+    assert capsys.readouterr().out.splitlines()[0].split(None, 1)[1].startswith(
+        'target reached')
+
+
 def test_cli_delta_has_stability(capsys):
     """`delta --json` now carries the platform compliance and the stability verdict."""
     assert main(['delta', '--sliders', '0.01', '0', '0', '--payload', '0', '0', '-9.81',

@@ -3,7 +3,10 @@
 import os
 
 from cdr_translator.ros.client import isolated_ros_env
+from cdr_translator.ros.translator import TranslatorNode
 import pytest
+import rclpy
+from rclpy.context import Context
 
 
 @pytest.fixture(scope='module')
@@ -19,3 +22,18 @@ def ros_env():
             os.environ.pop(key, None)
         else:
             os.environ[key] = value
+
+
+@pytest.fixture
+def node(ros_env):
+    """Run a translator_node in this process (own context, no log); close it afterwards."""
+    context = Context()
+    rclpy.init(args=[], context=context)
+    made = TranslatorNode(context=context,
+                          ros_arguments=['--ros-args', '-p', 'log_to_mcap:=false'])
+    try:
+        yield made
+    finally:
+        made.close()
+        made.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -133,6 +133,16 @@ class Client:
                     return stamp
         raise AssertionError(f'no answer in {timeout_s} s')
 
+    def send_malformed_until_answered(self, publisher, what):
+        """Publish bytes that are no message until a diagnostic stamped 0 answers; its stamp."""
+        zero = {'sec': 0, 'nanosec': 0}
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while not self.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero):
+            assert time.monotonic() < deadline, f'malformed {what} not answered'
+            publisher.publish(b'\x00\x01\x00\x00\x07')
+            self.executor.spin_once(timeout_sec=0.25)
+        return zero
+
     def publish_sliders(self, positions, stamp, names=('slider_1', 'slider_2', 'slider_3')):
         """Publish a sliders JointState."""
         message = JointState()
@@ -247,12 +257,7 @@ def test_node_round_trip(tmp_path, solved):
         level, text, _ = diagnostic(client, bad)
         assert level == messages.ERROR and "'elsewhere' is not the world frame" in text
         # malformed bytes: an ERROR (stamp zero), and the node goes on answering
-        zero = {'sec': 0, 'nanosec': 0}
-        deadline = time.monotonic() + ANSWER_TIMEOUT_S
-        while not client.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero):
-            assert time.monotonic() < deadline, 'malformed sliders not answered'
-            client.sliders.publish(b'\x00\x01\x00\x00\x07')
-            client.executor.spin_once(timeout_sec=0.25)
+        zero = client.send_malformed_until_answered(client.sliders, 'sliders')
         level, text, _ = diagnostic(client, zero)
         assert level == messages.ERROR and 'sliders rejected: malformed message' in text
         again = client.send_until_answered(
@@ -338,3 +343,35 @@ def test_node_inverse_round_trip(tmp_path):
     by_topic = topic_counts(mcap)
     assert by_topic['/target_position'] >= 3
     assert by_topic['/slider_command'] >= 1 and by_topic['/predicted_platform_pose'] >= 1
+
+
+def test_node_rejections_name_their_stage_and_log_at_their_level(tmp_path):
+    """
+    A rejected input is an ERROR of the stage it was for, logged as an ERROR.
+
+    Targets (wrong frame, unreadable) are the inverse statics', payloads the forward's.
+    """
+    with node_session(tmp_path) as (node, client, _):
+        elsewhere = client.send_until_answered(
+            lambda stamp: client.publish_target((0.0, 0.0, -0.13), stamp, 'elsewhere'),
+            START_TIMEOUT_S)
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, elsewhere)[-1].status[0]
+        assert status.name == robot_messages.INVERSE_DIAGNOSTIC_NAME
+        level, text, _ = diagnostic(client, elsewhere)
+        assert level == messages.ERROR and "target frame_id 'elsewhere'" in text
+        payload = client.send_until_answered(
+            lambda stamp: client.publish_wrench((0.0, 0.0, -1.0), stamp, 'elsewhere'),
+            ANSWER_TIMEOUT_S)
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, payload)[-1].status[0]
+        assert status.name == robot_messages.DIAGNOSTIC_NAME
+        zero = client.send_malformed_until_answered(client.target, 'target')
+        status = client.stamped(robot_messages.DIAGNOSTICS_TOPIC, zero)[-1].status[0]
+        assert status.name == robot_messages.INVERSE_DIAGNOSTIC_NAME
+        assert 'target rejected: malformed message' in status.message
+        assert node.stop(signal.SIGINT) == 0, node.text()
+    lines = [line for line in node.text().splitlines() if 'rejected' in line]
+    wrong_frame = "inverse statics: target rejected: target frame_id 'elsewhere'"
+    assert any(line.startswith('[ERROR]') and wrong_frame in line for line in lines), lines
+    assert any(line.startswith('[ERROR]') and 'forward statics: payload rejected' in line
+               for line in lines), lines
+    assert all(line.startswith('[ERROR]') for line in lines), lines

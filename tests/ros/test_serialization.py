@@ -14,11 +14,8 @@ from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
 from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
-from cdr_translator.ros.translator import TranslatorNode
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Float64MultiArray
@@ -128,21 +125,6 @@ def test_subscriber_counts_are_refreshed_at_most_every_period():
     assert counts.subscribed() == {'pose', 'angles'} and pose.queries == 2
 
 
-@pytest.fixture
-def node(ros_env):
-    """Run a translator_node in this process (own context, no log); close it afterwards."""
-    context = Context()
-    rclpy.init(args=[], context=context)
-    made = TranslatorNode(context=context,
-                          ros_arguments=['--ros-args', '-p', 'log_to_mcap:=false'])
-    try:
-        yield made
-    finally:
-        made.close()
-        made.destroy_node()
-        rclpy.try_shutdown(context=context)
-
-
 def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
         node, result, monkeypatch):
     """Without a log and with only the pose subscribed, only the pose is encoded and sent."""
@@ -163,6 +145,6 @@ def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
     assert pose.header.stamp.sec == STAMP['sec']
     assert pose.pose.position.x == pytest.approx(float(solved.end_disk_position[0]))
     node._subscribers = SubscriberCounts({})
-    node._publish_all(node._serialized(log_health(None, None, 'n', {})))
+    node._publish_all(node._serialized(log_health(None, 'n', {})))
     node._publish_all(node._output_messages(solved, STAMP, True, True, {}))
     assert len(sent) == 1 and len(encoded) == 1
