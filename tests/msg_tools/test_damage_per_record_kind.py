@@ -109,3 +109,12 @@ def test_a_chunk_index_without_summary_crc_is_checked_against_the_chunks(tmp_pat
     assert [m.log_time_ns for m in source.messages()] == stamps
     assert 'the chunk index points at byte' in source.report.reason
     assert source.data_crc == 'valid'
+
+
+@pytest.mark.parametrize('command', ['info', 'replay'])
+def test_a_device_is_not_read_as_an_mcap(tmp_path, capsys, command):
+    """/dev/zero is not a regular file: one line and exit 2, nothing read."""
+    extra = ['--out', str(tmp_path / 'out.mcap')] if command == 'replay' else []
+    assert main([command, '/dev/zero'] + extra) == 2
+    error = capsys.readouterr().err
+    assert error == 'error: /dev/zero is not a regular file, so not an MCAP file\n'
