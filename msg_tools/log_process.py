@@ -211,7 +211,7 @@ class LogProcess:
 
     @property
     def refused(self) -> int:
-        """Return the records the McapLog refused (not serializable as their type)."""
+        """Return how many records the McapLog would not take (not serializable as their type)."""
         return self._state.errors
 
     @property

@@ -63,8 +63,7 @@ def test_a_damaged_summary_is_not_used(tmp_path, capsys, kind):
 
 
 @pytest.mark.parametrize('kind', DATA_KINDS)
-def test_damage_outside_the_chunks_fails_the_data_crc_and_replay_says_so(tmp_path, capsys,
-                                                                        kind):
+def test_damage_outside_the_chunks_fails_the_data_crc(tmp_path, capsys, kind):
     """Every message read through the index; the data-section CRC mismatch makes exit 1."""
     path = tmp_path / 'a.mcap'
     write_chunked(path)

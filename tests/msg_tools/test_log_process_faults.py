@@ -20,7 +20,7 @@ CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost \((\d+)
                     r'(\d+) not serializable(?:, (\d+) never handed over to the writer)?\)')
 
 #: A caller that hands 300 records to its log process, says so, and waits to be killed.
-CALLER = '''
+CALLER = """
 import sys, time
 from msg_tools.log_process import LogProcess
 log = LogProcess(sys.argv[1], flush_every_messages=10, flush_every_s=0.05)
@@ -31,7 +31,7 @@ while log.written < 300:
     time.sleep(0.01)
 print('handed over', flush=True)
 time.sleep(600)
-'''
+"""
 
 
 def _wrench_cdr(tmp_path):

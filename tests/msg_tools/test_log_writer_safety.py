@@ -9,8 +9,8 @@ import threading
 import time
 
 from cdr_translator.interface import messages
-from msg_tools.errors import LogFileBusyError, LogFileExistsError
 from msg_tools import mcap_log
+from msg_tools.errors import LogFileBusyError, LogFileExistsError
 from msg_tools.mcap_log import _FileSink, McapLog
 from msg_tools.reader import McapSource
 import pytest
