@@ -24,7 +24,9 @@ namespace, is an error too: that is the usual mistake of a namespaced launch.
 
 import difflib
 from fnmatch import fnmatchcase
+import os
 from pathlib import Path
+import stat
 from typing import Any, Dict, FrozenSet, Iterable, List, Mapping, Optional, Tuple, Union
 
 import yaml
@@ -39,6 +41,9 @@ PathLike = Union[str, Path]
 
 #: The key under a node-name pattern that holds its parameters.
 PARAMETERS_KEY = 'ros__parameters'
+#: Largest params file read (bytes): the shipped one is a few kB, and a device or a huge
+#: file given by mistake must not be read without bound.
+MAX_PARAMS_BYTES = 1 << 20
 
 
 def fully_qualified_name(node_name: str, namespace: str = '/') -> str:
@@ -63,13 +68,29 @@ def _match(pattern: List[str], segments: List[str]) -> bool:
     return bool(segments) and fnmatchcase(segments[0], head) and _match(rest, segments[1:])
 
 
+def _bounded_text(path: Path) -> str:
+    """Return the text of ``path``; ParameterError unless a regular file of bounded size."""
+    # O_NONBLOCK: a FIFO given by mistake must not block the open.
+    descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    with open(descriptor, 'rb') as stream:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            raise ParameterError(f'cannot read parameter file {path}: not a regular file')
+        data = stream.read(MAX_PARAMS_BYTES + 1)
+    if len(data) > MAX_PARAMS_BYTES:
+        raise ParameterError(f'cannot read parameter file {path}: larger than '
+                             f'{MAX_PARAMS_BYTES} bytes, so not a params file')
+    return data.decode('utf-8')
+
+
 def read_document(path: PathLike) -> Mapping[str, Any]:
     """Load a params file; ParameterError if it cannot be read or is not one."""
     path = Path(path)
     try:
-        document = yaml.safe_load(path.read_text())
+        document = yaml.safe_load(_bounded_text(path))
     except OSError as error:
         raise ParameterError(f'cannot read parameter file {path}: {error}') from error
+    except UnicodeDecodeError as error:
+        raise ParameterError(f'{path} is not a text file: {error}') from error
     except yaml.YAMLError as error:
         raise ParameterError(f'{path} is not valid YAML: {error}') from error
     if not isinstance(document, Mapping) or not document:

@@ -1,11 +1,13 @@
 """
 ``python -m msg_tools info FILE``: topics, types, counts and time range of an MCAP.
 
-By default every chunk is read and its CRC checked, and so is the data-section CRC: the
-counts are those of the messages that can be read, and a damaged file is reported as such
-with what was lost, even when its summary is intact. ``verify=False`` (``--no-crc``) takes
-the counts from the summary without reading the chunks (fast, for trusted files). Memory
-stays bounded: messages are counted as they stream by.
+By default every chunk is read and its CRC checked, and so are the summary and
+data-section CRCs: the counts are those of the messages that can be read, and a damaged
+file is reported as such with what was lost, even when its summary is intact (a damaged
+summary is not used: the data section is read through, ``msg_tools.reader``).
+``verify=False`` (``--no-crc``) takes the counts from the summary without reading the
+chunks (fast, for trusted files). Memory stays bounded: messages are counted as they
+stream by.
 """
 
 from datetime import datetime, timezone

@@ -33,6 +33,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 from msg_tools.file_lock import open_exclusive
 from msg_tools.log_status import LogStatus
 from msg_tools.mcap_log import McapLog
+from msg_tools.reader import McapSource
 
 #: How often the child reports the log's status (s), and how often it looks for news.
 STATUS_PERIOD_S = 0.1
@@ -90,11 +91,17 @@ class RecordWriter:
         self.write_time_s += time.perf_counter() - started
 
 
-def closing_line(status: LogStatus, errors: int) -> Tuple[bool, str]:
-    """Return (all written, a writer's closing log line) from its final status."""
-    lost = status.lost + errors
+def closing_line(status: LogStatus, refused: int, unsent: int = 0) -> Tuple[bool, str]:
+    """
+    Return (all written, a writer's closing log line) from its final status.
+
+    ``refused``: records the McapLog would not take (not serializable as their type);
+    ``unsent``: records that never reached the writer (its process was gone).
+    """
+    lost = status.lost + refused + unsent
+    never = f', {unsent} never handed over to the writer' if unsent else ''
     text = (f'MCAP log closed: {status.written} records written, {lost} lost '
-            f'({status.lost} not written, {errors} not serializable) in '
+            f'({status.lost} not written, {refused} not serializable{never}) in '
             f'{", ".join(status.files)}')
     if status.message:
         text += f'; {status.message}'
@@ -156,6 +163,8 @@ class LogProcess:
         self.enqueue_wait_s = 0.0
         self.max_enqueue_wait_s = 0.0
         self._died = ''
+        #: Records the files hold, counted once the child is gone (None: not counted).
+        self._in_files: Optional[int] = None
         self._state = WriterState(LogStatus(True, str(opened), (str(opened),), 0, 0, 0, 0, ''),
                                   0, 0, 0, '', 0.0)
         self._closed = threading.Event()
@@ -201,6 +210,11 @@ class LogProcess:
         return self._state.errors + self.unsent
 
     @property
+    def refused(self) -> int:
+        """Return how many records the McapLog would not take (not serializable as their type)."""
+        return self._state.errors
+
+    @property
     def reordered(self) -> int:
         """Return the log times held back to keep each channel in order."""
         return self._state.reordered
@@ -219,16 +233,16 @@ class LogProcess:
         """
         Return the McapLog's status as last reported, or a failure once the child is gone.
 
-        A child gone before closing the file leaves everything it had not confirmed as
-        written lost.
+        A child gone before closing the file: the records its files hold (read back, the
+        last reports may be behind) are written, the rest of what was handed over is lost.
         """
         with self._state_lock:
             status = self._state.status
             if self._died:
-                unconfirmed = (self.submitted - self.unsent - status.written - status.lost
-                               - self._state.errors)
-                return replace(status, ok=False, pending=0, lost=status.lost + unconfirmed,
-                               message=self._died)
+                written = status.written if self._in_files is None else self._in_files
+                lost = self.submitted - self.unsent - self._state.errors - written
+                return replace(status, ok=False, pending=0, written=written,
+                               lost=max(lost, status.lost), message=self._died)
             return status
 
     # hand-over -----------------------------------------------------------------------------
@@ -285,11 +299,14 @@ class LogProcess:
                 self._closed.set()
                 return
         code = self._process.wait()
+        if self._closed.is_set():
+            return
+        in_files = records_in(self._state.status.files)
         with self._state_lock:
-            if not self._closed.is_set():
-                self._died = (f'the MCAP log writer process (PID {self._process.pid}) '
-                              f'exited with code {code} before the log was closed: what it '
-                              f'had not written is lost')
+            self._in_files = in_files
+            self._died = (f'the MCAP log writer process (PID {self._process.pid}) '
+                          f'exited with code {code} before the log was closed: what it '
+                          f'had not written is lost')
 
     # shutdown ------------------------------------------------------------------------------
     def close(self, timeout_s: float = CLOSE_TIMEOUT_S) -> LogStatus:
@@ -317,7 +334,20 @@ class LogProcess:
 
     def closing_line(self) -> Tuple[bool, str]:
         """Return (all written, the closing log line) after ``close()``."""
-        return closing_line(self.status(), self.errors)
+        return closing_line(self.status(), self.refused, self.unsent)
+
+
+def records_in(files: Sequence[str]) -> Optional[int]:
+    """Return the messages readable in ``files`` (a removed one holds none; None: unknown)."""
+    count = 0
+    for file in files:
+        if not os.path.lexists(file):
+            continue
+        try:
+            count += sum(1 for _ in McapSource(file, check_data_crc=False).messages())
+        except (OSError, ValueError):
+            return None
+    return count
 
 
 def _state(writer: RecordWriter, final: bool = False) -> tuple:
@@ -326,15 +356,28 @@ def _state(writer: RecordWriter, final: bool = False) -> tuple:
             writer.last_error, writer.write_time_s, final)
 
 
+def _report(outbox: Connection, item: tuple) -> bool:
+    """Send ``item`` to the caller; False when the caller is gone (its end is closed)."""
+    try:
+        outbox.send(item)
+    except OSError:   # BrokenPipeError: the caller died; the file is finished all the same
+        return False
+    return True
+
+
 def serve(inbox: Connection, outbox: Connection, writer: RecordWriter) -> None:
-    """Child: write what arrives until None or the pipe closes, reporting the status."""
-    outbox.send(('status', _state(writer)))
+    """
+    Child: write what arrives until None or the pipe closes, reporting the status.
+
+    A caller that dies (its pipe ends close) ends the reports; the file is still finished.
+    """
+    listening = _report(outbox, ('status', _state(writer)))
     reported = time.monotonic()
     while True:
         if inbox.poll(STATUS_PERIOD_S):
             try:
                 item = inbox.recv()
-            except EOFError:
+            except (EOFError, OSError):
                 break
             if item is None:
                 break
@@ -345,11 +388,12 @@ def serve(inbox: Connection, outbox: Connection, writer: RecordWriter) -> None:
             else:
                 for record in payload:
                     writer.write(*record)
-        if time.monotonic() - reported >= STATUS_PERIOD_S:
-            outbox.send(('status', _state(writer)))
+        if listening and time.monotonic() - reported >= STATUS_PERIOD_S:
+            listening = _report(outbox, ('status', _state(writer)))
             reported = time.monotonic()
     writer.log.close()
-    outbox.send(('final', _state(writer, final=True)))
+    if listening:
+        _report(outbox, ('final', _state(writer, final=True)))
 
 
 def main(argv: List[str]) -> int:
@@ -364,7 +408,7 @@ def main(argv: List[str]) -> int:
                       flush_every_s=float(flush_s), if_exists='rename',
                       opened=(int(fd), Path(opened)))
     except (OSError, ValueError) as error:
-        outbox.send(('failed', f'{requested}: {error}'))
+        _report(outbox, ('failed', f'{requested}: {error}'))
         return 1
     serve(inbox, outbox, RecordWriter(log))
     return 0

@@ -260,7 +260,9 @@ class McapLog:
         failed = self._failure
         try:
             fd, path = open_exclusive(self.requested_path, 'rename')
-        except OSError:
+        except OSError as error:
+            self._message = (f'{failed}; a new file cannot be created either: '
+                             f'{error_text(error)}')
             return False
         previous = self.path
         self.path = path

@@ -1,20 +1,24 @@
 """
 Read every message of an MCAP file that can still be read, and say what could not.
 
-A finished file is read through its summary (chunk index and statistics): each chunk is
-located by its index, checked against its CRC and decompressed on its own, so a damaged
-chunk loses only its own messages (counted from the statistics). A file without a readable
-summary (the writer was killed, the file was cut or corrupted) is salvaged by a streaming
-read from the start: every complete chunk and message up to the first unreadable record is
-kept, a damaged chunk is skipped as long as its record length can be trusted. Messages come
+A finished file whose summary can be trusted (its CRC matches: ``msg_tools.mcap_framing``)
+is read through its summary (chunk index and statistics): each chunk is located by its
+index, checked against its CRC and decompressed on its own, so a damaged chunk loses only
+its own messages (counted from the statistics). A file without a trustworthy summary (the
+writer was killed, the file was cut, a summary record or the footer is damaged) is salvaged
+by a streaming read of the data section from the start, which is the source of truth: every
+complete chunk and message up to the first unreadable record is kept, a damaged chunk is
+skipped as long as its record length can be trusted, and the summary's copies of schemas
+and channels are not used. Messages come
 in file order (the order the recorder received them). ``ReadReport`` tells how the file
 was read and what was lost.
 
 Duplicates (the same channel, sequence, log time and bytes as a message already read, e.g.
 from a chunk written twice) are skipped and counted: a chunk identical to an earlier one
 anywhere in the file, and single messages within a window of the last ``DUPLICATE_WINDOW``
-messages, so memory stays bounded however long the file. ``check_data_crc`` also checks
-the data-section CRC of the DataEnd record (an extra streaming pass for an indexed read).
+messages, so memory stays bounded however long the file. ``check_data_crc`` (default) also
+checks the data-section CRC of the DataEnd record (an extra streaming pass for an indexed
+read).
 """
 
 from collections import deque
@@ -22,17 +26,21 @@ from dataclasses import dataclass, field
 import io
 import itertools
 from pathlib import Path
+import stat
 import struct
 from typing import Callable, Deque, Dict, Iterable, Iterator, List, Optional, Set, Tuple, Union
 import zlib
 
-from mcap.exceptions import McapError
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
-from mcap.stream_reader import CRCValidationError, get_chunk_data_stream, StreamReader
+from mcap.stream_reader import (CRCValidationError, get_chunk_data_stream, MAGIC_SIZE,
+                                read_magic, StreamReader)
 from mcap_ros2.decoder import DecoderFactory
 from msg_tools.errors import error_text
+from msg_tools.mcap_framing import chunk_index_problem, summary_problem
 import zstandard
 
 #: Exceptions that mean "this part of the file cannot be read": struct.error for cut
@@ -186,11 +194,13 @@ class McapSource:
     """
 
     def __init__(self, path: Union[str, Path], topics: Optional[List[str]] = None,
-                 check_data_crc: bool = False) -> None:
-        """Open ``path`` lazily; ValueError if it does not exist."""
+                 check_data_crc: bool = True) -> None:
+        """Open ``path`` lazily; ValueError if it does not exist or is not a regular file."""
         self.path = Path(path)
-        if not self.path.is_file():
+        if not self.path.exists():
             raise ValueError(f'no such MCAP file: {self.path}')
+        if not stat.S_ISREG(self.path.stat().st_mode):
+            raise ValueError(f'{self.path} is not a regular file, so not an MCAP file')
         self.topics = set(topics) if topics is not None else None
         self.check_data_crc = check_data_crc
         self.report = ReadReport(str(self.path), self.path.stat().st_size)
@@ -258,14 +268,21 @@ class McapSource:
         """Return (summary, '') or (None, why the index cannot be used)."""
         try:
             summary = SeekingReader(stream).get_summary()
+            problem, crc_stored = summary_problem(stream, self.report.size_bytes)
         except READ_ERRORS as error:
             return None, f'no readable summary: {error_text(error)}'
         if summary is None:
             return None, 'the file has no summary section'
+        if problem:
+            return None, f'summary not used: {problem}'
         if summary.statistics is None:
             return None, 'the summary has no statistics'
         if summary.statistics.message_count and not summary.chunk_indexes:
             return None, 'the messages are not chunked'
+        if not crc_stored:
+            problem = chunk_index_problem(stream, summary.chunk_indexes)
+            if problem:
+                return None, f'summary not used: {problem}'
         return summary, ''
 
     def _indexed(self, stream: io.BufferedReader, summary) -> Iterator[RawMessage]:
@@ -314,26 +331,29 @@ class McapSource:
     # streamed -----------------------------------------------------------------------------
     def _streamed(self, stream: io.BufferedReader) -> Iterator[RawMessage]:
         """Yield the messages of every complete record up to the first unreadable one."""
-        position = 0
-        reader = StreamReader(stream, emit_chunks=True, validate_crcs=self.check_data_crc,
-                              record_size_limit=max(self.report.size_bytes, 1))
-        records = reader.records
+        position, records = self._stream_records(stream)
+        crc_checked = self.check_data_crc and not position   # the CRC covers the magic
+        data_ended = False
+        mismatch: Optional[CRCValidationError] = None
         while True:
             try:
                 record = next(records)
             except StopIteration:
-                return
-            except CRCValidationError as error:
-                self._data_crc_mismatch(error)
-                return
+                break
+            except CRCValidationError as error:   # only DataEnd raises it (chunks: below)
+                mismatch, data_ended = error, True
+                position = stream.tell()
+                records = StreamReader(stream, skip_magic=True, emit_chunks=True,
+                                       record_size_limit=max(self.report.size_bytes, 1)
+                                       ).records
+                continue
             except READ_ERRORS as error:
-                self.report.unread_bytes = max(self.report.size_bytes - position, 0)
-                if self.report.unread_bytes:
-                    self.report.problems.append(
-                        f'unreadable from byte {position} ({error_text(error)})')
-                return
+                self._unreadable(position, error, data_ended)
+                break
             end = stream.tell()
-            if isinstance(record, Chunk):
+            if data_ended:
+                pass   # the summary section: its copies of schemas and channels are not used
+            elif isinstance(record, Chunk):
                 try:
                     inside = chunk_records(record)
                     first = next(inside, None)   # decompressed and CRC-checked here
@@ -345,11 +365,48 @@ class McapSource:
                     continue
                 yield from self._chunk(position, record, first, inside)
             elif isinstance(record, DataEnd):
-                if self.check_data_crc:
+                data_ended = True
+                if crc_checked:
                     self.data_crc = 'valid' if record.data_section_crc else 'absent'
             elif not isinstance(record, Footer):
                 yield from self._records([record])
             position = end
+        if mismatch is not None:
+            self._data_crc_mismatch(mismatch)
+
+    def _unreadable(self, position: int, error: BaseException, data_ended: bool) -> None:
+        """Report that the records from ``position`` on cannot be read."""
+        if data_ended:   # every message was read: only the summary copies are lost
+            self.report.problems.append(f'summary section unreadable from byte {position} '
+                                        f'({error_text(error)}); no message lost')
+            return
+        self.report.unread_bytes = max(self.report.size_bytes - position, 0)
+        if self.report.unread_bytes:
+            self.report.problems.append(
+                f'unreadable from byte {position} ({error_text(error)})')
+
+    def _stream_records(self, stream: io.BufferedReader) -> Tuple[int, Iterator[McapRecord]]:
+        """
+        Return (offset, records) of a streaming read from the start of the file.
+
+        A damaged leading magic is reported and read past (the records after it may be
+        intact); the data-section CRC, which covers the magic, then cannot be checked.
+        """
+        limit = max(self.report.size_bytes, 1)
+        stream.seek(0)
+        try:
+            read_magic(ReadDataStream(stream))
+        except InvalidMagic as error:
+            self.report.problems.append(f'bytes 0-{MAGIC_SIZE - 1} are not the MCAP magic '
+                                        f'({error_text(error)}): read on from byte '
+                                        f'{MAGIC_SIZE}')
+            return MAGIC_SIZE, StreamReader(stream, skip_magic=True, emit_chunks=True,
+                                            record_size_limit=limit).records
+        except READ_ERRORS:
+            pass   # too short: the read below says so
+        stream.seek(0)
+        return 0, StreamReader(stream, emit_chunks=True, validate_crcs=self.check_data_crc,
+                               record_size_limit=limit).records
 
     # shared -------------------------------------------------------------------------------
     def _chunk(self, offset: int, chunk: Chunk, first: Optional[McapRecord],

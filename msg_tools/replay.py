@@ -117,8 +117,10 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     """
     if Path(input_path).is_dir():
         raise ReplayError(f'{input_path} is a folder, not an MCAP file')
-    if not Path(input_path).is_file():
+    if not Path(input_path).exists():
         raise ReplayError(f'no such MCAP file: {input_path}')
+    if not Path(input_path).is_file():
+        raise ReplayError(f'{input_path} is not a regular file, so not an MCAP file')
     outputs = [('output MCAP', output_path), ('CSV', csv_path), *other_outputs]
     check_distinct(input_path, outputs)
     for what, path in outputs:
@@ -135,7 +137,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                          f'(indices 0..{total - 1})')
     settings = TranslatorSettings.from_params_file(params_path)
     params = settings.params
-    source = McapSource(input_path, topics=chosen)
+    source = McapSource(input_path, topics=chosen, check_data_crc=True)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
     summary = ReplaySummary(source.report, chosen, warnings, total=total)

@@ -141,19 +141,32 @@ class LatestMailbox:
             return dropped
 
     def take(self, timeout: Optional[float] = None) -> Any:
-        """Wait for an item and return the oldest; None once closed (or after ``timeout`` s)."""
+        """
+        Wait for an item and return the oldest; None after ``timeout`` s, or once closed.
+
+        Closed with ``drain``, the items waiting then are still handed out first.
+        """
         with self._condition:
             self._condition.wait_for(lambda: bool(self._items) or self._closed, timeout)
-            if self._closed or not self._items:
+            if not self._items:
                 return None
             return self._items.popleft()
 
-    def close(self) -> None:
-        """Wake the consumer for good; untaken items are dropped."""
+    def close(self, drain: bool = False) -> None:
+        """Wake the consumer for good; untaken items are dropped unless ``drain``."""
         with self._condition:
             self._closed = True
-            self._items.clear()
+            if not drain:
+                self._items.clear()
             self._condition.notify_all()
+
+    def discard(self) -> int:
+        """Drop the items still waiting, count them as skipped; return how many."""
+        with self._condition:
+            count = len(self._items)
+            self.skipped += count
+            self._items.clear()
+            return count
 
 
 #: Field name -> rosidl type, per generated message class (filled on first use).

@@ -279,10 +279,22 @@ class TranslatorNode(Node):
 
     # shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
-        """Stop taking wrenches, let the running solve finish, finalize the MCAP file."""
+        """
+        Stop taking wrenches, answer those waiting, finalize the MCAP file.
+
+        The wrenches received and waiting are solved (each gets its outputs and
+        diagnostic, as at any time) within ``SHUTDOWN_JOIN_S``; any still waiting then
+        count as skipped, so the closing counts account for every received wrench.
+        """
         self.destroy_subscription(self._subscription)
-        self._mailbox.close()
+        self._mailbox.close(drain=True)
         self._worker.join(SHUTDOWN_JOIN_S)
+        self._mailbox.discard()
+        counts = self._counts()
+        self.get_logger().info(
+            f'wrenches: {counts["received"]} received, {counts["solved"]} solved, '
+            f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
+            f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)
         if self._log is not None:

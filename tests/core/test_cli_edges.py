@@ -60,6 +60,15 @@ def test_solve_checks_every_key_of_the_params_file(tmp_path, capsys, key, value,
     assert fragment in capsys.readouterr().err
 
 
+@pytest.mark.parametrize('command', [['solve', '--force', '1', '0', '0'],
+                                     ['delta', '--sliders', '0.02', '0', '0']])
+def test_a_device_as_params_file_is_one_line_and_exit_2(capsys, command):
+    """/dev/zero would be read without bound: refused as not a regular file."""
+    assert main(command + ['--params', '/dev/zero']) == 2
+    error = capsys.readouterr().err
+    assert 'not a regular file' in error and error.count('\n') == 1, error
+
+
 def test_delta_takes_a_params_file_with_only_a_cdr_node_section(tmp_path, capsys):
     """The legs' keys come from the shipped file, the robot's from the user's."""
     path = _params(tmp_path, 'cdr_node', slider_stroke='0.02')

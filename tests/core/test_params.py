@@ -3,7 +3,7 @@
 import math
 import warnings
 
-from cdr_translator import ParameterError, PlausibilityWarning, TranslatorParams
+from cdr_translator import ParameterError, params_file, PlausibilityWarning, TranslatorParams
 from cdr_translator.console import run_command
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 import pytest
@@ -115,3 +115,15 @@ def test_a_warning_is_one_line_at_the_console(capsys, params):
     lines = capsys.readouterr().err.splitlines()
     assert lines == ['warning: pitch_radius is 10.0 m, a length of 1 m or more: millimetres '
                      'typed as metres?']
+
+
+@pytest.mark.parametrize('what', ['device', 'huge file'])
+def test_a_params_file_is_a_regular_file_of_bounded_size(tmp_path, what):
+    """A device or a file beyond the bound is refused before being read whole."""
+    path = '/dev/zero' if what == 'device' else tmp_path / 'huge.yaml'
+    if what == 'huge file':
+        with open(path, 'wb') as stream:
+            stream.write(b'# ' + b'x' * (params_file.MAX_PARAMS_BYTES + 10) + b'\n')
+    with pytest.raises(ParameterError, match='cannot read parameter file') as raised:
+        TranslatorParams.from_yaml(path)
+    assert '\n' not in str(raised.value)

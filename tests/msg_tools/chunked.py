@@ -1,7 +1,11 @@
 """Small chunked MCAP files for the reader tests (shared by several test modules)."""
 
+from pathlib import Path
+
 from cdr_translator.interface import messages
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
+from mcap.stream_reader import MAGIC_SIZE
 from mcap.writer import Writer
 from msg_tools import synth
 from msg_tools.mcap_log import McapLog
@@ -36,3 +40,14 @@ def write_undecodable(path, count):
             writer.add_message(channel, log_time=k, publish_time=k,
                                data=b'\x00\x01\x00\x00' + k.to_bytes(4, 'little'))
         writer.finish()
+
+
+def record_spans(path):
+    """Return (opcode name, offset, total length) of every top-level record, in file order."""
+    data = Path(path).read_bytes()
+    spans, offset = [], MAGIC_SIZE
+    while offset + 9 <= len(data) - MAGIC_SIZE:
+        length = int.from_bytes(data[offset + 1:offset + 9], 'little')
+        spans.append((Opcode(data[offset]).name, offset, 9 + length))
+        offset += 9 + length
+    return spans

@@ -9,6 +9,7 @@ import threading
 import time
 
 from cdr_translator.interface import messages
+from msg_tools import mcap_log
 from msg_tools.errors import LogFileBusyError, LogFileExistsError
 from msg_tools.mcap_log import _FileSink, McapLog
 from msg_tools.reader import McapSource
@@ -217,3 +218,25 @@ def test_removed_file_is_a_write_error_and_its_records_count_as_lost(tmp_path):
     assert final.lost == 15 and final.written == 5 and final.errors == 1
     assert 'removed' in final.message or 'resumed' in final.message
     assert _times(path)[0] == list(range(15, 20))
+
+
+def test_a_failed_retry_says_why(tmp_path, monkeypatch):
+    """The file removed, then its folder read-only: the status names the retry's OSError."""
+    path = tmp_path / 'run.mcap'
+    log = McapLog(path, flush_every_messages=5, flush_every_s=0.0, retry_s=0.0)
+    _write(log, 0, 10)
+    path.unlink()
+
+    def read_only(requested, if_exists):
+        raise PermissionError(errno.EACCES, 'Permission denied', str(requested))
+
+    # as root a chmod does not stop the open: the folder's refusal is injected
+    monkeypatch.setattr(mcap_log, 'open_exclusive', read_only)
+    _write(log, 10, 5)                    # the flush at 15 notices the removal
+    _write(log, 15, 1)                    # the retry fails
+    status = log.status()
+    assert not status.ok and 'removed' in status.message
+    assert 'a new file cannot be created either: PermissionError' in status.message
+    assert 'Permission denied' in status.message
+    final = log.close()
+    assert (final.written, final.lost) == (0, 16)

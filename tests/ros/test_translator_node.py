@@ -19,6 +19,8 @@ from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
+from cdr_translator.ros.translator_node import TranslatorNode
+from geometry_msgs.msg import WrenchStamped
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.reader import McapSource
@@ -27,8 +29,11 @@ from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TI
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
+import rclpy
+from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 import yaml
 
@@ -300,3 +305,38 @@ def _poses(path):
             np.array([m.ros_msg.pose.position.x, m.ros_msg.pose.position.y,
                       m.ros_msg.pose.position.z])
             for m in read_ros2_messages(str(path)) if m.channel.topic.endswith('end_disk_pose')}
+
+
+def test_wrenches_waiting_at_shutdown_are_answered_and_counted(tmp_path):
+    """Two wrenches wait behind a slow solve when the node closes: both solved and logged."""
+    context = Context()
+    rclpy.init(args=[], context=context)
+    path = tmp_path / 'run.mcap'
+    try:
+        node = TranslatorNode(ros_arguments=['--ros-args', '-p', f'mcap_path:={path}'],
+                              context=context)
+        process = node._process
+
+        def slow(*args):
+            time.sleep(0.5)   # the first solve: the next two wait in the mailbox meanwhile
+            process(*args)
+
+        node._process = slow
+        try:
+            for index in range(3):
+                wrench = WrenchStamped()
+                wrench.header.stamp.sec = index + 1
+                wrench.wrench.force.x = 1.0 + index
+                node._on_wrench(serialize_message(wrench))
+                deadline = time.monotonic() + ANSWER_TIMEOUT_S
+                while index == 0 and node._mailbox._items and time.monotonic() < deadline:
+                    time.sleep(0.001)   # the solver thread has taken the first
+        finally:
+            node.close()
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert (node.received, node.solved, node._mailbox.skipped) == (3, 3, 0)
+    topics = [raw.topic for raw in McapSource(path).messages()]
+    assert topics.count('/wrench') == 3 and topics.count('/end_disk_pose') == 3
+    assert topics.count('/diagnostics') == 3
