@@ -11,9 +11,13 @@ numba puts it (``__pycache__`` beside the sources) while that is writable; an in
 read-only package uses a per-user folder instead, ``$XDG_CACHE_HOME/cdr_translator/numba``
 (``~/.cache/...``). ``NUMBA_CACHE_DIR`` set by the user always wins. ``make setup`` fills
 the cache (``python -m cdr_translator compile``), so the first node start does not compile.
-Kernels cached with other numba options (``JIT_OPTIONS``) are deleted and compiled anew.
+Kernels cached with other numba options (``JIT_OPTIONS``) or from other kernel sources (any
+kernel module or a module it imports changed) are deleted and compiled anew.
 """
 
+import ast
+import functools
+import hashlib
 import importlib
 import os
 from pathlib import Path
@@ -93,22 +97,64 @@ FASTMATH = frozenset({'contract', 'reassoc', 'arcp', 'nsz'})
 JIT_OPTIONS: Dict[str, Any] = {'cache': True, 'error_model': 'numpy', 'fastmath': FASTMATH,
                                'nogil': False}
 
-#: numba's cache index keys on the source and the signature, not on the options: each cache
-#: folder records the options its kernels were compiled with in this file (see jit).
+#: numba's cache index keys on the kernel's own source file and the signature, not on the
+#: options or on the other files it calls into: each cache folder records the options and the
+#: kernel sources' digest its kernels were compiled with in this file (see jit).
 OPTIONS_STAMP = 'cdr_translator_jit_options.txt'
 
 _stamped_folders: Set[Path] = set()
 
 
+def _imported_files(path: Path, package_dir: Path) -> Set[Path]:
+    """Return the package's own modules that ``path`` imports by relative imports."""
+    files = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = path.parent
+            for _ in range(node.level - 1):
+                base = base.parent
+            parts = node.module.split('.') if node.module else []
+            names = [parts] if parts else [[alias.name] for alias in node.names]
+            for name in names:
+                target = base.joinpath(*name)
+                for candidate in (target.with_suffix('.py'), target / '__init__.py'):
+                    if candidate.is_file() and package_dir in candidate.parents:
+                        files.add(candidate)
+    return files
+
+
+@functools.lru_cache(maxsize=None)
+def kernel_sources_digest(package_dir: Path = Path(__file__).resolve().parent) -> str:
+    """
+    Return a SHA-256 of every kernel module's source and of the modules it imports.
+
+    numba checks a cached kernel against its own file only, so a kernel whose callee or
+    constant lives in another, changed file would load stale machine code; the digest goes
+    into OPTIONS_STAMP, and a changed one clears the cache.
+    """
+    kernels = {path for path in package_dir.rglob('*.py') if '@jit' in path.read_text('utf-8')}
+    files = set(kernels)
+    for path in kernels:
+        files |= _imported_files(path, package_dir)
+    digest = hashlib.sha256()
+    for path in sorted(files):
+        digest.update(str(path.relative_to(package_dir)).encode() + b'\0' + path.read_bytes())
+    return digest.hexdigest()
+
+
 def options_text() -> str:
-    """Return JIT_OPTIONS as written into OPTIONS_STAMP (sets sorted: the same every run)."""
-    return ', '.join(f'{name}={sorted(value) if isinstance(value, frozenset) else value!r}'
-                     for name, value in sorted(JIT_OPTIONS.items())) + '\n'
+    """
+    Return what OPTIONS_STAMP holds: JIT_OPTIONS (sets sorted) and the kernel sources' digest.
+    """
+    options = ', '.join(f'{name}={sorted(value) if isinstance(value, frozenset) else value!r}'
+                        for name, value in sorted(JIT_OPTIONS.items()))
+    return f'{options}\nsources={kernel_sources_digest()}\n'
 
 
 def _clear_if_compiled_otherwise(folder: Path) -> None:
     """
-    Delete the cached kernels in ``folder`` unless its stamp says they have JIT_OPTIONS.
+    Delete the cached kernels in ``folder`` unless its stamp says they have JIT_OPTIONS and
+    today's kernel sources (``options_text``).
 
     Done once per folder and process, when its first kernel is defined (before any of its
     kernels is loaded); then the stamp is written. A folder without a stamp holds kernels of

@@ -4,7 +4,8 @@ TranslatorSolver: Newton on the shooting residual, warm starts, continuation, ba
 ``method='fast'`` (default): compiled kernel; Newton with the exact Jacobian (or 'fd'),
 backtracking line search, and for warm starts a first-order predictor plus chord steps
 that reuse the previous LU factorization, refreshed only when convergence slows. Cold
-solves of translators with spacer disks correct by multiple shooting instead (multiple_shooting.py).
+solves of translators with spacer disks correct by multiple shooting instead
+(multiple_shooting.py).
 ``method='paper'``: the paper's numerics as published (Section III.D) — the same model
 source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
 of one residual per column, stopping at the paper's tolerances. It is the baseline that

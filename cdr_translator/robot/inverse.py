@@ -130,7 +130,7 @@ class InverseResult:
                         'leg_bending_deg', 'leg_tip_wrench', 'stable',
                         'platform_compliance', 'platform_compliance_eigenvalues',
                         'stiffness_margin_n_per_m', 'payload_force_n', 'payload_moment_nm',
-                        'payload_offset_m'):
+                        'payload_offset_m', 'leg_stability'):
                 data[key] = details[key]
         return data
 

@@ -17,7 +17,8 @@ import sys
 import tempfile
 from typing import Dict, Iterator, List, Optional
 
-from cdr_translator._jit import OPTIONS_STAMP, options_text
+import cdr_translator._jit
+from cdr_translator._jit import kernel_sources_digest, OPTIONS_STAMP, options_text
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -134,3 +135,17 @@ def test_kernels_cached_with_other_options_are_compiled_anew(copy, stamp_text):
     again = _probe(source, cache_home)
     assert again['compiled'] >= 1 and again['loaded'] == 0, again
     assert stamp.read_text() == options_text()
+
+
+def test_a_change_a_kernel_depends_on_clears_the_cache(tmp_path):
+    """A module a kernel module imports (problem.py) changed: new digest; the CLI: same."""
+    package = tmp_path / 'cdr_translator'
+    shutil.copytree(Path(cdr_translator._jit.__file__).parent, package,
+                    ignore=shutil.ignore_patterns('__pycache__'))
+    before = kernel_sources_digest(package)
+    (package / 'cli.py').write_text((package / 'cli.py').read_text() + '# unrelated\n')
+    assert kernel_sources_digest.__wrapped__(package) == before
+    imported = package / 'problem.py'
+    assert '@jit' not in imported.read_text()
+    imported.write_text(imported.read_text() + '# changed\n')
+    assert kernel_sources_digest.__wrapped__(package) != before
