@@ -13,7 +13,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from . import cc, equivalent_rod, newton
+from . import cc, equivalent_rod, level_kernels, newton
 from ..params import TranslatorParams
 
 #: Default RK4 steps per disk interval of the 'rod' model.
@@ -126,6 +126,39 @@ class ReducedModel:
                                   f'{self.name} continuation stalled at {reached:.1%} of the '
                                   f'way to the wrench: {message}')
         return ReducedOutcome(x, rs, iterations, True, 'converged')
+
+    def solve_sequence(self, wrenches: np.ndarray,
+                       start: Optional[Tuple[np.ndarray, np.ndarray]] = None
+                       ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Solve each row of ``wrenches`` (N, 6) warm from the last converged row, compiled.
+
+        ``start`` = (unknowns, wrench) (None: unloaded). Returns unknowns (N, size),
+        residual norms, status codes (newton.CONVERGED or a failure code) and iterations.
+        """
+        wrenches = np.ascontiguousarray(wrenches, dtype=float)
+        if start is None:
+            start = (np.zeros(self.size), np.zeros(6))
+        count = len(wrenches)
+        unknowns = np.empty((count, self.size))
+        norms = np.empty(count)
+        status = np.empty(count, dtype=np.int64)
+        iterations = np.empty(count, dtype=np.int64)
+        level_kernels.solve_sequence(self.code, self._data, wrenches,
+                                     np.asarray(start[0], dtype=float),
+                                     np.asarray(start[1], dtype=float), self.tolerance,
+                                     self.max_iterations, unknowns, norms, status, iterations)
+        return unknowns, norms, status, iterations
+
+    def poses(self, wrenches: np.ndarray,
+              unknowns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """End-disk poses (N, 7: position, quaternion xyzw) and bending angles (N, 4)."""
+        wrenches = np.ascontiguousarray(wrenches, dtype=float)
+        pose = np.empty((len(wrenches), level_kernels.POSE_SIZE))
+        bending = np.empty((len(wrenches), level_kernels.BENDING_SIZE))
+        level_kernels.poses(self.code, self._data, wrenches,
+                            np.ascontiguousarray(unknowns, dtype=float), pose, bending)
+        return pose, bending
 
     def frames(self, x: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Frames {pe}, {pm}, {dm}, {de} (4, 4, 4) at unknowns x under ``wrench``."""
