@@ -10,6 +10,7 @@ sequence) measured in the same run: the machine is shared, so only ratios compar
 """
 
 import argparse
+import functools
 import statistics
 import time
 from typing import Callable, Dict
@@ -17,6 +18,7 @@ from typing import Callable, Dict
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.fidelity import FidelitySolver
+from cdr_translator.fidelity.reduced import ReducedModel
 import numpy as np
 
 
@@ -43,6 +45,11 @@ def full_warm(params: TranslatorParams, sequence: np.ndarray) -> float:
     return statistics.median(times)
 
 
+def _solve_and_pose(model: ReducedModel, sequence: np.ndarray) -> object:
+    """Solve the sequence with a reduced model's compiled loop and compute its poses."""
+    return model.poses(sequence, model.solve_sequence(sequence)[0])
+
+
 def level_times(params: TranslatorParams, sequence: np.ndarray, repeats: int) -> Dict[str, float]:
     """Per-answer kernel time (s) of 'cc', 'rod' (solve and pose) and 'linear'."""
     solver = FidelitySolver(params, fidelity='full')
@@ -51,9 +58,8 @@ def level_times(params: TranslatorParams, sequence: np.ndarray, repeats: int) ->
         unknowns, _, status, _ = model.solve_sequence(sequence)
         if np.any(status != 0):
             raise RuntimeError(f'{level}: {np.count_nonzero(status)} rows failed')
-        result[level] = _best_per_answer(
-            lambda model=model: model.poses(sequence, model.solve_sequence(sequence)[0]),
-            len(sequence), repeats)
+        result[level] = _best_per_answer(functools.partial(_solve_and_pose, model, sequence),
+                                         len(sequence), repeats)
     solver.cache_full_solution(sequence[0])
     result['linear'] = _best_per_answer(lambda: solver.tangent.poses(sequence),
                                         len(sequence), repeats)

@@ -53,6 +53,7 @@ SECONDARY_TWIST_STIFFNESS = 12
 SECONDARY_LENGTH = 13
 DATA_SIZE = 14
 
+
 def model_data(params) -> np.ndarray:
     """Return the data vector (zero wrench) of the 'cc' model for TranslatorParams."""
     data = np.zeros(DATA_SIZE)

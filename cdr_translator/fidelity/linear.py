@@ -89,9 +89,10 @@ class TangentModel:
 
     def poses(self, wrenches: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """
-        End-disk poses (N, 7: position, quaternion x, y, z, w) and bending angles (N, 4).
+        Return the end-disk pose (position, quaternion x, y, z, w) and bending angles per row.
 
-        One compiled loop (linear_kernels.linear_poses) over the rows of ``wrenches`` (N, 6).
+        Arrays (N, 7) and (N, 4); one compiled loop (linear_kernels.linear_poses) over the
+        rows of ``wrenches`` (N, 6).
         """
         if self.origin is None:
             raise RuntimeError('the linear level has no cached full solution yet')
@@ -105,4 +106,3 @@ class TangentModel:
         """Return the compliance of the linear level: the cached solution's, analysed."""
         return analyse(self._compliance, self.problem.params.stack_height,
                        method='implicit (cached)', time_s=0.0, **options)
-

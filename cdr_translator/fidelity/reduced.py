@@ -152,7 +152,7 @@ class ReducedModel:
 
     def poses(self, wrenches: np.ndarray,
               unknowns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """End-disk poses (N, 7: position, quaternion xyzw) and bending angles (N, 4)."""
+        """Return the end-disk pose (N, 7: position, quaternion xyzw) and bending angles (N, 4)."""
         wrenches = np.ascontiguousarray(wrenches, dtype=float)
         pose = np.empty((len(wrenches), level_kernels.POSE_SIZE))
         bending = np.empty((len(wrenches), level_kernels.BENDING_SIZE))
