@@ -28,6 +28,8 @@ Elastic energy U:
   secondaries, clamped at both end disks, also twist by psi1 + psi2 over L_s.
 Not modelled: shear, the deviation of each backbone from a circular arc (the moment varies
 along a joint), and any coupling of twist into the arcs.
+
+The residual and its Jacobian are in closed form: fidelity.cc_derivatives.
 """
 
 import math
@@ -50,9 +52,6 @@ JOINT_TWIST_STIFFNESS = 11
 SECONDARY_TWIST_STIFFNESS = 12
 SECONDARY_LENGTH = 13
 DATA_SIZE = 14
-
-#: Central-difference step of the twist Jacobian (nondimensional coordinates).
-TWIST_STEP = 1e-6
 
 
 def model_data(params) -> np.ndarray:
@@ -151,7 +150,7 @@ def cc_frames(x, data, frames):
 
 
 @jit
-def _energy_gradient(x, data, grad):
+def energy_gradient(x, data, grad):
     """Gradient of U with respect to the nondimensional coordinates (SI energy)."""
     length = data[JOINT_LENGTH]
     radius = data[PITCH_RADIUS]
@@ -188,44 +187,6 @@ def _energy_gradient(x, data, grad):
         grad[3] -= tension * hy
         grad[6] += tension * length
         grad[7] += tension * length
-
-
-@jit
-def frame_twist(before, after, out):
-    """Twist [dp; dtheta] from 4x4 ``before`` to ``after`` (small-angle skew part)."""
-    rel = np.empty((3, 3))
-    for i in range(3):
-        out[i] = after[i, 3] - before[i, 3]
-        for j in range(3):
-            rel[i, j] = (after[i, 0] * before[j, 0] + after[i, 1] * before[j, 1]
-                         + after[i, 2] * before[j, 2])
-    out[3] = 0.5 * (rel[2, 1] - rel[1, 2])
-    out[4] = 0.5 * (rel[0, 2] - rel[2, 0])
-    out[5] = 0.5 * (rel[1, 0] - rel[0, 1])
-
-
-@jit
-def cc_residual(x, data, out):
-    """Nondimensional virtual-work residual (grad U - J^T w) L / EI at x."""
-    _energy_gradient(x, data, out)
-    probe = x.copy()
-    plus = np.empty((4, 4, 4))
-    minus = np.empty((4, 4, 4))
-    twist = np.empty(6)
-    for c in range(SIZE):
-        probe[c] = x[c] + TWIST_STEP
-        cc_frames(probe, data, plus)
-        probe[c] = x[c] - TWIST_STEP
-        cc_frames(probe, data, minus)
-        probe[c] = x[c]
-        frame_twist(minus[3], plus[3], twist)
-        work = 0.0
-        for i in range(6):
-            work += data[WRENCH + i] * twist[i]
-        out[c] -= work / (2.0 * TWIST_STEP)
-    scale = data[JOINT_LENGTH] / data[BENDING_STIFFNESS]
-    for c in range(SIZE):
-        out[c] *= scale
 
 
 @jit

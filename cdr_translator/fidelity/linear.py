@@ -10,12 +10,12 @@ implicit derivative, with the fresh factorization of J the compliance computatio
 Nothing is solved at a new wrench: the cost is a few small matrix products.
 """
 
-import math
 import time
 from typing import Optional, Tuple
 
 import numpy as np
 
+from .linear_kernels import linear_frames, linear_poses
 from .._blas import one_blas_thread
 from .._linalg import solve_lu
 from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
@@ -82,26 +82,27 @@ class TangentModel:
         if self.origin is None:
             raise RuntimeError('the linear level has no cached full solution yet')
         offset = wrench - self.origin
-        frames = self._frames.copy()
-        for k in (1, 2, 3):
-            twist = self._twists[k] @ offset
-            frames[k, :3, :3] = _rotation(twist[3:]) @ self._frames[k, :3, :3]
-            frames[k, :3, 3] += twist[:3]
+        frames = np.empty((4, 4, 4))
+        linear_frames(self._frames, self._twists, offset, frames)
         return (self._unknowns + self._dxdw @ offset, self._points + self._dpdw @ offset,
                 frames)
+
+    def poses(self, wrenches: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return the end-disk pose (position, quaternion x, y, z, w) and bending angles per row.
+
+        Arrays (N, 7) and (N, 4); one compiled loop (linear_kernels.linear_poses) over the
+        rows of ``wrenches`` (N, 6).
+        """
+        if self.origin is None:
+            raise RuntimeError('the linear level has no cached full solution yet')
+        wrenches = np.ascontiguousarray(wrenches, dtype=float)
+        pose = np.empty((len(wrenches), 7))
+        bending = np.empty((len(wrenches), 4))
+        linear_poses(self._frames, self._twists, self.origin, wrenches, pose, bending)
+        return pose, bending
 
     def compliance(self, **options: float) -> ComplianceAnalysis:
         """Return the compliance of the linear level: the cached solution's, analysed."""
         return analyse(self._compliance, self.problem.params.stack_height,
                        method='implicit (cached)', time_s=0.0, **options)
-
-
-def _rotation(vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues)."""
-    angle = math.sqrt(vector @ vector)
-    skew = np.array([[0.0, -vector[2], vector[1]], [vector[2], 0.0, -vector[0]],
-                     [-vector[1], vector[0], 0.0]])
-    if angle < 1e-8:
-        return np.eye(3) + skew + 0.5 * skew @ skew
-    return (np.eye(3) + math.sin(angle) / angle * skew
-            + (1.0 - math.cos(angle)) / angle ** 2 * skew @ skew)

@@ -2,8 +2,9 @@
 The reduced models ('cc', 'rod') bound to parameters: warm-started solves and shapes.
 
 Each solve is a load continuation from the previous solution (or the unloaded one), like the
-full solver's: Newton (compiled, ``newton.newton``) straight to the requested wrench, halving
-the step on failure. The Jacobian of the last solve is kept for chord steps.
+full solver's: Newton (compiled, ``newton.continue_to``) straight to the requested wrench,
+halving the step on failure. The factorized Jacobian of the last solve is kept for chord
+steps.
 """
 
 from dataclasses import dataclass
@@ -12,18 +13,16 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from . import cc, equivalent_rod, newton
+from . import cc, equivalent_rod, level_kernels, newton
 from ..params import TranslatorParams
-
-#: Smallest fraction of the remaining wrench change a continuation step may take.
-MIN_CONTINUATION_STEP = 1e-3
 
 #: Default RK4 steps per disk interval of the 'rod' model.
 ROD_STEPS = 2
 
 _OUTCOMES = {newton.NO_CONVERGENCE: 'no convergence in {} iterations',
              newton.NO_DECREASE: 'line search found no decrease of the residual',
-             newton.NOT_FINITE: 'residual became non-finite'}
+             newton.NOT_FINITE: 'residual became non-finite',
+             newton.SINGULAR: 'singular Jacobian'}
 
 
 @dataclass
@@ -61,15 +60,15 @@ class ReducedModel:
         self._residual_scale = residual_scale
         self._points_per_interval = points_per_interval
         self._spacers = spacers
-        self._jacobian = np.empty((size, size))
-        self._have_jacobian = False
+        self._lu = np.empty((size, size))
+        self._pivots = np.zeros(size + 1, dtype=np.int64)  # [size]: whether _lu is usable
         # load the compiled kernels (and numba's LAPACK binding) now, not inside the first
         # solve: that takes 10-30 ms once; a tiny load makes Newton factorize a Jacobian
         small = np.array([1e-3, 0.0, 0.0, 0.0, 0.0, 0.0])
         warmed = self.solve(small, None, time.perf_counter() + 60.0).x
         self.frames(warmed, small)
         self.points(warmed, small)
-        self._have_jacobian = False
+        self._pivots[size] = 0
 
     @classmethod
     def constant_curvature(cls, params: TranslatorParams, tolerance: float = 1e-9,
@@ -104,44 +103,62 @@ class ReducedModel:
         """
         Continue from ``start`` = (unknowns, wrench) (None: unloaded) to ``wrench``.
 
-        A step that fails is halved; below MIN_CONTINUATION_STEP, or past ``deadline``
-        (perf_counter seconds), the outcome is the last converged state, not converged.
+        A step that fails is halved; below newton.MIN_CONTINUATION_STEP the outcome is the last
+        converged state, not converged. ``deadline`` (perf_counter seconds) already past
+        makes the solve fail at once; a compiled continuation is bounded by its smallest
+        step instead (a few ms at worst).
         """
         if start is None:
             start = (np.zeros(self.size), np.zeros(6))
-            self._have_jacobian = False
+            self._pivots[self.size] = 0
         x = start[0].copy()
-        origin = start[1]
         rs = np.empty(self.size)
-        done, step, iterations = 0.0, 1.0, 0
-        message = 'converged'
-        while done < 1.0:
-            target = min(1.0, done + step)
-            self._data[:6] = origin + target * (wrench - origin)
-            trial = x.copy()
-            try:
-                count, code = newton.newton(self.code, trial, self._data, self.tolerance,
-                                            self.max_iterations, rs, self._jacobian,
-                                            self._have_jacobian)
-            except np.linalg.LinAlgError:
-                count, code = 1, newton.NOT_FINITE
-                message = 'singular Jacobian'
-            iterations += count
-            self._have_jacobian = code != newton.NOT_FINITE
-            if code == newton.CONVERGED:
-                done, x = target, trial
-                if count <= self.max_iterations // 4:
-                    step *= 2.0
-                continue
+        if time.perf_counter() > deadline:
+            self._data[:6] = wrench
+            newton.residual(self.code, x, self._data, rs)
+            return ReducedOutcome(x, rs, 0, False, f'{self.name}: no time left for the solve')
+        _, iterations, code, reached = newton.continue_to(
+            self.code, x, self._data, np.asarray(start[1], dtype=float), wrench,
+            self.tolerance, self.max_iterations, rs, self._lu, self._pivots)
+        if code != newton.CONVERGED:
             message = _OUTCOMES[code].format(self.max_iterations)
-            step = 0.5 * (target - done)
-            if step < MIN_CONTINUATION_STEP or time.perf_counter() > deadline:
-                self._data[:6] = wrench
-                newton.residual(self.code, x, self._data, rs)
-                return ReducedOutcome(x, rs, iterations, False,
-                                      f'{self.name} continuation stalled at {done:.1%} of the '
-                                      f'way to the wrench: {message}')
-        return ReducedOutcome(x, rs.copy(), iterations, True, 'converged')
+            return ReducedOutcome(x, rs, iterations, False,
+                                  f'{self.name} continuation stalled at {reached:.1%} of the '
+                                  f'way to the wrench: {message}')
+        return ReducedOutcome(x, rs, iterations, True, 'converged')
+
+    def solve_sequence(self, wrenches: np.ndarray,
+                       start: Optional[Tuple[np.ndarray, np.ndarray]] = None
+                       ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Solve each row of ``wrenches`` (N, 6) warm from the last converged row, compiled.
+
+        ``start`` = (unknowns, wrench) (None: unloaded). Returns unknowns (N, size),
+        residual norms, status codes (newton.CONVERGED or a failure code) and iterations.
+        """
+        wrenches = np.ascontiguousarray(wrenches, dtype=float)
+        if start is None:
+            start = (np.zeros(self.size), np.zeros(6))
+        count = len(wrenches)
+        unknowns = np.empty((count, self.size))
+        norms = np.empty(count)
+        status = np.empty(count, dtype=np.int64)
+        iterations = np.empty(count, dtype=np.int64)
+        level_kernels.solve_sequence(self.code, self._data, wrenches,
+                                     np.asarray(start[0], dtype=float),
+                                     np.asarray(start[1], dtype=float), self.tolerance,
+                                     self.max_iterations, unknowns, norms, status, iterations)
+        return unknowns, norms, status, iterations
+
+    def poses(self, wrenches: np.ndarray,
+              unknowns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the end-disk pose (N, 7: position, quaternion xyzw) and bending angles (N, 4)."""
+        wrenches = np.ascontiguousarray(wrenches, dtype=float)
+        pose = np.empty((len(wrenches), level_kernels.POSE_SIZE))
+        bending = np.empty((len(wrenches), level_kernels.BENDING_SIZE))
+        level_kernels.poses(self.code, self._data, wrenches,
+                            np.ascontiguousarray(unknowns, dtype=float), pose, bending)
+        return pose, bending
 
     def frames(self, x: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """Frames {pe}, {pm}, {dm}, {de} (4, 4, 4) at unknowns x under ``wrench``."""
