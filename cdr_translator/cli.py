@@ -28,6 +28,8 @@ import math
 import sys
 from typing import Any, Callable, List, Optional, Tuple, Union
 
+import numpy as np
+
 from . import _jit
 from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .console import json_text, run_command
@@ -298,8 +300,13 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
     warm solves along a path the extrapolating predictor (chord.extrapolate).
     """
-    for fidelity in FIDELITIES:
-        FidelitySolver(params, fidelity).solve([1.0, 0.0, 0.0], compliance=True)
+    leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES}
+    for solver in leveled.values():
+        solver.solve([1.0, 0.0, 0.0], compliance=True)
+    wrenches = np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    for model in leveled['linear'].reduced.values():  # the compiled sequence solves
+        model.poses(wrenches, model.solve_sequence(wrenches)[0])
+    leveled['linear'].tangent.poses(wrenches)
     for jacobian in JACOBIANS:
         TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
     along_a_path = TranslatorSolver(params)

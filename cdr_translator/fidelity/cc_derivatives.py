@@ -316,9 +316,3 @@ def cc_system(x, data, out, jac, want_jacobian):
     for c in range(SIZE):
         for d in range(SIZE):
             jac[c, d] = scale * (jac[c, d] - 0.5 * _frobenius(d_end_rot[c], turned[d]))
-
-
-@jit
-def cc_residual(x, data, out):
-    """Nondimensional virtual-work residual (grad U - J^T w) L / EI at x."""
-    cc_system(x, data, out, np.empty((0, 0)), False)

@@ -384,11 +384,6 @@ def rod_system(x, data, out, jac, want_jacobian):
                 / data[JOINT_LENGTH]
 
 
-@jit
-def rod_residual(x, data, out):
-    """Nondimensional residual of ``rod_system`` without the Jacobian."""
-    rod_system(x, data, out, np.empty((0, 0)), False)
-
 
 @jit
 def rod_frames(x, data, frames):

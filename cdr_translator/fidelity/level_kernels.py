@@ -2,7 +2,7 @@
 Compiled entries of the reduced levels for batches: one wrench, a sequence, and the poses.
 
 Arrays in, arrays out, no Python objects: ``solve_row`` solves one wrench warm from a given
-solution, ``cc_solve_sequence`` / ``rod_solve_sequence`` loop over rows warm-started along
+solution, ``solve_sequence`` loops over rows of either model warm-started along
 the sequence (the factorized Jacobian carried from row to row), and ``poses`` turns the
 unknowns of each row into the end-disk pose (position, quaternion x, y, z, w) and the joints'
 bending angles (PJ theta, delta, DJ theta, delta), as SolveResult computes them from the
@@ -77,22 +77,6 @@ def solve_sequence(model, data, wrenches, start, origin, tolerance, max_iteratio
         if code == CONVERGED:
             x[:] = answer
             base[:] = wrenches[row]
-
-
-@jit
-def cc_solve_sequence(data, wrenches, start, origin, tolerance, max_iterations, unknowns, norms,
-                      status, iterations):
-    """``solve_sequence`` of the 'cc' model (data: cc.model_data)."""
-    solve_sequence(CC, data, wrenches, start, origin, tolerance, max_iterations, unknowns,
-                   norms, status, iterations)
-
-
-@jit
-def rod_solve_sequence(data, wrenches, start, origin, tolerance, max_iterations, unknowns,
-                       norms, status, iterations):
-    """``solve_sequence`` of the 'rod' model (data: equivalent_rod.model_data)."""
-    solve_sequence(ROD, data, wrenches, start, origin, tolerance, max_iterations, unknowns,
-                   norms, status, iterations)
 
 
 @jit
