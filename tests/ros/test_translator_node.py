@@ -19,7 +19,7 @@ from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
-from cdr_translator.ros.translator_node import TranslatorNode
+from cdr_translator.ros.translator import TranslatorNode
 from geometry_msgs.msg import WrenchStamped
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
