@@ -13,20 +13,21 @@ DIRECTION = np.array([0.6, 0.0, 0.8])
 
 
 @pytest.fixture(scope='module')
-def robot():
-    """Build the shipped robot, used for inverse solves."""
-    return DeltaRobot()
+def robots():
+    """Build two shipped robots: inverse solves; forward checks and the exact-slope Newton."""
+    return DeltaRobot(), DeltaRobot()
 
 
 @pytest.fixture(scope='module')
-def reference():
-    """Build a second robot for the exact-slope Newton and forward checks."""
-    return DeltaRobot()
+def reference(robots):
+    """Return the robot of the forward checks (no warm start shared with the inverse's)."""
+    return robots[1]
 
 
 @pytest.fixture(scope='module')
-def path(robot):
+def path(robots):
     """Solve a cold start, then 12 steps of 1 mm along a line: the results."""
+    robot = robots[0]
     results = [robot.inverse(START, GRAVITY_1KG, warm_start=False)]
     for step in range(1, 13):
         results.append(robot.inverse(START + 0.001 * step * DIRECTION, GRAVITY_1KG))
