@@ -96,7 +96,7 @@ def measure(paths: List[np.ndarray]) -> Dict[str, list]:
     robot.inverse(paths[0][0], PAYLOAD, warm_start=False)  # kernels loaded
     data: Dict[str, list] = {name: [] for name in (
         'cold', 'cold_forward', 'cold_exact', 'warm', 'first', 'forward', 'exact', 'read',
-        'gap')}
+        'gap', 'forward_jacobians')}
     for path in paths:
         cold = robot.inverse(path[0], PAYLOAD, warm_start=False)
         assert cold.reachable, cold.message
@@ -113,7 +113,9 @@ def measure(paths: List[np.ndarray]) -> Dict[str, list]:
                 break  # the path left the reachable set
             key = 'warm' if step > SETTLED_AFTER else 'first'
             data[key].append((result.solve_time_s, result))
-            data['forward'].append(forward.solve(result.sliders, PAYLOAD).solve_time_s)
+            alone = forward.solve(result.sliders, PAYLOAD)
+            data['forward'].append(alone.solve_time_s)
+            data['forward_jacobians'].append(alone.leg_jacobians)
             started = time.perf_counter()
             guess = previous + np.linalg.solve(slope, target - path[step - 1])
             answer, slope, solves = exact_slope_inverse(reference, target, sliders=guess)
@@ -143,7 +145,8 @@ def report(data: Dict[str, list]) -> List[str]:
     ms = 1e3
     return [
         f'forward solve along the same sliders (warm, no compliance): median '
-        f'{ms * forward:.3f} ms',
+        f'{ms * forward:.3f} ms, {statistics.mean(data["forward_jacobians"]):.2f} leg_jacobians '
+        'a solve',
         f'warm inverse per {ms * STEP_M:g} mm step, steps {SETTLED_AFTER + 1} to {STEPS} '
         f'({len(warm)} steps): median {ms * statistics.median(warm):.3f} ms '
         f'({statistics.median(warm) / forward:.2f} forward solves), mean '

@@ -22,6 +22,11 @@ PREDICTOR_DEGREE = 5
 #: most this fraction of the whole target change (else the targets do not follow a path).
 EXTRAPOLATE_WITHIN = 0.5
 
+#: The backward-difference weights of each degree m: w_j = (-1)^j C(m, j + 1), j < m.
+WEIGHTS = {degree: np.array([(-1) ** j * math.comb(degree, j + 1) for j in range(degree)],
+                            dtype=float)
+           for degree in range(2, PREDICTOR_DEGREE + 1)}
+
 #: A slider step shorter than this (m) updates no secant: the forward solves' positions
 #: are good to about 1e-11 m, which would be a relative error above 1e-4 in the slope.
 SECANT_MIN_STEP = 1e-7
@@ -92,24 +97,25 @@ class SliderPath:
         """
         if not self.points or self.slope is None:
             return None
-        last_target, last_sliders = self.points[-1]
-        change = target - last_target
-        steps = [(later[0] - earlier[0], later[1] - earlier[1])
-                 for earlier, later in zip(self.points[:-1], self.points[1:])]
+        targets = np.array([point[0] for point in self.points])
+        sliders = np.array([point[1] for point in self.points])
+        change = target - targets[-1]
+        # the steps, latest first: row j is point k - j minus point k - j - 1
+        target_steps = (targets[1:] - targets[:-1])[::-1]
+        slider_steps = (sliders[1:] - sliders[:-1])[::-1]
         rest, extrapolated = change, np.zeros(3)
         if self.load is not None and np.array_equal(load, self.load):
             smallest, whole = math.inf, float(np.linalg.norm(change))
-            for degree in range(2, min(len(steps), PREDICTOR_DEGREE) + 1):
-                weights = [(-1) ** j * math.comb(degree, j + 1) for j in range(degree)]
-                left = change - sum(w * steps[-1 - j][0] for j, w in enumerate(weights))
+            for degree in range(2, min(len(target_steps), PREDICTOR_DEGREE) + 1):
+                weights = WEIGHTS[degree]
+                left = change - weights @ target_steps[:degree]
                 size = float(np.linalg.norm(left))
                 if size <= smallest + 1e-9 * whole:  # equal within rounding: the higher
-                    rest = left
-                    extrapolated = sum(w * steps[-1 - j][1] for j, w in enumerate(weights))
+                    rest, extrapolated = left, weights @ slider_steps[:degree]
                 smallest = min(smallest, size)
             if smallest > EXTRAPOLATE_WITHIN * whole:
                 rest, extrapolated = change, np.zeros(3)
         try:
-            return last_sliders + extrapolated + self.step(-rest)
+            return sliders[-1] + extrapolated + self.step(-rest)
         except np.linalg.LinAlgError:
-            return last_sliders + extrapolated
+            return sliders[-1] + extrapolated
