@@ -220,8 +220,8 @@ def main() -> None:
         f'targets): median {1e3 * inverse["cold_median_s"]:.0f} ms. Warm (1 mm steps along '
         f'a path, {inverse["warm_samples"]} steps): median '
         f'{1e3 * inverse["warm_median_s"]:.0f} ms, median '
-        f'{inverse["warm_forward_solves_median"]:g} forward solves (each with its '
-        'compliance); largest distance to the target '
+        f'{inverse["warm_forward_solves_median"]:g} forward solves (the compliance of an '
+        'answer, made on first read, not timed); largest distance to the target '
         f'{inverse["max_position_error_m"]:.1e} m.',
         '',
         '## Workspace of the default geometry (config/translator.yaml, 1 kg payload)',

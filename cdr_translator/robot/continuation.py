@@ -36,6 +36,10 @@ EXTRAPOLATE_WITHIN = 0.5
 #: solves converge to about 1e-8, and its weights (sum 15, against 7) amplify that.
 PREDICTOR_DEGREE = 3
 
+#: A solve whose input change makes at most this fraction of the residual change of the
+#: path's last step refines that step's end rather than starting a step (``_recorded``).
+REFINEMENT = 0.01
+
 
 @dataclass
 class PathStep:
@@ -132,13 +136,37 @@ class ChainContinuation:
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
         if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
-            record = PathStep(self.previous[0], outcome.state, inputs - start,
-                              difference(outcome.state, self.previous[0], chain.x_scale))
-            self.path = [*self.path[1 - PREDICTOR_DEGREE:], record]
+            self.path = self._recorded(outcome.state, inputs - start)
         else:
             self.path = []
         outcome.iterations = iterations
         return outcome
+
+    def _recorded(self, end: ChainState, inputs_change: np.ndarray) -> List[PathStep]:
+        """
+        Return the path with the solve from ``self.previous`` to ``end`` added, latest last.
+
+        A refinement (an input change within REFINEMENT of the last step's, in the residual
+        change it makes: the inverse statics' corrections after its predicted sliders) joins
+        that step: the path keeps the points of a steadily followed path, which the
+        predictor extrapolates, instead of a short step that no polynomial fits.
+        """
+        if self.previous is None:
+            raise RuntimeError('a path step needs a previous solution')
+        chain = self.newton.chain
+        start = self.previous[0]
+        path = self.path
+        if path and path[-1].end is start:
+            last = path[-1]
+            sensitivity = chain.input_sensitivity(start, self.previous[1])
+            size = np.linalg.norm(sensitivity @ inputs_change / chain.r_scale)
+            if size <= REFINEMENT * np.linalg.norm(sensitivity @ last.inputs_change
+                                                   / chain.r_scale):
+                merged = PathStep(last.start, end, last.inputs_change + inputs_change,
+                                  difference(end, last.start, chain.x_scale))
+                return [*path[:-1], merged]
+        record = PathStep(start, end, inputs_change, difference(end, start, chain.x_scale))
+        return [*path[1 - PREDICTOR_DEGREE:], record]
 
     def extrapolate(self, state: ChainState, inputs_change: np.ndarray,
                     sensitivity: np.ndarray, factorization: Factorization

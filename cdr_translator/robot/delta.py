@@ -45,17 +45,17 @@ linearization at the solution on request (robot/linearization.py).
 from dataclasses import fields
 from pathlib import Path
 import time
-from typing import Any, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .chain import Chain, SIZE
+from .chain import Chain, ChainState, SIZE
 from .continuation import ChainContinuation
 from .coupled_newton import CoupledNewton, Limits, Outcome
 from .inverse import InverseResult, InverseSolver
 from .legs import ChainLegs
-from .linearization import factorize, linearize
+from .linearization import Factorization, factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
 from .result import DeltaResult
 from .._blas import one_blas_thread
@@ -189,14 +189,36 @@ class DeltaRobot:
             path.previous = (outcome.state, inputs)
         result = self._result(outcome, legs, inputs, time.perf_counter() - started)
         if held is not None and outcome.converged:
-            with np.errstate(over='ignore', invalid='ignore'):
-                made = linearize(result, self._chain, self._chain_legs, outcome.state,
-                                 outcome.factorization, inputs, self.params.stack_height, held)
+            made = self._linearize(result, outcome.state, outcome.factorization, inputs, held)
             if made is not None:  # exact at the solution: the next solve iterates on it
                 path.factorization = made
             result.solve_time_s = time.perf_counter() - started
             self._chain_legs.count_into(result)
         return result
+
+    def deferred_linearization(self, result: DeltaResult) -> Callable[[], None]:
+        """
+        Return a call adding ``compliance=True``'s parts to ``result``, this robot's last solve.
+
+        ``result`` must be the latest solve, converged, made without ``compliance``; the
+        call (made at most once, any time later) linearizes at that solution as ``solve``
+        would have (three leg Jacobians, unless the solve's last factorization was made
+        there), adds their count to ``result.leg_jacobians`` and their time to its
+        ``solve_time_s``. The robot's own warm start is left as it is by then.
+        """
+        path = self._continuation
+        if not result.converged or path.previous is None:
+            raise RuntimeError('only a converged solve can be linearized later')
+        state, inputs = path.previous
+        factorization = path.factorization
+
+        def add() -> None:
+            held = self._held_reference()  # made once, apart from the solve's time
+            started = time.perf_counter()
+            made = self._linearize(result, state, factorization, inputs, held)
+            result.leg_jacobians += 0 if made is None else len(made.legs)
+            result.solve_time_s += time.perf_counter() - started
+        return add
 
     def inverse(self, platform_position: ArrayLike,
                 payload_force: ArrayLike = (0.0, 0.0, 0.0),
@@ -232,6 +254,15 @@ class DeltaRobot:
             self._held = held_reference(home.lu, home.compliance, self.params.stack_height,
                                         critical)
         return self._held
+
+    @one_blas_thread
+    def _linearize(self, result: DeltaResult, state: ChainState,
+                   factorization: Optional[Factorization],
+                   inputs: np.ndarray, held: HeldReference) -> Optional[Factorization]:
+        """Add the linearization at solution ``state`` to ``result`` (linearization.linearize)."""
+        with np.errstate(over='ignore', invalid='ignore'):
+            return linearize(result, self._chain, self._chain_legs, state, factorization,
+                             inputs, self.params.stack_height, held)
 
     def _limits(self) -> Limits:
         """Return the Newton's tolerances and iteration cap as this robot's attributes set them."""
