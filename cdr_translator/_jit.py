@@ -143,9 +143,7 @@ def kernel_sources_digest(package_dir: Path = Path(__file__).resolve().parent) -
 
 
 def options_text() -> str:
-    """
-    Return what OPTIONS_STAMP holds: JIT_OPTIONS (sets sorted) and the kernel sources' digest.
-    """
+    """Return what OPTIONS_STAMP holds: JIT_OPTIONS (sorted) and the kernel sources' digest."""
     options = ', '.join(f'{name}={sorted(value) if isinstance(value, frozenset) else value!r}'
                         for name, value in sorted(JIT_OPTIONS.items()))
     return f'{options}\nsources={kernel_sources_digest()}\n'
@@ -153,8 +151,9 @@ def options_text() -> str:
 
 def _clear_if_compiled_otherwise(folder: Path) -> None:
     """
-    Delete the cached kernels in ``folder`` unless its stamp says they have JIT_OPTIONS and
-    today's kernel sources (``options_text``).
+    Delete the cached kernels in ``folder`` unless its stamp matches ``options_text``.
+
+    The stamp holds JIT_OPTIONS and today's kernel sources' digest.
 
     Done once per folder and process, when its first kernel is defined (before any of its
     kernels is loaded); then the stamp is written. A folder without a stamp holds kernels of

@@ -384,7 +384,6 @@ def rod_system(x, data, out, jac, want_jacobian):
                 / data[JOINT_LENGTH]
 
 
-
 @jit
 def rod_frames(x, data, frames):
     """Write {pe}, {pm}, {dm}, {de} for the unknowns x."""

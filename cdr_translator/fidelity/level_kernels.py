@@ -19,7 +19,7 @@ import numpy as np
 
 from .cc import cc_frames
 from .equivalent_rod import rod_frames
-from .newton import CC, continue_to, CONVERGED, ROD
+from .newton import continue_to, CONVERGED, ROD
 from .._jit import jit
 from ..geometry import _bending_between_frames, _quaternion_of_rotation
 

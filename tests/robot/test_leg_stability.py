@@ -8,11 +8,11 @@ each leg is stable with both end disks held (cdr_translator/held.py).
 import math
 
 from cdr_translator import TranslatorSolver
+from cdr_translator._linalg import factorize, solve_lu
 from cdr_translator.held import held_reference, held_verdict, HeldReference
 from cdr_translator.params import Accuracy
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.linearization import chain_verdict
-from cdr_translator._linalg import factorize, solve_lu
 from cdr_translator.stability import pose_twist
 from cdr_translator.studies.buckling import euler_critical_load, held_critical_compression
 import numpy as np
