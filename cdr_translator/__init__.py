@@ -16,12 +16,12 @@ if TYPE_CHECKING:
     from .result import SolveResult
     from .solver import TranslatorSolver
 
-__all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError', 'SolveResult',
-           'TranslatorParams', 'TranslatorSolver']
+__all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError',
+           'SolveResult', 'TranslatorParams', 'TranslatorSolver']
 
 #: The module that defines each exported name.
-_HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors', 'PlausibilityWarning': 'errors',
-          'SolveError': 'errors', 'SolveResult': 'result', 'TranslatorParams': 'params',
+_HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
+          'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result', 'TranslatorParams': 'params',
           'TranslatorSolver': 'solver'}
 
 

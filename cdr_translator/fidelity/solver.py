@@ -238,6 +238,7 @@ class FidelitySolver:
         else:  # 'auto' at full (it may expand the tangent), or 'linear' without one
             solve_row, whole = partial(self._result_row, level, reason), True
         for row in rows:
+            batch.fidelity[row] = level  # what a row that raises was tried at
             batch.run(row, solve_row, wrenches[row], compliance)
             if batch.message[row] and not whole:  # a whole solve's message names its level
                 batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
