@@ -21,7 +21,7 @@ from typing import Dict, Iterator, List
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams
 from cdr_translator import warm_step
-from cdr_translator.fidelity import FidelitySolver, newton, reduced
+from cdr_translator.fidelity import FidelitySolver, reduced
 from cdr_translator.fidelity.linear import TangentModel
 import numpy as np
 

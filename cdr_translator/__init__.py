@@ -21,8 +21,8 @@ __all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning',
 
 #: The module that defines each exported name.
 _HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
-          'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result', 'TranslatorParams': 'params',
-          'TranslatorSolver': 'solver'}
+          'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result',
+          'TranslatorParams': 'params', 'TranslatorSolver': 'solver'}
 
 
 def __getattr__(name: str) -> Any:

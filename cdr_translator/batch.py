@@ -61,6 +61,7 @@ class BatchResult:
         count = len(wrenches)
 
         def unknown(*shape: int) -> np.ndarray:
+            """Return a column of NaN."""
             return np.full((count,) + shape, math.nan)
 
         return cls(wrenches[:, :3].copy(), wrenches[:, 3:].copy(), np.zeros(count, bool),
@@ -70,7 +71,7 @@ class BatchResult:
                    unknown(6, 6) if compliance else None)
 
     def __len__(self) -> int:
-        """Number of rows."""
+        """Return the number of rows."""
         return len(self.converged)
 
     def run(self, row: int, solve_row: RowSolver, wrench: np.ndarray, compliance: bool) -> None:
@@ -181,7 +182,7 @@ class BatchResult:
         return {key: [values[key] for values in rows] for key in keys}
 
     def row_keys(self) -> list:
-        """The keys of ``row`` (and of ``to_dict``)."""
+        """Return the keys of ``row`` (and of ``to_dict``)."""
         keys = ['converged', 'message', 'force_n', 'moment_nm', 'end_disk_position_m',
                 'end_disk_quaternion_xyzw', 'pj_bending_deg', 'pj_direction_deg',
                 'dj_bending_deg', 'dj_direction_deg', 'fidelity', 'error_estimate_m',
@@ -190,12 +191,12 @@ class BatchResult:
 
 
 def _number(value: float) -> Optional[float]:
-    """A float for JSON: NaN and infinities become None."""
+    """Return a float for JSON: NaN and infinities become None."""
     return float(value) if math.isfinite(value) else None
 
 
 def _plain(values: Iterable[float]) -> list:
-    """Floats for JSON: NaN and infinities become None."""
+    """Return floats for JSON: NaN and infinities become None."""
     return [_number(value) for value in values]
 
 

@@ -4,7 +4,8 @@ TranslatorSolver: Newton on the shooting residual, warm starts, continuation, ba
 ``method='fast'`` (default): compiled kernel; Newton with the exact Jacobian (or 'fd'),
 backtracking line search, and for warm starts a first-order predictor plus chord steps
 that reuse the previous LU factorization, refreshed only when convergence slows. Cold
-solves of translators with spacer disks correct by multiple shooting instead (multiple_shooting.py).
+solves of translators with spacer disks correct by multiple shooting instead
+(multiple_shooting.py).
 ``method='paper'``: the paper's numerics as published (Section III.D) — the same model
 source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Jacobian
 of one residual per column, stopping at the paper's tolerances. It is the baseline that
@@ -15,6 +16,7 @@ carried between solves), correctors.py, branch.py (stability verdict, stable bra
 refinement.py (error estimate, accuracy target).
 """
 
+from functools import partial
 import math
 import time
 from typing import Optional, Tuple
@@ -22,14 +24,13 @@ from typing import Optional, Tuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import branch, continuation, correctors, refinement
+from . import branch, continuation, correctors, lean_rows, refinement
 from ._blas import one_blas_thread
 from ._jit import interpreted_kernels
 from ._linalg import residual_norm
-from .accuracy import ErrorEstimate, meets
+from .accuracy import ErrorEstimate
 from .batch import BatchResult, check_wrenches
 from .checks import check_integer, check_number, check_vector
-from .compliance import compliance_analysis, ComplianceAnalysis
 from .continuation import LIFT_FROM_SPACERS, PathState
 from .correctors import Limits, Outcome, Pose
 from .params import Accuracy, TranslatorParams
@@ -297,36 +298,8 @@ class TranslatorSolver:
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
         for row in range(len(wrenches)):
-            batch.run(row, self._solve_row, wrenches[row], compliance)
+            batch.run(row, partial(lean_rows.solve_row, self), wrenches[row], compliance)
         return batch
-
-    def _solve_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
-                   compliance: bool) -> float:
-        """Solve row ``row`` of ``batch`` as ``solve`` would; return its solve time (s)."""
-        started = time.perf_counter()
-        if self._refinements.kept is not None:
-            result = self.solve(wrench[:3], wrench[3:], compliance=compliance)
-            batch.record(row, result)
-            return result.solve_time_s
-        outcome = self._correct(wrench, True, started)
-        verdict = self._verdict(outcome, wrench)
-        estimate = outcome.estimate
-        if (verdict is None or not verdict.stable or estimate is None or outcome.shape is None
-                or not meets(estimate, self.accuracy.position_m, self.accuracy.angle_deg)):
-            result = self._judged(outcome, verdict, wrench, started, compliance, False, {})
-            batch.record(row, result)
-            return result.solve_time_s
-        # judged stable and accurate: what _judged would find, without the result
-        self._refinements.last_estimate = estimate
-        elapsed = time.perf_counter() - started
-        matrix, message = None, ''
-        if compliance:
-            try:
-                matrix = self._compliance(outcome, wrench, outcome.shape[2][3][:3, :3]).matrix
-            except ArithmeticError as error:
-                message = f'{outcome.message}; no compliance: {error}'
-        batch.record_pose(row, outcome.shape[2], verdict.stable, estimate, matrix, message)
-        return elapsed
 
     def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
         """Converge at ``wrench``: the warm step, else continuation, restart, fallback."""
@@ -412,27 +385,13 @@ class TranslatorSolver:
         result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
             try:
-                result.compliance = self._compliance(outcome, wrench,
-                                                     result.frames['de'][:3, :3],
-                                                     **compliance_options)
+                result.compliance = lean_rows.compliance_at(
+                    self, outcome, wrench, result.frames['de'][:3, :3], **compliance_options)
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
         if verify:
             result.verification = verify_result(result, self.params)
         return result
-
-    def _compliance(self, outcome: Outcome, wrench: np.ndarray, rotation: np.ndarray,
-                    **options: float) -> ComplianceAnalysis:
-        """Compliance at a converged outcome; its exact factorization becomes the stored one."""
-        state = self._state
-        stored = state.pose[0] if state.pose is not None else None
-        factorization = ((state.lu, stored) if state.exact_at is outcome.xs
-                         and state.lu is not None and stored is not None else None)
-        analysis, state.lu, pose = compliance_analysis(self.problem, outcome.xs, wrench,
-                                                       factorization, rotation, **options)
-        state.pose = (pose, wrench.copy())
-        state.exact_at = outcome.xs
-        return analysis
 
     # the parts, bound to this solver's problem, limits and state ------------------------------
     def _limits(self) -> Limits:

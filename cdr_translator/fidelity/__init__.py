@@ -6,9 +6,9 @@ Fidelity levels of the translator model and the error budget that chooses among 
 the cheapest level whose validated error (fidelity.validation) meets a budget ('auto').
 """
 
-from ..batch import BatchResult
 from .solver import FIDELITIES, FidelitySolver, LEVEL_COST_ORDER, LEVELS
 from .validation import pose_errors, reference_solver, Validation
+from ..batch import BatchResult
 
-__all__ = ['BatchResult', 'FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS', 'Validation',
-           'pose_errors', 'reference_solver']
+__all__ = ['BatchResult', 'FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS',
+           'Validation', 'pose_errors', 'reference_solver']

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from .. import lean_rows
 from ..batch import BatchResult, check_wrenches
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
@@ -255,7 +256,7 @@ class FidelitySolver:
     def _full_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
                   compliance: bool) -> float:
         """Row of the fixed full level (TranslatorSolver's row; the running cost kept)."""
-        elapsed = self.full._solve_row(batch, row, wrench, compliance)
+        elapsed = lean_rows.solve_row(self.full, batch, row, wrench, compliance)
         if self._last_level == 'full':
             self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
         return elapsed
@@ -406,7 +407,7 @@ class FidelitySolver:
 
     def _reduced_result(self, level: str, outcome: ReducedOutcome, wrench: np.ndarray,
                         elapsed: float) -> SolveResult:
-        """The result of a reduced solve; its shape and residual dictionary made when read."""
+        """Return a reduced solve's result; its shape and residual dictionary made when read."""
         model, x, rs = self.reduced[level], outcome.x, outcome.rs
         return SolveResult.deferred(
             {'frames': lambda: dict(zip(FRAME_NAMES, model.frames(x, wrench))),

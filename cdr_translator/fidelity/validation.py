@@ -95,7 +95,7 @@ def box_scale(wrench: np.ndarray) -> float:
 
 @jit
 def _box_scale(wrench, half_widths):
-    """max |w_i| / h_i, NaN if any component is NaN (numpy's max would say so too)."""
+    """Return max |w_i| / h_i, NaN if any component is NaN (as numpy's max would)."""
     largest = 0.0
     for i in range(6):
         ratio = abs(wrench[i]) / half_widths[i]

@@ -2,12 +2,11 @@
 
 import pickle
 
+from batch_checks import assert_rows_equal, sequence
 from cdr_translator.fidelity import BatchResult, FidelitySolver
 from cdr_translator.result import FRAME_NAMES
 import numpy as np
 import pytest
-
-from tests.core.test_batch import assert_rows_equal, sequence
 
 #: FidelitySolver options per case: each fixed level, and 'auto' with a budget that mixes them.
 CASES = {'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'}, 'rod': {'fidelity': 'rod'},
@@ -16,7 +15,7 @@ CASES = {'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'}, 'rod': {'fideli
 
 
 def wrenches(count=40):
-    """A sequence that leaves the box 'auto' admits the reduced levels in, and comes back."""
+    """Return a sequence that leaves the box where 'auto' admits reduced levels and returns."""
     forces, moments = sequence(count)
     forces[count // 3: count // 2] *= 2.0
     return forces, moments
