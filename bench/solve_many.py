@@ -16,7 +16,7 @@ import argparse
 from contextlib import contextmanager
 import statistics
 import time
-from typing import Dict, Iterator, List
+from typing import Any, Dict, Iterator, List
 
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams
@@ -26,7 +26,7 @@ from cdr_translator.fidelity.linear import TangentModel
 import numpy as np
 
 #: The levels measured and the FidelitySolver options of each.
-LEVELS = {'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'},
+LEVELS: Dict[str, Dict[str, Any]] = {'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'},
           'rod': {'fidelity': 'rod'}, 'linear': {'fidelity': 'linear'},
           'auto': {'fidelity': 'auto', 'max_position_error': 1e-3,
                    'max_angle_error_deg': 0.5}}

@@ -103,7 +103,8 @@ class SolveResult:
         after the solve); ``fields`` are the others. A solve along a sequence whose caller
         reads only the end-disk pose then skips the backbone points and the dictionaries.
         """
-        result = cls(**dict.fromkeys(makers), **fields)
+        placeholders: Dict[str, Any] = dict.fromkeys(makers)
+        result = cls(**placeholders, **fields)
         for name in makers:
             del result.__dict__[name]
         result.__dict__['_makers'] = dict(makers)

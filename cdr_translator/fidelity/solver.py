@@ -23,7 +23,7 @@ from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
 from .. import lean_rows
-from ..batch import BatchResult, check_wrenches
+from ..batch import BatchResult, check_wrenches, RowSolver
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
@@ -230,6 +230,7 @@ class FidelitySolver:
                     batch: BatchResult, compliance: bool) -> None:
         """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
         whole = False
+        solve_row: RowSolver
         if level in self.reduced:
             solve_row = partial(self._reduced_row, level)
         elif level == 'linear' and self.tangent.ready:
