@@ -3,7 +3,7 @@
 import pickle
 
 from batch_checks import assert_rows_equal, sequence
-from cdr_translator.fidelity import BatchResult, FidelitySolver
+from cdr_translator.fidelity import BatchResult, FidelitySolver, LEVEL_COST_ORDER
 from cdr_translator.result import FRAME_NAMES
 import numpy as np
 import pytest
@@ -99,3 +99,28 @@ def test_bad_input_names_the_row(params):
     """The fidelity solver checks its rows as the full one does."""
     with pytest.raises(ValueError, match='forces row 1 x component is nan'):
         FidelitySolver(params, fidelity='cc').solve_many([[1.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
+
+
+@pytest.mark.parametrize('budget', [(1e-3, 0.5), (3e-3, 1.0), (10e-3, 3.0), (0.1e-3, 0.05)])
+def test_reach_lookup_chooses_as_the_box_by_box_rule(params, budget):
+    """'auto' picks per wrench what Validation.admissible decides, box by box, would pick."""
+    solver = FidelitySolver(params, max_position_error=budget[0],
+                            max_angle_error_deg=budget[1])
+    assert solver.validation is not None
+    solver.cache_full_solution(np.array([8.0, 2.0, -1.0, 0.05, 0.0, 0.1]))
+    rng = np.random.default_rng(7)
+    half = np.array([20.0, 20.0, 20.0, 0.5, 0.5, 0.5])
+    origin = solver.tangent.origin
+    samples = np.vstack([rng.uniform(-1.2, 1.2, (300, 6)) * half,
+                         origin + rng.uniform(-1.0, 1.0, (300, 6)) * half
+                         * rng.choice([1 / 512, 1 / 128, 1 / 32, 1 / 8], (300, 1))])
+    chosen = set()
+    for wrench in samples:
+        expected = 'full'
+        for level in LEVEL_COST_ORDER:
+            if solver.validation.admissible(level, wrench, *budget, origin=origin):
+                expected = level
+                break
+        assert solver.choose(wrench)[0] == expected, wrench
+        chosen.add(expected)
+    assert len(chosen) >= 2, chosen  # both sides of some reach were sampled
