@@ -49,6 +49,8 @@ PATHS = ('default', 'tracking')
 #: The default moment of a solve: none.
 NO_MOMENT = (0.0, 0.0, 0.0)
 
+_FLOAT = np.dtype(float)
+
 
 def check_wrench(force: ArrayLike, moment: ArrayLike = NO_MOMENT) -> np.ndarray:
     """
@@ -57,14 +59,15 @@ def check_wrench(force: ArrayLike, moment: ArrayLike = NO_MOMENT) -> np.ndarray:
     Float arrays of three (and the default moment) are copied in without numpy's conversion
     chain: the check then costs about a microsecond of a warm solve, not several.
     """
-    if (type(force) is np.ndarray and force.shape == (3,) and force.dtype == np.float64
-            and (moment is NO_MOMENT or type(moment) is np.ndarray and moment.shape == (3,)
-                 and moment.dtype == np.float64)):
-        wrench = np.zeros(6)
-        wrench[:3] = force
-        if moment is not NO_MOMENT:
-            wrench[3:] = moment
-        if math.isfinite(wrench @ wrench):
+    if type(force) is np.ndarray and force.dtype is _FLOAT and force.shape == (3,):
+        if moment is NO_MOMENT:
+            wrench = np.zeros(6)
+            wrench[:3] = force
+        elif type(moment) is np.ndarray and moment.dtype is _FLOAT and moment.shape == (3,):
+            wrench = np.concatenate((force, moment))
+        else:
+            wrench = None
+        if wrench is not None and math.isfinite(wrench.dot(wrench)):  # else: name the bad one
             return wrench
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 
