@@ -235,9 +235,9 @@ class FidelitySolver:
             solve_row = partial(self._reduced_row, level)
         elif level == 'linear' and self.tangent.ready:
             solve_row = self._linear_row
-        elif level == 'full' and self.fidelity == 'full':
-            solve_row = self._full_row
-        else:  # 'auto' at full (it may expand the tangent), or 'linear' without one
+        elif level == 'full' and not self._tangent_worth_building(wrenches[rows[0]]):
+            solve_row = self._full_row  # a run of 'full' is one row in 'auto'
+        else:  # 'auto' at full expanding the tangent there, or 'linear' without one
             solve_row, whole = partial(self._result_row, level, reason), True
         for row in rows:
             batch.fidelity[row] = level  # what a row that raises was tried at
@@ -256,7 +256,7 @@ class FidelitySolver:
 
     def _full_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
                   compliance: bool) -> float:
-        """Row of the fixed full level (TranslatorSolver's row; the running cost kept)."""
+        """Row of the full level (TranslatorSolver's row; the running cost kept)."""
         elapsed = lean_rows.solve_row(self.full, batch, row, wrench, compliance)
         if self._last_level == 'full':
             self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
