@@ -26,10 +26,10 @@ from cdr_translator.fidelity.linear import TangentModel
 import numpy as np
 
 #: The levels measured and the FidelitySolver options of each.
-LEVELS: Dict[str, Dict[str, Any]] = {'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'},
-          'rod': {'fidelity': 'rod'}, 'linear': {'fidelity': 'linear'},
-          'auto': {'fidelity': 'auto', 'max_position_error': 1e-3,
-                   'max_angle_error_deg': 0.5}}
+LEVELS: Dict[str, Dict[str, Any]] = {
+    'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'}, 'rod': {'fidelity': 'rod'},
+    'linear': {'fidelity': 'linear'},
+    'auto': {'fidelity': 'auto', 'max_position_error': 1e-3, 'max_angle_error_deg': 0.5}}
 
 #: Where each level's kernel lives: (object, attribute) timed while the sequence runs.
 KERNELS = {'full': (warm_step, '_warm_step'), 'cc': (reduced.newton, 'newton'),
