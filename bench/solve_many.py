@@ -6,10 +6,11 @@ Usage: python -m bench.solve_many [--count N]
 Per level (full, cc, rod, linear, and auto at 1 mm / 0.5 deg), on speed_vs_error's smooth
 wrench sequence, one run: the time per answer of ``solve()`` called once per wrench (median
 and mean) and of one ``solve_many`` over the same wrenches (mean; each from a fresh
-solver), and the ratio of the means. The overhead of a single warm solve is its time minus the time spent inside the
-level's compiled kernel (the full model's warm step, the reduced models' Newton; for
-'linear', whose kernel is the expansion's products, ``TangentModel.predict``), the median
-over the sequence: the kernels are timed by wrapping them for the run.
+solver), and the ratio of the means. The overhead of a single warm solve is its time minus
+the time spent inside the level's compiled kernel (the full model's warm step, the reduced
+models' Newton; for 'linear', whose kernel is the expansion's products,
+``TangentModel.predict``), the median over the sequence: the kernels are timed by wrapping
+them for the run.
 """
 
 import argparse
