@@ -10,18 +10,19 @@ import importlib
 from typing import Any, List, TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from .batch import BatchResult
     from .errors import InputError, ParameterError, PlausibilityWarning, SolveError
     from .params import TranslatorParams
     from .result import SolveResult
     from .solver import TranslatorSolver
 
-__all__ = ['InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError', 'SolveResult',
-           'TranslatorParams', 'TranslatorSolver']
+__all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError',
+           'SolveResult', 'TranslatorParams', 'TranslatorSolver']
 
 #: The module that defines each exported name.
-_HOMES = {'InputError': 'errors', 'ParameterError': 'errors', 'PlausibilityWarning': 'errors',
-          'SolveError': 'errors', 'SolveResult': 'result', 'TranslatorParams': 'params',
-          'TranslatorSolver': 'solver'}
+_HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
+          'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result',
+          'TranslatorParams': 'params', 'TranslatorSolver': 'solver'}
 
 
 def __getattr__(name: str) -> Any:

@@ -3,7 +3,7 @@
 from dataclasses import dataclass, field
 from functools import cached_property
 import math
-from typing import Dict, Optional
+from typing import Any, Callable, Dict, Mapping, Optional, TYPE_CHECKING
 
 import numpy as np
 
@@ -55,7 +55,8 @@ class SolveResult:
     ``backbones`` holds the centre-line points of the five rods, shape (5, rows, 3), rod 0
     the primary; the first half of the rows of each rod belong to the PJ, the second half
     to the DJ (the straight run inside the tube joins them). Failure to converge is a result
-    (``converged`` False, ``message`` says why) holding the best iterate found.
+    (``converged`` False, ``message`` says why) holding the best iterate found. A result made
+    by ``deferred`` builds some fields (the shape, the residual dictionary) on first read.
     """
 
     converged: bool
@@ -92,6 +93,40 @@ class SolveResult:
     #: RK4 steps per disk interval of this result (more than the parameters' after an
     #: automatic refinement; 0 when not recorded)
     steps_per_segment: int = 0
+
+    @classmethod
+    def deferred(cls, makers: Mapping[str, Callable[[], Any]], **fields: Any) -> 'SolveResult':
+        """
+        Return a result whose fields named in ``makers`` are made on first read.
+
+        Each maker returns its field's value (it must not depend on anything that changes
+        after the solve); ``fields`` are the others. A solve along a sequence whose caller
+        reads only the end-disk pose then skips the backbone points and the dictionaries.
+        """
+        placeholders: Dict[str, Any] = dict.fromkeys(makers)
+        result = cls(**placeholders, **fields)
+        for name in makers:
+            del result.__dict__[name]
+        result.__dict__['_makers'] = dict(makers)
+        return result
+
+    if not TYPE_CHECKING:  # mypy keeps checking attribute names: this serves deferred fields
+        def __getattr__(self, name: str) -> Any:
+            """Make a deferred field on its first read (``deferred``)."""
+            makers = self.__dict__.get('_makers')
+            if makers is None or name not in makers:
+                raise AttributeError(f'{type(self).__name__!r} object has no attribute {name!r}')
+            value = makers.pop(name)()
+            self.__dict__[name] = value
+            return value
+
+    def __getstate__(self) -> dict:
+        """Pickle and copy every field made: the makers stay with the solver's process."""
+        for name in list(self.__dict__.get('_makers', ())):
+            getattr(self, name)
+        state = dict(self.__dict__)
+        state.pop('_makers', None)
+        return state
 
     @property
     def verified(self) -> Optional[bool]:

@@ -16,19 +16,21 @@ carried between solves), correctors.py, branch.py (stability verdict, stable bra
 refinement.py (error estimate, accuracy target).
 """
 
+from functools import partial
+import math
 import time
 from typing import Optional, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import branch, continuation, correctors, refinement
+from . import branch, continuation, correctors, lean_rows, refinement
 from ._blas import one_blas_thread
 from ._jit import interpreted_kernels
 from ._linalg import residual_norm
 from .accuracy import ErrorEstimate
+from .batch import BatchResult, check_wrenches
 from .checks import check_integer, check_number, check_vector
-from .compliance import compliance_analysis
 from .continuation import LIFT_FROM_SPACERS, PathState
 from .correctors import Limits, Outcome, Pose
 from .params import Accuracy, TranslatorParams
@@ -44,8 +46,29 @@ METHODS = ('fast', 'paper')
 PATHS = ('default', 'tracking')
 
 
-def check_wrench(force: ArrayLike, moment: ArrayLike) -> np.ndarray:
-    """Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component."""
+#: The default moment of a solve: none.
+NO_MOMENT = (0.0, 0.0, 0.0)
+
+_FLOAT = np.dtype(float)
+
+
+def check_wrench(force: ArrayLike, moment: ArrayLike = NO_MOMENT) -> np.ndarray:
+    """
+    Return the 6-vector [force; moment]; InputError (a ValueError) naming a bad component.
+
+    Float arrays of three (and the default moment) are copied in without numpy's conversion
+    chain: the check then costs about a microsecond of a warm solve, not several.
+    """
+    if type(force) is np.ndarray and force.dtype is _FLOAT and force.shape == (3,):
+        if moment is NO_MOMENT:
+            wrench = np.zeros(6)
+            wrench[:3] = force
+        elif type(moment) is np.ndarray and moment.dtype is _FLOAT and moment.shape == (3,):
+            wrench = np.concatenate((force, moment))
+        else:
+            wrench = None
+        if wrench is not None and math.isfinite(wrench.dot(wrench)):  # else: name the bad one
+            return wrench
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
 
 
@@ -234,7 +257,7 @@ class TranslatorSolver:
         return result
 
     @one_blas_thread
-    def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
+    def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
         """
@@ -251,7 +274,7 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
-        state, refinements = self._state, self._refinements
+        refinements = self._refinements
         if refinements.kept is not None and not warm_start:
             refinements.kept = None  # a cold solve starts over at this solver's steps
         elif refinements.kept is not None:
@@ -259,6 +282,31 @@ class TranslatorSolver:
                                          compliance_options)
             if kept is not None:
                 return kept
+        outcome = self._correct(wrench, warm_start, started)
+        return self._judged(outcome, self._verdict(outcome, wrench), wrench, started,
+                            compliance, verify, compliance_options)
+
+    @one_blas_thread
+    def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
+                   compliance: bool = False) -> BatchResult:
+        """
+        Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
+
+        The rows equal N consecutive ``solve`` calls (warm-started along the sequence): a
+        usual warm row is the compiled warm step, its verdict and estimate, read into the
+        columns without a SolveResult; other rows (refinement, continuation, failures) go
+        through the whole solve. A row that fails is flagged (``converged`` False,
+        ``message``), never raised; InputError (a ValueError) names a bad input row.
+        """
+        wrenches = check_wrenches(forces, moments)
+        batch = BatchResult.empty(wrenches, compliance)
+        for row in range(len(wrenches)):
+            batch.run(row, partial(lean_rows.solve_row, self), wrenches[row], compliance)
+        return batch
+
+    def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
+        """Converge at ``wrench``: the warm step, else continuation, restart, fallback."""
+        state = self._state
         state.exact_at = None  # the unknowns state.lu is exact at, once known
         deadline = started + self.time_limit_s
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
@@ -294,10 +342,24 @@ class TranslatorSolver:
             state.previous = (outcome.xs, wrench)
             continuation.extend_path(state, outcome.xs, wrench,
                                      continued and state.path_last is begin)
-        verdict = None
+        return outcome
+
+    def _verdict(self, outcome: Outcome, wrench: np.ndarray) -> Optional[Stability]:
+        """Stability verdict of a converged fast solve that is judged, else None."""
+        if not (outcome.converged and self.method == 'fast' and self.judge):
+            return None
+        if outcome.shape is None or outcome.shape[0] is not outcome.xs:
+            outcome.shape = (outcome.xs, *self.problem.shape(outcome.xs, wrench))
+        return self._stability(outcome, wrench, outcome.shape[2][3][:3, :3])
+
+    def _judged(self, outcome: Outcome, verdict: Optional[Stability], wrench: np.ndarray,
+                started: float, compliance: bool, verify: bool,
+                compliance_options: dict) -> SolveResult:
+        """Return the result of ``outcome`` given its verdict: branch, estimate, refinement."""
+        state, refinements = self._state, self._refinements
+        deadline = started + self.time_limit_s
         result = outcome.result(self.problem, wrench, self.method)
-        if outcome.converged and self.method == 'fast' and self.judge:
-            verdict = self._stability(outcome, wrench, result.frames['de'][:3, :3])
+        if verdict is not None:
             if (not verdict.stable and self.follow_stable_branch
                     and time.perf_counter() < deadline):
                 stable, verdict = branch.follow_stable_branch(
@@ -325,15 +387,9 @@ class TranslatorSolver:
                 result.message += refinement.accuracy_shortfall(result)
         result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
-            stored = state.pose[0] if state.pose is not None else None
-            factorization = ((state.lu, stored) if state.exact_at is outcome.xs
-                             and state.lu is not None and stored is not None else None)
             try:
-                result.compliance, state.lu, pose = compliance_analysis(
-                    self.problem, outcome.xs, wrench, factorization,
-                    result.frames['de'][:3, :3], **compliance_options)
-                state.pose = (pose, wrench.copy())
-                state.exact_at = outcome.xs
+                result.compliance = lean_rows.compliance_at(
+                    self, outcome, wrench, result.frames['de'][:3, :3], **compliance_options)
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
         if verify:

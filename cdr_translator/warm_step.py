@@ -139,11 +139,12 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
         problem.shape_frames, state, report)
     problem.keep_secant_count(lu, int(count))
     estimate = by_kind = None
+    values = report.tolist()  # plain floats in one call, not one numpy scalar each
     if status == CONVERGED and settings[_ESTIMATE] != 0.0:
-        estimate = ErrorEstimate(float(report[_POSITION]), float(report[_ANGLE]),
-                                 problem.params.steps_per_segment, int(report[_OTHER_STEPS]))
-        by_kind = dict(zip(RESIDUAL_KINDS, report[_BY_KIND:].tolist()))
-    step = WarmStep(int(status), int(done), int(slot), float(report[_NORM]), estimate, by_kind)
+        estimate = ErrorEstimate(values[_POSITION], values[_ANGLE],
+                                 problem.params.steps_per_segment, int(values[_OTHER_STEPS]))
+        by_kind = dict(zip(RESIDUAL_KINDS, values[_BY_KIND:]))
+    step = WarmStep(int(status), int(done), int(slot), values[_NORM], estimate, by_kind)
     return step, state[0], state[1]
 
 

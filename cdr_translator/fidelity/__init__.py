@@ -8,6 +8,7 @@ the cheapest level whose validated error (fidelity.validation) meets a budget ('
 
 from .solver import FIDELITIES, FidelitySolver, LEVEL_COST_ORDER, LEVELS
 from .validation import pose_errors, reference_solver, Validation
+from ..batch import BatchResult
 
-__all__ = ['FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS', 'Validation',
-           'pose_errors', 'reference_solver']
+__all__ = ['BatchResult', 'FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS',
+           'Validation', 'pose_errors', 'reference_solver']

@@ -10,22 +10,26 @@ and falls back to 'full' outside every validated range. Every result says which 
 produced it (``result.fidelity``) and why (``result.message``).
 """
 
+from functools import partial
+import math
 from pathlib import Path
 import time
-from typing import Any, Optional, Tuple, Union
+from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .linear import TangentModel
-from .reduced import ReducedModel, ROD_STEPS
+from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from .. import lean_rows
+from ..batch import BatchResult, check_wrenches, RowSolver
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
 from ..problem import RESIDUAL_KINDS
 from ..result import FRAME_NAMES, SolveResult
-from ..solver import check_wrench, TranslatorSolver
+from ..solver import check_wrench, NO_MOMENT, TranslatorSolver
 
 #: The levels a solve can use.
 LEVELS = ('full', 'rod', 'cc', 'linear')
@@ -104,6 +108,8 @@ class FidelitySolver:
         # running costs of a full solve and of a tangent expansion (guesses until measured)
         self._full_time_s = 1e-3
         self._build_time_s = 3e-3
+        self._reaches_for: Optional[tuple] = None
+        self._reach_by_level: Dict[str, float] = {}
 
     @property
     def time_limit_s(self) -> float:
@@ -149,18 +155,41 @@ class FidelitySolver:
             return 'full', 'no error budget'
         if self.validation is None:
             return 'full', 'no validation data for these parameters'
-        budget = (self.max_position_error, self.max_angle_error_deg)
+        reaches = self._reaches()
+        scale = box_scale(wrench)
         for level in LEVEL_COST_ORDER:
             if level == 'linear' and not self.tangent.ready:
                 continue
-            if self.validation.admissible(level, wrench, *budget, origin=self.tangent.origin):
+            reach = reaches.get(level, -math.inf)
+            origin = self.tangent.origin
+            if math.isnan(reach):  # bounds that do not grow: the box-by-box rule
+                admitted = self.validation.admissible(
+                    level, wrench, self.max_position_error, self.max_angle_error_deg,
+                    origin=origin)
+            elif level == 'linear':
+                admitted = (origin is not None and box_scale(origin) <= 1.0
+                            and box_scale(wrench - origin) <= reach)
+            else:
+                admitted = scale <= reach
+            if admitted:
                 return level, 'the cheapest level whose validated error meets the budget'
-        if box_scale(wrench) > 1.0:
+        if scale > 1.0:
             return 'full', 'wrench outside the validated range'
         return 'full', 'no reduced level meets the budget here'
 
+    def _reaches(self) -> Dict[str, float]:
+        """Each level's validated reach under the budget (LevelBound.reach), made once."""
+        assert self.validation is not None
+        key = (self.max_position_error, self.max_angle_error_deg, id(self.validation))
+        if self._reaches_for != key:
+            self._reach_by_level = {
+                level: bound.reach(self.max_position_error, self.max_angle_error_deg)
+                for level, bound in self.validation.levels.items()}
+            self._reaches_for = key
+        return self._reach_by_level
+
     # solving --------------------------------------------------------------------------------
-    def solve(self, force: ArrayLike, moment: ArrayLike = (0.0, 0.0, 0.0),
+    def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False,
               **compliance_options: float) -> SolveResult:
         """
@@ -172,7 +201,97 @@ class FidelitySolver:
         wrench = check_wrench(force, moment)
         if not warm_start:
             self.reset()
-        level, reason = self.choose(wrench)
+        return self._solve_at(*self.choose(wrench), wrench, compliance, compliance_options)
+
+    def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
+                   compliance: bool = False) -> BatchResult:
+        """
+        Solve the rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
+
+        The rows equal N consecutive ``solve`` calls; runs of rows at one reduced level go
+        to that level's row solver (``_solve_rows``), which writes the pose columns without
+        a SolveResult. A failing row is flagged, not raised (TranslatorSolver.solve_many).
+        """
+        wrenches = check_wrenches(forces, moments)
+        batch = BatchResult.empty(wrenches, compliance)
+        row = 0
+        while row < len(wrenches):
+            level, reason = self.choose(wrenches[row])
+            end = row + 1
+            if level in self.reduced or (level == 'linear' and self.tangent.ready):
+                # these levels leave the choice alone: a run of them is chosen up front
+                while end < len(wrenches) and self.choose(wrenches[end]) == (level, reason):
+                    end += 1
+            self._solve_rows(level, reason, wrenches, range(row, end), batch, compliance)
+            row = end
+        return batch
+
+    def _solve_rows(self, level: str, reason: str, wrenches: np.ndarray, rows: range,
+                    batch: BatchResult, compliance: bool) -> None:
+        """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
+        whole = False
+        solve_row: RowSolver
+        if level in self.reduced:
+            solve_row = partial(self._reduced_row, level)
+        elif level == 'linear' and self.tangent.ready:
+            solve_row = self._linear_row
+        elif level == 'full' and not self._tangent_worth_building(wrenches[rows[0]]):
+            solve_row = self._full_row  # a run of 'full' is one row in 'auto'
+        else:  # 'auto' at full expanding the tangent there, or 'linear' without one
+            solve_row, whole = partial(self._result_row, level, reason), True
+        for row in rows:
+            batch.fidelity[row] = level  # what a row that raises was tried at
+            batch.run(row, solve_row, wrenches[row], compliance)
+            if batch.message[row] and not whole:  # a whole solve's message names its level
+                batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
+            self._last_wrench = wrenches[row]
+            self._last_level = str(batch.fidelity[row])
+
+    def _result_row(self, level: str, reason: str, batch: BatchResult, row: int,
+                    wrench: np.ndarray, compliance: bool) -> float:
+        """Row by a whole ``solve`` at ``level``."""
+        result = self._solve_at(level, reason, wrench, compliance, {})
+        batch.record(row, result)
+        return result.solve_time_s
+
+    def _full_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
+                  compliance: bool) -> float:
+        """Row of the full level (TranslatorSolver's row; the running cost kept)."""
+        elapsed = lean_rows.solve_row(self.full, batch, row, wrench, compliance)
+        if self._last_level == 'full':
+            self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
+        return elapsed
+
+    def _linear_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
+                    compliance: bool) -> float:
+        """Row of the 'linear' level: the expansion's frames."""
+        started = time.perf_counter()
+        frames = self.tangent.predict(wrench)[2]
+        elapsed = time.perf_counter() - started
+        analysis = self.tangent.compliance() if compliance else None
+        batch.record_pose(row, frames, None if analysis is None else analysis.stable, None,
+                          None if analysis is None else analysis.matrix, fidelity='linear')
+        return elapsed
+
+    def _reduced_row(self, level: str, batch: BatchResult, row: int, wrench: np.ndarray,
+                     compliance: bool) -> float:
+        """Row of a reduced level: its frames, or its result when it is not a good row."""
+        outcome, elapsed = self._reduced_outcome(level, wrench)
+        analysis, failure = (self._reduced_compliance(level, outcome, wrench, {})
+                             if compliance and outcome.converged else (None, ''))
+        if not outcome.converged or failure:
+            result = self._reduced_result(level, outcome, wrench, elapsed)
+            result.message += failure
+            batch.record(row, result)
+            return elapsed
+        batch.record_pose(row, self.reduced[level].frames(outcome.x, wrench),
+                          None if analysis is None else analysis.stable, None,
+                          None if analysis is None else analysis.matrix, fidelity=level)
+        return elapsed
+
+    def _solve_at(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
+                  compliance_options: dict) -> SolveResult:
+        """Solve at the chosen ``level`` (for ``reason``, which ends the message)."""
         if level == 'linear' and not self.tangent.ready:
             result = self.cache_full_solution(wrench, compliance, **compliance_options)
             result.message += '; linear level: no cached solution yet, solved in full'
@@ -260,6 +379,16 @@ class FidelitySolver:
 
     def _solve_reduced(self, level: str, wrench: np.ndarray, compliance: bool,
                        compliance_options: dict) -> SolveResult:
+        outcome, elapsed = self._reduced_outcome(level, wrench)
+        result = self._reduced_result(level, outcome, wrench, elapsed)
+        if compliance and outcome.converged:
+            result.compliance, failure = self._reduced_compliance(level, outcome, wrench,
+                                                                  compliance_options)
+            result.message += failure
+        return result
+
+    def _reduced_outcome(self, level: str, wrench: np.ndarray) -> Tuple[ReducedOutcome, float]:
+        """Solve a reduced level from its last solution (or unloaded); (outcome, time)."""
         model = self.reduced[level]
         started = time.perf_counter()
         start = self._previous[level]
@@ -275,19 +404,33 @@ class FidelitySolver:
         elapsed = time.perf_counter() - started
         if outcome.converged:
             self._previous[level] = (outcome.x, wrench)
-        result = _result(outcome.converged, outcome.message, outcome.iterations, outcome.rs,
-                         model.residual_by_kind(outcome.rs), wrench,
-                         model.frames(outcome.x, wrench), model.points(outcome.x, wrench),
-                         elapsed, outcome.x * model.unknown_scale, level)
-        if compliance and outcome.converged:
-            try:
-                result.compliance = _reduced_compliance(model, outcome.x, wrench,
-                                                        self.params.stack_height,
-                                                        compliance_options)
-            except ArithmeticError as error:
-                result.message += f'; no compliance: {error}'
-            self._previous[level] = (outcome.x, wrench)  # the differences moved the model
-        return result
+        return outcome, elapsed
+
+    def _reduced_result(self, level: str, outcome: ReducedOutcome, wrench: np.ndarray,
+                        elapsed: float) -> SolveResult:
+        """Return a reduced solve's result; its shape and residual dictionary made when read."""
+        model, x, rs = self.reduced[level], outcome.x, outcome.rs
+        return SolveResult.deferred(
+            {'frames': lambda: dict(zip(FRAME_NAMES, model.frames(x, wrench))),
+             'backbones': lambda: model.points(x, wrench),
+             'residual_by_type': lambda: model.residual_by_kind(rs)},
+            converged=outcome.converged, message=outcome.message,
+            iterations=outcome.iterations, residual_norm=float(np.sqrt(rs @ rs)),
+            force=wrench[:3].copy(), moment=wrench[3:].copy(), solve_time_s=elapsed,
+            method='fast', unknowns=x * model.unknown_scale, fidelity=level)
+
+    def _reduced_compliance(self, level: str, outcome: ReducedOutcome, wrench: np.ndarray,
+                            options: dict) -> Tuple[Optional[ComplianceAnalysis], str]:
+        """(compliance of a converged reduced solve, or None and the message tail saying why)."""
+        model = self.reduced[level]
+        try:
+            analysis: Optional[ComplianceAnalysis] = _reduced_compliance(
+                model, outcome.x, wrench, self.params.stack_height, options)
+            failure = ''
+        except ArithmeticError as error:
+            analysis, failure = None, f'; no compliance: {error}'
+        self._previous[level] = (outcome.x, wrench)  # the differences moved the model
+        return analysis, failure
 
 
 def _result(converged: bool, message: str, iterations: int, rs: np.ndarray,

@@ -1,0 +1,136 @@
+"""
+Batch answers against a solve() loop, and the Python a single solve adds to its kernel.
+
+Usage: python -m bench.solve_many [--count N]
+
+Per level (full, cc, rod, linear, and auto at 1 mm / 0.5 deg), on speed_vs_error's smooth
+wrench sequence, one run: the time per answer of ``solve()`` called once per wrench (median
+and mean) and of one ``solve_many`` over the same wrenches (mean; each from a fresh
+solver), and the ratio of the means. The overhead of a single warm solve is its time minus
+the time spent inside the level's compiled kernel (the full model's warm step, the reduced
+models' Newton; for 'linear', whose kernel is the expansion's products,
+``TangentModel.predict``), the median over the sequence: the kernels are timed by wrapping
+them for the run.
+"""
+
+import argparse
+from contextlib import contextmanager
+import statistics
+import time
+from typing import Any, Dict, Iterator, List
+
+from bench.speed_vs_error import wrench_sequence
+from cdr_translator import TranslatorParams
+from cdr_translator import warm_step
+from cdr_translator.fidelity import FidelitySolver, reduced
+from cdr_translator.fidelity.linear import TangentModel
+import numpy as np
+
+#: The levels measured and the FidelitySolver options of each.
+LEVELS: Dict[str, Dict[str, Any]] = {
+    'full': {'fidelity': 'full'}, 'cc': {'fidelity': 'cc'}, 'rod': {'fidelity': 'rod'},
+    'linear': {'fidelity': 'linear'},
+    'auto': {'fidelity': 'auto', 'max_position_error': 1e-3, 'max_angle_error_deg': 0.5}}
+
+#: Where each level's kernel lives: (object, attribute) timed while the sequence runs.
+KERNELS = {'full': (warm_step, '_warm_step'), 'cc': (reduced.newton, 'newton'),
+           'rod': (reduced.newton, 'newton'), 'linear': (TangentModel, 'predict')}
+
+
+@contextmanager
+def timed_kernel(level: str, spent: List[float]) -> Iterator[None]:
+    """Add the time of each call of ``level``'s kernel to ``spent[0]`` while inside."""
+    owner, name = KERNELS[level]
+    kernel = getattr(owner, name)
+
+    def timed(*args, **kwargs):
+        started = time.perf_counter()
+        try:
+            return kernel(*args, **kwargs)
+        finally:
+            spent[0] += time.perf_counter() - started
+
+    setattr(owner, name, timed)
+    try:
+        yield
+    finally:
+        setattr(owner, name, kernel)
+
+
+def per_answer(params: TranslatorParams, options: dict, wrenches: np.ndarray,
+               repeats: int = 3) -> Dict[str, float]:
+    """
+    Per-answer seconds of a solve() loop and of solve_many, each from a fresh solver.
+
+    The loop reads each answer's end-disk pose, as the batch's columns hold it; a first
+    pass loads every kernel both use (numba's cache), so that neither pays for that. The
+    two alternate ``repeats`` times and the fastest pass of each counts: on a shared
+    machine a burst of other work inflates single passes.
+    """
+    warmed = FidelitySolver(params, **options)
+    warmed.solve_many(wrenches[:5, :3], wrenches[:5, 3:])
+    warmed.solve(wrenches[5, :3], wrenches[5, 3:]).end_disk_quaternion_xyzw
+    loops, batches, medians = [], [], []
+    for _ in range(repeats):
+        looped = FidelitySolver(params, **options)
+        looped.solve(wrenches[0, :3], wrenches[0, 3:])  # the first (cold) answer: not timed
+        times = []
+        for wrench in wrenches[1:]:
+            started = time.perf_counter()
+            result = looped.solve(wrench[:3], wrench[3:])
+            result.end_disk_position, result.end_disk_quaternion_xyzw, result.pj_bending
+            times.append(time.perf_counter() - started)
+        loops.append(sum(times) / len(times))
+        medians.append(statistics.median(times))
+        batched = FidelitySolver(params, **options)
+        batched.solve(wrenches[0, :3], wrenches[0, 3:])
+        started = time.perf_counter()
+        batch = batched.solve_many(wrenches[1:, :3], wrenches[1:, 3:])
+        batches.append((time.perf_counter() - started) / len(batch))
+        assert batch.converged.all(), set(batch.message)
+    return {'loop': min(medians), 'loop_mean': min(loops), 'batch_mean': min(batches)}
+
+
+def overhead(params: TranslatorParams, level: str, wrenches: np.ndarray) -> Dict[str, float]:
+    """Median (solve time, kernel time, solve minus kernel) of a warm single solve."""
+    solver = FidelitySolver(params, **LEVELS[level])
+    for wrench in wrenches[:20]:
+        solver.solve(wrench[:3], wrench[3:])
+    spent = [0.0]
+    totals, kernels = [], []
+    with timed_kernel(level, spent):
+        for wrench in wrenches:
+            spent[0] = 0.0
+            started = time.perf_counter()
+            solver.solve(wrench[:3], wrench[3:])
+            totals.append(time.perf_counter() - started)
+            kernels.append(spent[0])
+    return {'solve': statistics.median(totals), 'kernel': statistics.median(kernels),
+            'overhead': statistics.median(np.subtract(totals, kernels))}
+
+
+def main() -> None:
+    """Print a table of per-answer times and one of single-solve overheads."""
+    parser = argparse.ArgumentParser(description='solve_many against a solve() loop.')
+    parser.add_argument('--count', type=int, default=600, help='wrenches per level')
+    args = parser.parse_args()
+    params = TranslatorParams.from_yaml()
+    wrenches = wrench_sequence(args.count)
+    print(f"{'level':>7} {'loop us (median)':>17} {'loop us (mean)':>15} "
+          f"{'solve_many us':>14} {'loop/batch':>11}")
+    for level, options in LEVELS.items():
+        times = per_answer(params, options, wrenches)
+        print(f"{level:>7} {1e6 * times['loop']:>17.1f} {1e6 * times['loop_mean']:>15.1f} "
+              f"{1e6 * times['batch_mean']:>14.1f} "
+              f"{times['loop_mean'] / times['batch_mean']:>11.2f}")
+    print(f"\n{'level':>7} {'solve us':>9} {'kernel us':>10} {'overhead us':>12} "
+          f"{'overhead/kernel':>16}")
+    for level in KERNELS:
+        costs = overhead(params, level, wrenches)
+        print(f"{level:>7} {1e6 * costs['solve']:>9.1f} {1e6 * costs['kernel']:>10.1f} "
+              f"{1e6 * costs['overhead']:>12.1f} "
+              f"{costs['overhead'] / max(costs['kernel'], 1e-12):>16.2f}")
+
+
+if __name__ == '__main__':
+    main()
