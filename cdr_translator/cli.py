@@ -300,7 +300,11 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
     warm solves along a path the extrapolating predictor (chord.extrapolate).
     """
-    leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES}
+    # 'auto' under a budget, so that it looks up the validated ranges (a compiled lookup)
+    leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES
+               if fidelity != 'auto'}
+    leveled['auto'] = FidelitySolver(params, 'auto', max_position_error=1e-3,
+                                     max_angle_error_deg=0.5)
     for solver in leveled.values():
         solver.solve([1.0, 0.0, 0.0], compliance=True)
     wrenches = np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
