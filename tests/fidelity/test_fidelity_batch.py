@@ -47,9 +47,14 @@ def test_batch_compliance(params, case):
     assert_rows_equal(batch, results, compliance=True)
 
 
-@pytest.mark.parametrize('level', ['cc', 'rod'])
+@pytest.mark.parametrize('level', ['rod'])
 def test_failing_row_is_flagged_and_later_rows_solve(params, level):
-    """A wrench the reduced model cannot reach is a flagged row; the next rows solve."""
+    """
+    A wrench the reduced model cannot reach is a flagged row; the next rows solve.
+
+    'rod' only: the 'cc' model's Newton with its exact Jacobian converges for every finite
+    wrench (its virtual-work residual has no singular branch), so no finite row fails there.
+    """
     forces = np.array([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [0.0, 0.0, -5e4], [7.0, 0.0, 0.0],
                        [8.0, 0.0, 0.0]])
     single = FidelitySolver(params, fidelity=level, time_limit_s=1.0)
