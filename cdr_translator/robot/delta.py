@@ -261,7 +261,7 @@ class DeltaRobot:
             start, origin = chain.previous
             with np.errstate(over='ignore', invalid='ignore'):
                 outcome = chain.walk(start, origin, inputs, tolerances,
-                                     lambda: time.perf_counter() > deadline)
+                                     lambda: time.perf_counter() > deadline, held is not None)
             bounds = [leg_error_bound(self._validation, level, wrench)
                       for wrench in outcome.state.wrenches]
             if outcome.converged:

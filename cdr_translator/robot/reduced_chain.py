@@ -87,6 +87,9 @@ class ReducedChain:
         size = self.model.size
         self.lu = np.zeros((3, size, size))
         self.pivots = np.zeros((3, size + 1), dtype=np.int64)
+        #: the scaled platform Jacobian's LU, kept for chord steps across solves
+        self.factors = np.zeros((SIZE, SIZE))
+        self.factor_pivots = np.zeros(SIZE + 1, dtype=np.int64)
         self.previous: Optional[Tuple[ReducedState, np.ndarray]] = None
         self._held: Optional[HeldReference] = None
 
@@ -94,6 +97,7 @@ class ReducedChain:
         """Forget the previous solution and the legs' factorizations."""
         self.previous = None
         self.pivots[:, -1] = 0
+        self.factor_pivots[-1] = 0
 
     def home(self, position: np.ndarray) -> ReducedState:
         """Straight legs, no load, platform at ``position``."""
@@ -101,49 +105,52 @@ class ReducedChain:
                             np.zeros((3, self.model.size)))
 
     def walk(self, start: ReducedState, origin: np.ndarray, inputs: np.ndarray,
-             tolerances: np.ndarray, out_of_time: Callable[[], bool]) -> ReducedOutcome:
+             tolerances: np.ndarray, out_of_time: Callable[[], bool],
+             linearized: bool) -> ReducedOutcome:
         """
         Continue from ``start`` (solved for inputs ``origin``) to ``inputs``.
 
         Newton goes straight to the inputs; a failed step is halved down to
         continuation.MIN_CONTINUATION_STEP of the way left. The outcome holds the last
-        converged state when the walk stalls.
+        converged state when the walk stalls. ``linearized``: the legs' compliances and
+        the platform Jacobian at the solution too (else the outcome's are NaN).
         """
-        state, done, step, iterations = start.copy(), 0.0, 1.0, 0
-        leg_origin = state.wrenches.copy()
+        state, done, step, iterations = start, 0.0, 1.0, 0
+        leg_origin = state.wrenches
         frames = np.empty((3, 4, 4))
-        compliances = np.empty((3, 6, 6))
+        compliances = np.full((3, 6, 6), np.nan)
         signs = np.zeros(3, dtype=np.int64)
         residual = np.full(SIZE, np.inf)
         jacobian = np.full((SIZE, SIZE), np.nan)
-        message = 'converged'
         while done < 1.0:
             target = min(1.0, done + step)
-            goal = origin + target * (inputs - origin)
+            goal = inputs if target == 1.0 else origin + target * (inputs - origin)
             trial = state.copy()
             trial_origin = leg_origin.copy()
             code, count = chain_newton(
                 self.model.code, self.data, self.model.tolerance, self.model.max_iterations,
                 trial.leg_x, trial_origin, self.lu, self.pivots, trial.position,
                 trial.rotation, trial.wrenches, goal, self.chain.platform, tolerances,
-                self.max_iterations, frames, compliances, signs, residual, jacobian)
+                self.max_iterations, self.factors, self.factor_pivots,
+                linearized and target == 1.0, frames, compliances, signs, residual, jacobian)
             iterations += count
             if code == SOLVED:
                 done, state, leg_origin = target, trial, trial_origin
                 step *= 2.0
                 continue
-            message = _FAILURES.get(code, f'no convergence in {self.max_iterations} '
-                                          'iterations')
             self.pivots[:, -1] = 0
+            self.factor_pivots[-1] = 0
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or out_of_time():
+                message = _FAILURES.get(code, f'no convergence in {self.max_iterations} '
+                                              'iterations')
                 last = self.evaluate(state, inputs)
                 return ReducedOutcome(state, False, f'continuation stalled at {done:.1%} of '
                                       f'the way to the sliders and payload: {message}',
                                       iterations, last.residual, last.jacobian, last.frames,
                                       last.compliances)
-        return ReducedOutcome(state, True, 'converged', iterations, residual.copy(),
-                              jacobian.copy(), frames.copy(), compliances.copy())
+        return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
+                              compliances)
 
     def evaluate(self, state: ReducedState, inputs: np.ndarray) -> ReducedOutcome:
         """Residual, Jacobian and legs of ``state`` as it is (no iteration)."""

@@ -36,6 +36,10 @@ UNKNOWN_STEP = 1e-6
 #: Step halvings of the chain's line search.
 HALVINGS = 10
 
+#: A chord step (reused platform Jacobian) must cut the scaled residual norm at least this
+#: much, else the Jacobian is rebuilt (the legs' compliances made anew).
+CHORD_RATE = 0.25
+
 
 @jit
 def _frames(model, x, data, frames):
@@ -261,36 +265,50 @@ def _scaled_norm(values, scale):
 
 
 @jit
+def _linearize(model, data, leg_x, wrenches, rotation, residual_now, inputs, leg_rotations,
+               attachments, compliances, signs, jacobian):
+    """Each leg's compliance and sign of det H at ``leg_x``, and the platform Jacobian."""
+    size = leg_x.shape[1]
+    compliance = np.empty((6, 6))
+    frame = np.empty((4, 4))
+    h_lu = np.empty((size, size))
+    h_pivots = np.zeros(size, dtype=np.int64)
+    for k in range(3):
+        signs[k] = leg_compliance(model, leg_x[k], data, wrenches[k], frame, compliance, h_lu,
+                                  h_pivots)
+        compliances[k] = compliance
+    platform_jacobian(rotation, wrenches, residual_now, inputs, leg_rotations, attachments,
+                      compliances, jacobian)
+
+
+@jit
 def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, leg_lu,
                  leg_pivots, position, rotation, wrenches, inputs, platform, tolerances,
-                 max_iterations, frames, compliances, signs, residual_now, jacobian):
+                 max_iterations, factors, factor_pivots, linearized, frames, compliances,
+                 signs, residual_now, jacobian):
     """
     Damped Newton of the chain with reduced legs, in place; return (outcome, iterations).
 
     ``leg_x`` (3, n) / ``leg_origin`` (3, 6): each leg's last solution and its wrench,
     ``leg_lu`` (3, n, n) / ``leg_pivots`` (3, n + 1) its factorization (fidelity.newton);
     all are updated to the accepted iterate. ``platform``: chain.Chain.platform;
-    ``tolerances``: equilibrium (N, N m), position (m), rotation (rad). On return
-    ``frames`` (3, 4, 4) hold the end disks, ``compliances`` (3, 6, 6) and ``signs`` (3)
-    each leg's compliance and sign of det H, ``residual_now`` (24) the residual and
-    ``jacobian`` (24, 24) the platform Jacobian (SI), all at the final iterate.
+    ``tolerances``: equilibrium (N, N m), position (m), rotation (rad). ``factors`` (24,
+    24) / ``factor_pivots`` (25): the scaled platform Jacobian's LU, kept across calls
+    (``factor_pivots[24]`` says whether it is usable): chord steps on it while they
+    contract by CHORD_RATE, else it is rebuilt from the legs' compliances. On return
+    ``frames`` (3, 4, 4) hold the end disks and ``residual_now`` (24) the residual at the
+    final iterate; with ``linearized`` also ``compliances`` (3, 6, 6), ``signs`` (3, each
+    leg's sign of det H) and ``jacobian`` (24, 24, SI) there.
     """
     leg_rotations, attachments, home_bases, slider_axes, r_scale, x_scale = platform
-    size = leg_x.shape[1]
     trial_x = np.empty_like(leg_x)
     trial_frames = np.empty_like(frames)
     trial_position = np.empty(3)
     trial_rotation = np.empty((3, 3))
     trial_wrenches = np.empty_like(wrenches)
     trial_residual = np.empty(24)
-    scaled = np.empty((24, 24))
-    pivots = np.zeros(24, dtype=np.int64)
     step = np.empty(24)
     rhs = np.empty(24)
-    compliance = np.empty((6, 6))
-    frame = np.empty((4, 4))
-    h_lu = np.empty((size, size))
-    h_pivots = np.zeros(size, dtype=np.int64)
     if not _evaluate(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, leg_lu,
                      leg_pivots, wrenches, trial_x, frames):
         return LEG_FAILED, 0
@@ -300,26 +318,32 @@ def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, 
                              attachments, home_bases, slider_axes, residual_now):
         return NO_DESCENT, 0
     norm = _scaled_norm(residual_now, r_scale)
-    for iteration in range(max_iterations + 1):
-        for k in range(3):
-            signs[k] = leg_compliance(model, leg_x[k], data, wrenches[k], frame, compliance,
-                                      h_lu, h_pivots)
-            compliances[k] = compliance
-        platform_jacobian(rotation, wrenches, residual_now, inputs, leg_rotations, attachments,
-                          compliances, jacobian)
+    fresh = False
+    iteration = 0
+    while iteration <= max_iterations:
         if within(residual_now, tolerances[0], tolerances[1], tolerances[2]):
+            if linearized:
+                _linearize(model, data, leg_x, wrenches, rotation, residual_now, inputs,
+                           leg_rotations, attachments, compliances, signs, jacobian)
             return SOLVED, iteration
         if iteration == max_iterations:
             break
+        if factor_pivots[24] == 0:
+            _linearize(model, data, leg_x, wrenches, rotation, residual_now, inputs,
+                       leg_rotations, attachments, compliances, signs, jacobian)
+            for i in range(24):
+                for j in range(24):
+                    factors[i, j] = jacobian[i, j] / r_scale[i] * x_scale[j]
+            if not lu_factor(factors, factor_pivots):
+                return NO_DESCENT, iteration
+            factor_pivots[24] = 1
+            fresh = True
         for i in range(24):
             rhs[i] = residual_now[i] / r_scale[i]
-            for j in range(24):
-                scaled[i, j] = jacobian[i, j] / r_scale[i] * x_scale[j]
-        if not lu_factor(scaled, pivots):
-            return NO_DESCENT, iteration
-        lu_solve(scaled, pivots, rhs, step)
+        lu_solve(factors, factor_pivots, rhs, step)
         scale = 1.0
         accepted = False
+        trial_norm = norm
         for _ in range(HALVINGS):
             _move(position, rotation, wrenches, step, -scale, x_scale, trial_position,
                   trial_rotation, trial_wrenches)
@@ -332,9 +356,18 @@ def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, 
                 if trial_norm < (1.0 - 1e-4 * scale) * norm:
                     accepted = True
                     break
+            if not fresh:
+                break  # a stale Jacobian: rebuild rather than damp
             scale *= 0.5
+        iteration += 1
         if not accepted:
-            return NO_DESCENT, iteration + 1
+            if fresh:
+                return NO_DESCENT, iteration
+            factor_pivots[24] = 0
+            continue
+        if not fresh and trial_norm > CHORD_RATE * norm:
+            factor_pivots[24] = 0  # chord steps converge too slowly
+        fresh = False
         position[:] = trial_position
         rotation[:, :] = trial_rotation
         wrenches[:, :] = trial_wrenches
