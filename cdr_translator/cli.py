@@ -44,8 +44,8 @@ from .problem import JACOBIANS
 from .result import SolveResult
 from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
-from .robot.levels import ROBOT_FIDELITIES
 from .robot.inverse import InverseResult
+from .robot.levels import ROBOT_FIDELITIES
 from .robot.result import DeltaResult
 from .solver import METHODS, TranslatorSolver
 

@@ -25,7 +25,7 @@ REDUCED_LEVELS = tuple(level for level in LEVEL_COST_ORDER if level in ('cc', 'r
 
 
 def check_fidelity(fidelity: str, max_position_error: float, max_angle_error: float) -> None:
-    """ValueError naming a level not in ROBOT_FIDELITIES or a bad budget."""
+    """Raise ValueError naming a level not in ROBOT_FIDELITIES, or a bad budget."""
     if fidelity not in ROBOT_FIDELITIES:
         raise ValueError(f'fidelity must be one of {ROBOT_FIDELITIES}, got {fidelity!r}')
     check_number('max_position_error', max_position_error, low=0.0)
@@ -37,7 +37,7 @@ def check_fidelity(fidelity: str, max_position_error: float, max_angle_error: fl
 def leg_error_bound(validation: Optional[Validation], level: str,
                     wrench: np.ndarray) -> Tuple[float, float]:
     """
-    Validated (position m, angle deg) error of ``level`` at a leg's tip ``wrench``.
+    Return the validated (position m, angle deg) error of ``level`` at a leg's tip ``wrench``.
 
     The errors of the smallest validated box holding the wrench; NaN outside the largest
     box, or without validation data for these parameters.

@@ -46,7 +46,7 @@ class ReducedState:
                             self.leg_x.copy())
 
     def chain_state(self) -> ChainState:
-        """The platform part as robot/chain.py's ChainState (the legs' unknowns reduced)."""
+        """Return the platform part as robot/chain.py's ChainState (reduced leg unknowns)."""
         return ChainState(self.position, self.rotation, self.wrenches, self.leg_x)
 
 
@@ -153,7 +153,7 @@ class ReducedChain:
                               compliances)
 
     def evaluate(self, state: ReducedState, inputs: np.ndarray) -> ReducedOutcome:
-        """Residual, Jacobian and legs of ``state`` as it is (no iteration)."""
+        """Return the residual and legs of ``state`` as it is (no iteration, no Jacobian)."""
         frames = np.empty((3, 4, 4))
         compliances = np.empty((3, 6, 6))
         for k in range(3):
@@ -167,7 +167,7 @@ class ReducedChain:
 
     def leg_linearization(self, x: np.ndarray, wrench: np.ndarray
                           ) -> Tuple[np.ndarray, np.ndarray, tuple]:
-        """End-disk frame, 6x6 compliance and the LU of H (stability.determinant_sign's)."""
+        """Return the end-disk frame, 6x6 compliance and LU of H (stability.determinant_sign)."""
         size = self.model.size
         frame = np.empty((4, 4))
         compliance = np.empty((6, 6))
@@ -181,7 +181,7 @@ class ReducedChain:
         return frame, compliance, (lu, pivots)
 
     def leg_results(self, outcome: ReducedOutcome) -> LegResults:
-        """The legs' SolveResults at the outcome's state, each built when first read."""
+        """Return the legs' SolveResults at the outcome's state, each built when first read."""
         return LegResults(self._leg_builder(outcome.state.leg_x[k].copy(),
                                             outcome.state.wrenches[k].copy())
                           for k in range(3))
@@ -246,4 +246,3 @@ class ReducedChain:
             self._held = held_reference(lu, compliance, self.params.stack_height,
                                         critical_load_n)
         return self._held
-

@@ -15,13 +15,13 @@ GRAVITY_1KG = (0.0, 0.0, -9.81)
 
 @pytest.fixture(scope='module')
 def full() -> DeltaRobot:
-    """Full legs: the reference."""
+    """Return a robot with full legs: the reference."""
     return DeltaRobot()
 
 
 @pytest.fixture(scope='module', params=['cc', 'rod'])
 def reduced(request) -> DeltaRobot:
-    """A robot with reduced legs of each level."""
+    """Return a robot with reduced legs of each level."""
     return DeltaRobot(fidelity=request.param)
 
 
@@ -133,7 +133,7 @@ def test_atlas_at_cc_equals_direct_solves(tmp_path):
 
 
 def test_cli_fidelity_flags(capsys):
-    """delta / delta-ik --fidelity LEVEL report their legs' level; a bad level is exit 2."""
+    """The delta / delta-ik --fidelity LEVEL report their legs' level; a bad level is exit 2."""
     assert main(['delta', '--sliders', '0.004', '0', '0', '--payload', '0', '0', '-9.81',
                  '--fidelity', 'cc', '--json']) == 0
     data = json.loads(capsys.readouterr().out)
