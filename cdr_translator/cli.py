@@ -11,6 +11,8 @@ Command line: argument parsing and printing only; the physics lives in the solve
     python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
                                    --out PATH.zarr [--workers K] [--scheduler ADDRESS]
                                    [--chunk-size M] [--plot]
+    (delta, delta-ik, atlas: [--fidelity full|rod|cc|auto [--max-position-error M]
+                              [--max-angle-error DEG]], the legs' level)
     python -m cdr_translator compile [--params FILE]
 
 Exit codes: 0 converged (and stable), 3 not converged (the result is still printed; for
@@ -43,6 +45,7 @@ from .result import SolveResult
 from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
+from .robot.levels import ROBOT_FIDELITIES
 from .robot.result import DeltaResult
 from .solver import METHODS, TranslatorSolver
 
@@ -125,6 +128,8 @@ def _parser() -> argparse.ArgumentParser:
     atlas.add_argument('--plot', action='store_true',
                        help='draw the workspace and stiffness maps (PNG beside the store)')
     atlas.add_argument('--no-progress', action='store_true', help='no progress bar')
+    for command in (delta, inverse, atlas):
+        _add_level_arguments(command)
     compile_ = commands.add_parser(
         'compile', help="compile the numba kernels into numba's cache (make setup's last "
                         'step), so that no node or solve compiles them later')
@@ -147,6 +152,17 @@ def _add_payload_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument('--time-limit', type=float, default=30.0,
                          help='give up a forward solve after this many seconds '
                               '(default: %(default)s)')
+
+
+def _add_level_arguments(command: argparse.ArgumentParser) -> None:
+    """Add the legs' fidelity level and its error budget (delta, delta-ik, atlas)."""
+    command.add_argument('--fidelity', choices=ROBOT_FIDELITIES, default='full',
+                         help="the legs' model level (docs/robot_levels.md); auto: the "
+                              'cheapest level within the budget at every leg, else full')
+    command.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
+                         help="error budget of --fidelity auto: each leg's end disk, m")
+    command.add_argument('--max-angle-error', type=float, default=0.0, metavar='DEG',
+                         help="error budget of --fidelity auto: each leg's angles, deg")
 
 
 def _table(result: SolveResult) -> str:
@@ -358,7 +374,9 @@ def _run(argv: Optional[List[str]]) -> int:
             # every key checked, as cdr_node does; the legs' model and the geometry from it
             robot_settings = CdrSettings.from_params_file(args.params)
             robot = DeltaRobot(robot_settings.params, robot_settings.geometry,
-                               time_limit_s=args.time_limit)
+                               time_limit_s=args.time_limit, fidelity=args.fidelity,
+                               max_position_error=args.max_position_error,
+                               max_angle_error=args.max_angle_error)
             if args.command == 'delta':
                 result = robot.solve(args.sliders, args.payload, args.payload_moment,
                                      args.payload_offset, compliance=True)

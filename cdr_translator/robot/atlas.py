@@ -37,7 +37,7 @@ from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from .samples import (AtlasSpec, chunk_bounds, RESULT_VARIABLES, solve_chunk,
+from .samples import (AtlasSpec, chunk_bounds, LEG_LEVELS, RESULT_VARIABLES, solve_chunk,
                       workspace_volumes)
 from ..console import json_text, unwritable_reason
 from ..params import DEFAULT_PARAMS_PATH, ParameterError
@@ -60,7 +60,8 @@ _DIMS = {(): (), (3,): ('axis',), (3, 2): ('leg', 'joint'), (3, 3): ('axis', 'sl
 
 def _result_dims(name: str) -> Tuple[str, ...]:
     shape = RESULT_VARIABLES[name][0]
-    if name == 'leg_axial_force':
+    if name == 'leg_axial_force' or name.startswith('leg_error_bound') \
+            or name == 'leg_fidelity':
         return ('sample', 'leg')
     if name.startswith('compliance_eigenvalues'):
         return ('sample', 'eigen')
@@ -97,7 +98,7 @@ def _template(spec: AtlasSpec, chunk_size: int):
         {'description': 'the chunk is solved and written'})
     dataset = xr.Dataset(variables)
     dataset.attrs.update({'atlas_spec': json.dumps(spec.to_attrs()),
-                          'chunk_size': chunk_size,
+                          'chunk_size': chunk_size, 'leg_levels': list(LEG_LEVELS),
                           'frames': 'world frame {w}: z up the robot axis, platform below',
                           'description': 'Continuum Delta Robot atlas (cdr_translator)'})
     return dataset
@@ -275,7 +276,8 @@ def load_results(out: Path) -> Tuple[AtlasSpec, Dict[str, np.ndarray]]:
     attrs = json.loads(dataset.attrs['atlas_spec'])
     spec = AtlasSpec(attrs['grid'], tuple(tuple(p) for p in attrs['payloads']),
                      tuple(attrs['params_files']), tuple(attrs['strokes']),
-                     attrs['time_limit_s'])
+                     attrs['time_limit_s'], attrs.get('fidelity', 'full'),
+                     attrs.get('max_position_error', 0.0), attrs.get('max_angle_error', 0.0))
     return spec, {name: dataset[name].values for name in dataset.data_vars}
 
 
@@ -299,7 +301,8 @@ def run_cli(args: argparse.Namespace) -> int:
     """Run the ``atlas`` command, print a JSON summary (and plot); return the exit code."""
     try:
         spec = AtlasSpec.build(args.grid, args.payload or [(0.0, 0.0, 0.0)],
-                               args.params or [str(DEFAULT_PARAMS_PATH)], args.time_limit)
+                               args.params or [str(DEFAULT_PARAMS_PATH)], args.time_limit,
+                               args.fidelity, args.max_position_error, args.max_angle_error)
         if args.chunk_size is not None and args.chunk_size < 1:
             raise ValueError(f'--chunk-size must be at least 1, got {args.chunk_size}')
         out = Path(args.out)

@@ -55,10 +55,14 @@ from .continuation import ChainContinuation
 from .coupled_newton import CoupledNewton, Limits, Outcome
 from .inverse import InverseResult, InverseSolver
 from .legs import ChainLegs
+from .levels import check_fidelity, leg_error_bound, REDUCED_LEVELS, within_budget
 from .linearization import Factorization, factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
+from .reduced_chain import ReducedChain
 from .result import DeltaResult
 from .._blas import one_blas_thread
+from ..fidelity import Validation
+from ..fidelity.reduced import ROD_STEPS
 from ..held import held_critical_load, held_reference, HeldReference
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
@@ -77,7 +81,8 @@ class DeltaRobot:
                  geometry: Optional[DeltaParams] = None, *,
                  equilibrium_tolerance: float = 1e-10, position_tolerance: float = 1e-10,
                  rotation_tolerance: float = 1e-9, max_iterations: int = 12,
-                 time_limit_s: float = 30.0) -> None:
+                 time_limit_s: float = 30.0, fidelity: str = 'full',
+                 max_position_error: float = 0.0, max_angle_error: float = 0.0) -> None:
         """
         Set up three leg solvers for ``params`` and the CDR ``geometry`` (default: YAML).
 
@@ -88,9 +93,18 @@ class DeltaRobot:
         Newton iterations of one continuation step (a step that needs more is halved),
         ``time_limit_s`` a whole solve. The linearization at home (three exact leg
         Jacobians, a few ms) is made here, once: cold solves start from it.
+
+        ``fidelity`` is the legs' level (robot/levels.py): 'full', 'rod', 'cc', or 'auto':
+        the cheapest reduced level whose validated error at every leg's tip wrench is
+        within ``max_position_error`` (m) and ``max_angle_error`` (deg), else full legs
+        (a zero budget, the default: full legs only).
         """
         if max_iterations < 1:
             raise ValueError(f'max_iterations must be at least 1, got {max_iterations}')
+        check_fidelity(fidelity, max_position_error, max_angle_error)
+        self.fidelity = fidelity
+        self.max_position_error = float(max_position_error)
+        self.max_angle_error = float(max_angle_error)
         self.params = params if params is not None else TranslatorParams.from_yaml()
         self.geometry = geometry if geometry is not None else DeltaParams.from_yaml()
         height = self.params.stack_height
@@ -109,6 +123,13 @@ class DeltaRobot:
         home = self._chain_legs.home_state(self.home_position)
         self._home = (home, factorize(self._chain, self._chain_legs, home, np.zeros(12)))
         self._held: Optional[HeldReference] = None  # made by the first compliance solve
+        levels = (REDUCED_LEVELS if fidelity == 'auto' and max_position_error > 0.0
+                  and max_angle_error > 0.0 else (fidelity,) if fidelity != 'auto' else ())
+        self._reduced = {level: ReducedChain(self._chain, self.params, level, max_iterations)
+                         for level in levels if level != 'full'}
+        validation = Validation.load() if self._reduced else None
+        self._validation = (validation if validation is not None
+                            and validation.matches(self.params, ROD_STEPS) else None)
 
     @property
     def leg_solvers(self) -> Tuple[TranslatorSolver, ...]:
@@ -131,6 +152,8 @@ class DeltaRobot:
         self._continuation.reset()
         self._inverse.reset()
         self._chain_legs.reset()
+        for reduced in self._reduced.values():
+            reduced.reset()
 
     # public ----------------------------------------------------------------------------------
     @one_blas_thread
@@ -160,6 +183,10 @@ class DeltaRobot:
         # made once, apart from the solve's time (the legs' held buckling load)
         held = self._held_reference() if compliance else None
         started = time.perf_counter()
+        if self._reduced:
+            reduced = self._solve_reduced(inputs, warm_start, held, started)
+            if reduced is not None:
+                return reduced
         self._chain_legs.begin(started, self.time_limit_s)
         self._newton.limits = self._limits()
         path = self._continuation
@@ -237,6 +264,55 @@ class DeltaRobot:
                                    payload_offset, warm_start)
 
     # private ---------------------------------------------------------------------------------
+    def _solve_reduced(self, inputs: np.ndarray, warm_start: bool,
+                       held: Optional[HeldReference], started: float) -> Optional[DeltaResult]:
+        """
+        Solve with reduced legs (robot/reduced_chain.py); None: 'auto' needs full legs.
+
+        'auto' takes the first level in REDUCED_LEVELS that converges with every leg's
+        validated error inside the budget; a level that does not leaves its legs at their
+        last solution (the next solve at that level starts there).
+        """
+        deadline = started + self.time_limit_s
+        tolerances = np.array([self.equilibrium_tolerance, self.position_tolerance,
+                               self.rotation_tolerance])
+        for level, chain in self._reduced.items():
+            if not (warm_start and chain.previous is not None):
+                chain.reset()
+                chain.previous = (chain.home(self.home_position), np.zeros(12))
+            start, origin = chain.previous
+            with np.errstate(over='ignore', invalid='ignore'):
+                outcome = chain.walk(start, origin, inputs, tolerances,
+                                     lambda: time.perf_counter() > deadline, held is not None)
+            bounds = [leg_error_bound(self._validation, level, wrench)
+                      for wrench in outcome.state.wrenches]
+            if outcome.converged:
+                chain.previous = (outcome.state, inputs)
+            if self.fidelity == 'auto' and not (outcome.converged and within_budget(
+                    bounds, self.max_position_error, self.max_angle_error)):
+                continue
+            residual = outcome.residual if np.all(np.isfinite(outcome.residual)) \
+                else np.full(SIZE, np.nan)
+            state = outcome.state
+            result = DeltaResult(
+                converged=outcome.converged, message=outcome.message,
+                iterations=outcome.iterations, sliders=inputs[:3].copy(),
+                payload_force=inputs[3:6].copy(), payload_moment=inputs[6:9].copy(),
+                payload_offset=inputs[9:].copy(), platform_position=state.position.copy(),
+                platform_rotation=state.rotation.copy(),
+                home_position=self.home_position.copy(), leg_results=chain.leg_results(outcome),
+                leg_tip_wrenches=state.wrenches.copy(), equilibrium_residual=residual[18:].copy(),
+                compatibility_residual=residual[:18].reshape(3, 6).copy(),
+                solve_time_s=0.0, leg_solves=0, leg_fidelity=(level,) * 3,
+                leg_error_bound_m=tuple(bound[0] for bound in bounds),
+                leg_error_bound_deg=tuple(bound[1] for bound in bounds))
+            if held is not None and outcome.converged:
+                with np.errstate(over='ignore', invalid='ignore'):
+                    chain.linearize(result, outcome, inputs, held.critical_load_n)
+            result.solve_time_s = time.perf_counter() - started
+            return result
+        return None
+
     def _held_reference(self) -> HeldReference:
         """
         Return the unloaded leg and its held buckling load, which the held verdicts compare with.

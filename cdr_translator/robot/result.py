@@ -129,6 +129,12 @@ class DeltaResult:
     * ``leg_stability``: per leg, its verdict with both end disks held
       (cdr_translator/held.py: parity of det J_d and the axial compression against the
       held buckling load of the straight leg, with a margin).
+
+    ``leg_fidelity``: the level each leg was solved at ('full', 'rod', 'cc';
+    robot/levels.py). ``leg_error_bound_m`` / ``leg_error_bound_deg``: a reduced leg's
+    validated end-disk position and angle error at its tip wrench (fidelity/validation.py;
+    NaN outside the validated box), NaN for a full leg, whose own error estimate is its
+    SolveResult's.
     """
 
     converged: bool
@@ -154,6 +160,9 @@ class DeltaResult:
     leg_shots: int = 0
     leg_jacobians: int = 0
     leg_stability: Optional[Tuple[HeldVerdict, ...]] = None
+    leg_fidelity: Tuple[str, ...] = ('full', 'full', 'full')
+    leg_error_bound_m: Tuple[float, ...] = (math.nan, math.nan, math.nan)
+    leg_error_bound_deg: Tuple[float, ...] = (math.nan, math.nan, math.nan)
 
     @property
     def compliance_eigenvalues(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -230,6 +239,9 @@ class DeltaResult:
             'leg_solves': int(self.leg_solves),
             'leg_shots': int(self.leg_shots),
             'leg_jacobians': int(self.leg_jacobians),
+            'leg_fidelity': list(self.leg_fidelity),
+            'leg_error_bound_position_m': _finite_or_none(self.leg_error_bound_m),
+            'leg_error_bound_angle_deg': _finite_or_none(self.leg_error_bound_deg),
             **self._linearization_dict(),
         }
 
@@ -251,3 +263,8 @@ class DeltaResult:
                 'rotation_rad_per_nm': rotation.tolist()},
             'stiffness_margin_n_per_m': float(self.stiffness_margin),
         }
+
+
+def _finite_or_none(values: Sequence[float]) -> List[Optional[float]]:
+    """JSON-ready list: NaN (no bound) as None."""
+    return [float(value) if math.isfinite(value) else None for value in values]

@@ -21,6 +21,7 @@ from typing import Dict, List, Sequence, Tuple
 import numpy as np
 
 from .delta import DeltaRobot
+from .levels import check_fidelity
 from .params import DeltaParams
 from ..params import DEFAULT_PARAMS_PATH
 
@@ -56,7 +57,18 @@ RESULT_VARIABLES: Dict[str, Tuple[Tuple[int, ...], str, str, str]] = {
     'message': ((), f'<U{MESSAGE_LENGTH}', '', 'solver message (truncated)'),
     'iterations': ((), 'int32', '', 'Newton iterations of the forward solve'),
     'solve_time_s': ((), 'float64', 's', 'forward solve time including the compliance'),
+    'leg_fidelity': ((3,), 'int8', '',
+                     'level each leg was solved at: index into the leg_levels attribute'),
+    'leg_error_bound_position': ((3,), 'float64', 'm',
+                                 "validated end-disk position error of each leg's level at its "
+                                 'tip wrench (NaN: full leg, or outside the validated box)'),
+    'leg_error_bound_angle': ((3,), 'float64', 'deg',
+                              "validated angle error of each leg's level at its tip wrench"),
 }
+
+#: Codes of the leg levels in ``leg_fidelity`` (stored as the leg_levels attribute).
+LEG_LEVELS = ('full', 'rod', 'cc')
+LEVEL_CODES = {level: code for code, level in enumerate(LEG_LEVELS)}
 
 
 @dataclass(frozen=True)
@@ -65,7 +77,8 @@ class AtlasSpec:
     What an atlas sweeps.
 
     ``grid`` points per slider axis, ``payloads`` (P, 3) in N in {w}, ``params_files``
-    (the design variants), ``strokes`` (each variant's slider stroke, m).
+    (the design variants), ``strokes`` (each variant's slider stroke, m), ``fidelity``
+    the legs' level with its budget (DeltaRobot's; robot/levels.py).
     """
 
     grid: int
@@ -73,11 +86,15 @@ class AtlasSpec:
     params_files: Tuple[str, ...]
     strokes: Tuple[float, ...]
     time_limit_s: float = 30.0
+    fidelity: str = 'full'
+    max_position_error: float = 0.0
+    max_angle_error: float = 0.0
 
     @classmethod
     def build(cls, grid: int, payloads: Sequence[Sequence[float]] = ((0.0, 0.0, 0.0),),
               params_files: Sequence[str] = (str(DEFAULT_PARAMS_PATH),),
-              time_limit_s: float = 30.0) -> 'AtlasSpec':
+              time_limit_s: float = 30.0, fidelity: str = 'full',
+              max_position_error: float = 0.0, max_angle_error: float = 0.0) -> 'AtlasSpec':
         """Validate the sweep (ValueError naming a bad value) and read each variant's stroke."""
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
             raise ValueError(f'grid must be an integer of at least 2, got {grid!r}')
@@ -100,8 +117,10 @@ class AtlasSpec:
         if not (math.isfinite(time_limit_s) and time_limit_s > 0.0):
             raise ValueError(f'time limit must be a positive number of seconds, got '
                              f'{time_limit_s}')
+        check_fidelity(fidelity, max_position_error, max_angle_error)
         strokes = tuple(DeltaParams.from_yaml(path).slider_stroke for path in files)
-        return cls(grid, tuple(checked), files, strokes, float(time_limit_s))
+        return cls(grid, tuple(checked), files, strokes, float(time_limit_s), fidelity,
+                   float(max_position_error), float(max_angle_error))
 
     @property
     def block(self) -> int:
@@ -114,10 +133,19 @@ class AtlasSpec:
         return self.block * len(self.payloads) * len(self.params_files)
 
     def to_attrs(self) -> dict:
-        """JSON-ready description, stored with the atlas to recognise it on a restart."""
-        return {'grid': self.grid, 'payloads': [list(p) for p in self.payloads],
-                'params_files': list(self.params_files), 'strokes': list(self.strokes),
-                'time_limit_s': self.time_limit_s}
+        """
+        JSON-ready description, stored with the atlas to recognise it on a restart.
+
+        The level's keys only when not full: a full-leg atlas keeps the description it had
+        before there were levels (and resumes stores made then).
+        """
+        attrs = {'grid': self.grid, 'payloads': [list(p) for p in self.payloads],
+                 'params_files': list(self.params_files), 'strokes': list(self.strokes),
+                 'time_limit_s': self.time_limit_s}
+        if self.fidelity != 'full':
+            attrs.update(fidelity=self.fidelity, max_position_error=self.max_position_error,
+                         max_angle_error=self.max_angle_error)
+        return attrs
 
     def inputs(self, start: int = 0, stop: int = -1) -> Dict[str, np.ndarray]:
         """Sliders (n, 3) m, payload (n, 3) N, variant (n,) and grid_index (n, 3) of samples."""
@@ -155,13 +183,15 @@ def serpentine(grid: int) -> np.ndarray:
 
 
 #: Robots of this process, one per params file (a worker keeps them across chunks).
-_ROBOTS: Dict[Tuple[str, float], DeltaRobot] = {}
+_ROBOTS: Dict[Tuple[str, AtlasSpec], DeltaRobot] = {}
 
 
-def _robot(path: str, time_limit_s: float) -> DeltaRobot:
-    key = (path, time_limit_s)
+def _robot(path: str, spec: AtlasSpec) -> DeltaRobot:
+    key = (path, spec)
     if key not in _ROBOTS:
-        _ROBOTS[key] = DeltaRobot.from_yaml(path, time_limit_s=time_limit_s)
+        _ROBOTS[key] = DeltaRobot.from_yaml(
+            path, time_limit_s=spec.time_limit_s, fidelity=spec.fidelity,
+            max_position_error=spec.max_position_error, max_angle_error=spec.max_angle_error)
     return _ROBOTS[key]
 
 
@@ -186,13 +216,13 @@ def solve_chunk(spec: AtlasSpec, start: int, stop: int) -> Dict[str, np.ndarray]
     inputs = spec.inputs(start, stop)
     out = empty_results(stop - start)
     variant = int(inputs['variant'][0]) if stop > start else 0
-    robot = _robot(spec.params_files[variant], spec.time_limit_s)
+    robot = _robot(spec.params_files[variant], spec)
     robot.reset()
     rows = zip(inputs['sliders'], inputs['payload'], inputs['variant'])
     for row, (sliders, payload, which) in enumerate(rows):
         if which != variant:
             variant = int(which)
-            robot = _robot(spec.params_files[variant], spec.time_limit_s)
+            robot = _robot(spec.params_files[variant], spec)
             robot.reset()
         result = robot.solve(sliders, payload, compliance=True)
         store(out, row, result)
@@ -219,6 +249,9 @@ def store(out: Dict[str, np.ndarray], row: int, result) -> None:
         out['slider_jacobian'][row] = result.input_sensitivity[:3, :3]
         out['stiffness_margin'][row] = result.stiffness_margin
     out['stable'][row] = bool(result.stable) and result.converged
+    out['leg_fidelity'][row] = [LEVEL_CODES[level] for level in result.leg_fidelity]
+    out['leg_error_bound_position'][row] = result.leg_error_bound_m
+    out['leg_error_bound_angle'][row] = result.leg_error_bound_deg
 
 
 def chunk_bounds(size: int, chunk_size: int) -> List[Tuple[int, int]]:

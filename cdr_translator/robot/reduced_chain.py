@@ -1,0 +1,248 @@
+"""
+The CDR's forward statics with reduced legs ('cc', 'rod'): continuation and linearization.
+
+Each leg is the reduced model of cdr_translator/fidelity (``ReducedModel``) instead of a
+full TranslatorSolver; the chain's Newton over the platform's 24 unknowns runs compiled
+(robot/reduced_kernels.chain_newton), each leg entering through its end-disk pose and its
+6x6 compliance from implicit differentiation of the reduced model. This module walks the
+inputs from the previous solution (a failed step is halved, as robot/continuation.py does
+for full legs), and gives the linearization at a solution (platform compliance, input
+sensitivity, the legs' verdicts held at both ends) and the legs' SolveResults.
+"""
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Tuple
+
+import numpy as np
+
+from .chain import Chain, ChainState, SIZE
+from .linearization import chain_verdict
+from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
+from .result import DeltaResult, LegResults
+from ..continuation import MIN_CONTINUATION_STEP
+from ..fidelity import cc, equivalent_rod
+from ..fidelity.reduced import ReducedModel, ROD_STEPS
+from ..held import held_reference, held_verdict, HeldReference
+from ..params import TranslatorParams
+from ..result import FRAME_NAMES, SolveResult
+
+#: Why a compiled Newton correction failed, by its outcome code.
+_FAILURES = {LEG_FAILED: "a leg's reduced model did not converge under its wrench",
+             NO_DESCENT: 'damping found no decrease of the residual'}
+
+
+@dataclass
+class ReducedState:
+    """A chain state with reduced legs: platform pose, leg wrenches, the legs' unknowns."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    wrenches: np.ndarray
+    leg_x: np.ndarray  # (3, n): each leg's nondimensional reduced unknowns
+
+    def copy(self) -> 'ReducedState':
+        """Return an independent copy."""
+        return ReducedState(self.position.copy(), self.rotation.copy(), self.wrenches.copy(),
+                            self.leg_x.copy())
+
+    def chain_state(self) -> ChainState:
+        """Return the platform part as robot/chain.py's ChainState (reduced leg unknowns)."""
+        return ChainState(self.position, self.rotation, self.wrenches, self.leg_x)
+
+
+@dataclass
+class ReducedOutcome:
+    """Where a walk ended: state, residual, Jacobian and the legs' linearization there."""
+
+    state: ReducedState
+    converged: bool
+    message: str
+    iterations: int
+    residual: np.ndarray
+    jacobian: np.ndarray  # (24, 24) SI platform Jacobian at the state
+    frames: np.ndarray  # (3, 4, 4) end disks in {pe_i}
+    compliances: np.ndarray  # (3, 6, 6)
+
+
+def model_data(params: TranslatorParams, level: str) -> np.ndarray:
+    """Return the compiled model's data vector of ``level`` ('cc' or 'rod') for ``params``."""
+    if level == 'cc':
+        return cc.model_data(params)
+    return equivalent_rod.model_data(params, ROD_STEPS)
+
+
+class ReducedChain:
+    """Forward statics of the chain with three reduced legs of one level; warm-started."""
+
+    def __init__(self, chain: Chain, params: TranslatorParams, level: str,
+                 max_iterations: int) -> None:
+        """Legs of ``level`` ('cc' or 'rod') for ``params``; no solution yet."""
+        self.chain = chain
+        self.level = level
+        self.model = (ReducedModel.constant_curvature(params) if level == 'cc'
+                      else ReducedModel.equivalent_rod(params))
+        self.data = model_data(params, level)
+        self.max_iterations = max_iterations
+        self.params = params
+        size = self.model.size
+        self.lu = np.zeros((3, size, size))
+        self.pivots = np.zeros((3, size + 1), dtype=np.int64)
+        #: the scaled platform Jacobian's LU, kept for chord steps across solves
+        self.factors = np.zeros((SIZE, SIZE))
+        self.factor_pivots = np.zeros(SIZE + 1, dtype=np.int64)
+        self.previous: Optional[Tuple[ReducedState, np.ndarray]] = None
+        self._held: Optional[HeldReference] = None
+
+    def reset(self) -> None:
+        """Forget the previous solution and the legs' factorizations."""
+        self.previous = None
+        self.pivots[:, -1] = 0
+        self.factor_pivots[-1] = 0
+
+    def home(self, position: np.ndarray) -> ReducedState:
+        """Straight legs, no load, platform at ``position``."""
+        return ReducedState(position.copy(), np.eye(3), np.zeros((3, 6)),
+                            np.zeros((3, self.model.size)))
+
+    def walk(self, start: ReducedState, origin: np.ndarray, inputs: np.ndarray,
+             tolerances: np.ndarray, out_of_time: Callable[[], bool],
+             linearized: bool) -> ReducedOutcome:
+        """
+        Continue from ``start`` (solved for inputs ``origin``) to ``inputs``.
+
+        Newton goes straight to the inputs; a failed step is halved down to
+        continuation.MIN_CONTINUATION_STEP of the way left. The outcome holds the last
+        converged state when the walk stalls. ``linearized``: the legs' compliances and
+        the platform Jacobian at the solution too (else the outcome's are NaN).
+        """
+        state, done, step, iterations = start, 0.0, 1.0, 0
+        leg_origin = state.wrenches
+        frames = np.empty((3, 4, 4))
+        compliances = np.full((3, 6, 6), np.nan)
+        signs = np.zeros(3, dtype=np.int64)
+        residual = np.full(SIZE, np.inf)
+        jacobian = np.full((SIZE, SIZE), np.nan)
+        while done < 1.0:
+            target = min(1.0, done + step)
+            goal = inputs if target == 1.0 else origin + target * (inputs - origin)
+            trial = state.copy()
+            trial_origin = leg_origin.copy()
+            code, count = chain_newton(
+                self.model.code, self.data, self.model.tolerance, self.model.max_iterations,
+                trial.leg_x, trial_origin, self.lu, self.pivots, trial.position,
+                trial.rotation, trial.wrenches, goal, self.chain.platform, tolerances,
+                self.max_iterations, self.factors, self.factor_pivots,
+                linearized and target == 1.0, frames, compliances, signs, residual, jacobian)
+            iterations += count
+            if code == SOLVED:
+                done, state, leg_origin = target, trial, trial_origin
+                step *= 2.0
+                continue
+            self.pivots[:, -1] = 0
+            self.factor_pivots[-1] = 0
+            step = 0.5 * (target - done)
+            if step < MIN_CONTINUATION_STEP or out_of_time():
+                message = _FAILURES.get(code, f'no convergence in {self.max_iterations} '
+                                              'iterations')
+                last = self.evaluate(state, inputs)
+                return ReducedOutcome(state, False, f'continuation stalled at {done:.1%} of '
+                                      f'the way to the sliders and payload: {message}',
+                                      iterations, last.residual, last.jacobian, last.frames,
+                                      last.compliances)
+        return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
+                              compliances)
+
+    def evaluate(self, state: ReducedState, inputs: np.ndarray) -> ReducedOutcome:
+        """Return the residual and legs of ``state`` as it is (no iteration, no Jacobian)."""
+        frames = np.empty((3, 4, 4))
+        compliances = np.empty((3, 6, 6))
+        for k in range(3):
+            frames[k], compliances[k], _ = self.leg_linearization(state.leg_x[k],
+                                                                  state.wrenches[k])
+        chain_state = state.chain_state()
+        chain_state.frames = frames
+        residual = self.chain.residual(chain_state, inputs)
+        return ReducedOutcome(state, False, '', 0, residual, np.full((SIZE, SIZE), np.nan),
+                              frames, compliances)
+
+    def leg_linearization(self, x: np.ndarray, wrench: np.ndarray
+                          ) -> Tuple[np.ndarray, np.ndarray, tuple]:
+        """Return the end-disk frame, 6x6 compliance and LU of H (stability.determinant_sign)."""
+        size = self.model.size
+        frame = np.empty((4, 4))
+        compliance = np.empty((6, 6))
+        lu = np.empty((size, size))
+        pivots = np.zeros(size, dtype=np.int64)
+        sign = leg_compliance(self.model.code, np.ascontiguousarray(x), self.data,
+                              np.ascontiguousarray(wrench, dtype=float), frame, compliance,
+                              lu, pivots)
+        if sign == 0:
+            compliance[:] = np.nan
+        return frame, compliance, (lu, pivots)
+
+    def leg_results(self, outcome: ReducedOutcome) -> LegResults:
+        """Return the legs' SolveResults at the outcome's state, each built when first read."""
+        return LegResults(self._leg_builder(outcome.state.leg_x[k].copy(),
+                                            outcome.state.wrenches[k].copy())
+                          for k in range(3))
+
+    def _leg_builder(self, x: np.ndarray, wrench: np.ndarray) -> Callable[[], SolveResult]:
+        model, level = self.model, self.level
+
+        def build() -> SolveResult:
+            frames = model.frames(x, wrench)
+            return SolveResult(
+                converged=True, message='converged (a leg of the chain)', iterations=0,
+                residual_norm=0.0, residual_by_type=model.residual_by_kind(np.zeros(model.size)),
+                force=wrench[:3].copy(), moment=wrench[3:].copy(),
+                frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
+                backbones=model.points(x, wrench), solve_time_s=0.0, method='fast',
+                unknowns=x * model.unknown_scale, fidelity=level)
+        return build
+
+    def linearize(self, result: DeltaResult, outcome: ReducedOutcome, inputs: np.ndarray,
+                  critical_load_n: Optional[float]) -> None:
+        """
+        Add the platform compliance, input sensitivity and verdicts (linearization.linearize's).
+
+        From the platform Jacobian at the solution (exact in the reduced legs); each leg's
+        held verdict (held.held_verdict) from its reduced H and compliance, compared with
+        the unloaded reduced leg and the full leg's held buckling load ``critical_load_n``.
+        """
+        state = outcome.state.chain_state()
+        right = np.zeros((SIZE, 18))
+        right[:, :12] = self.chain.input_sensitivity(state, inputs)
+        right[18:, 12:] = np.eye(6)
+        try:
+            solved = -np.linalg.solve(outcome.jacobian, right)[:6]
+        except np.linalg.LinAlgError:
+            solved = np.full((6, 18), np.nan)
+        if not np.all(np.isfinite(solved)):
+            result.stable = False
+            result.message += '; no platform compliance: the Newton Jacobian is singular'
+            return
+        result.input_sensitivity = solved[:, :12]
+        result.platform_compliance = solved[:, 12:]
+        height = self.params.stack_height
+        scale = np.concatenate([np.ones(3), np.full(3, 1.0 / height)])
+        stiffness = np.linalg.inv(result.platform_compliance)
+        scaled = scale[:, None] * stiffness * scale[None, :]
+        result.stiffness_margin = float(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[0])
+        reference = self._held_reference(critical_load_n)
+        verdicts = []
+        for k in range(3):
+            _, compliance, lu = self.leg_linearization(outcome.state.leg_x[k],
+                                                       outcome.state.wrenches[k])
+            verdicts.append(held_verdict(lu, compliance, outcome.state.wrenches[k], reference))
+        result.leg_stability = tuple(verdicts)
+        result.stable = chain_verdict(bool(result.stiffness_margin > 0.0), result.leg_stability)
+        for k, verdict in enumerate(verdicts, start=1):
+            if verdict.stable is not True:
+                result.message += f'; leg {k}: {verdict.message}'
+
+    def _held_reference(self, critical_load_n: Optional[float]) -> HeldReference:
+        if self._held is None or self._held.critical_load_n != critical_load_n:
+            _, compliance, lu = self.leg_linearization(np.zeros(self.model.size), np.zeros(6))
+            self._held = held_reference(lu, compliance, self.params.stack_height,
+                                        critical_load_n)
+        return self._held
