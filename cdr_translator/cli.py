@@ -334,9 +334,10 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
         along_a_path.solve([force, 0.0, 0.0])
     spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
     TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
-    robot = DeltaRobot.from_yaml(params_path)
-    for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
-        robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
+    for level in ('full', 'cc', 'rod'):  # reduced legs run a compiled chain of their own
+        robot = DeltaRobot.from_yaml(params_path, fidelity=level)
+        for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
+            robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
 
 
 def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
