@@ -295,11 +295,23 @@ class CdrNode(Node):
 
     # shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
-        """Stop taking inputs, let the running solve finish, finalize the MCAP file."""
+        """
+        Stop taking inputs, answer those waiting, finalize the MCAP file.
+
+        As translator_node does: the requests waiting are solved within ``SHUTDOWN_JOIN_S``,
+        any still waiting then count as skipped, so the closing counts account for every
+        received input.
+        """
         for subscription in self._subscriptions:
             self.destroy_subscription(subscription)
-        self._mailbox.close()
+        self._mailbox.close(drain=True)
         self._worker.join(SHUTDOWN_JOIN_S)
+        self._mailbox.discard()
+        counts = self._counts()
+        self.get_logger().info(
+            f'inputs: {counts["received"]} received, {counts["solved"]} solved, '
+            f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
+            f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)
         if self._log is not None:

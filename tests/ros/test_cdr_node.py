@@ -9,6 +9,7 @@ import time
 
 from cdr_translator.interface import messages, robot_messages
 from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.ros.cdr_robot import CdrNode
 from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, WrenchStamped
@@ -20,6 +21,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 COMMAND = (sys.executable, '-m', 'cdr_translator.ros.cdr_node')
@@ -375,3 +377,36 @@ def test_node_rejections_name_their_stage_and_log_at_their_level(tmp_path):
     assert any(line.startswith('[ERROR]') and 'forward statics: payload rejected' in line
                for line in lines), lines
     assert all(line.startswith('[ERROR]') for line in lines), lines
+
+
+def test_inputs_waiting_at_shutdown_are_answered_or_counted(tmp_path):
+    """Payloads waiting behind a slow solve when the node closes: every one is in a count."""
+    context = Context()
+    rclpy.init(args=[], context=context)
+    try:
+        node = CdrNode(ros_arguments=['--ros-args', '-p', f'mcap_path:={tmp_path / "run.mcap"}'],
+                       context=context)
+        solve = node.robot.solve
+
+        def slow(*args, **kwargs):
+            time.sleep(0.5)   # the first solve: the next payloads wait in the mailbox meanwhile
+            return solve(*args, **kwargs)
+
+        node.robot.solve = slow
+        try:
+            for index in range(3):
+                wrench = WrenchStamped()
+                wrench.header.stamp.sec = index + 1
+                wrench.wrench.force.z = -1.0 - index
+                node._on_wrench(serialize_message(wrench))
+                deadline = time.monotonic() + 10.0
+                while index == 0 and node._mailbox._items and time.monotonic() < deadline:
+                    time.sleep(0.001)   # the solver thread has taken the first
+        finally:
+            node.close()
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert node.received == 3
+    assert node.solved + node.failed + node.rejected + node._mailbox.skipped == 3
+    assert node.solved == 2   # the first, and the last one waiting at shutdown
