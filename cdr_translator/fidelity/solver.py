@@ -220,6 +220,8 @@ class FidelitySolver:
             end = row + 1
             if level in self.reduced or (level == 'linear' and self.tangent.ready):
                 # these levels leave the choice alone: a run of them is chosen up front
+                if self.fidelity != 'auto':  # a fixed level: every row
+                    end = len(wrenches)
                 while end < len(wrenches) and self.choose(wrenches[end]) == (level, reason):
                     end += 1
             batch_rows.solve_run(self, level, reason, wrenches, range(row, end), batch,
