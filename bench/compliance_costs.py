@@ -8,7 +8,7 @@ solves, and the linear level's expansion about a new cached solution.
 
 import statistics
 import time
-from typing import Dict, Tuple
+from typing import Mapping, Tuple
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.compliance import ComplianceAnalysis
@@ -25,7 +25,7 @@ def _compliance(result: SolveResult) -> ComplianceAnalysis:
     return result.compliance
 
 
-def compliance_costs(params: TranslatorParams, scenes: Dict[str, Tuple[float, ...]],
+def compliance_costs(params: TranslatorParams, scenes: Mapping[str, Tuple[float, ...]],
                      sequence: np.ndarray) -> dict:
     """Cost of C: implicit after cold solves of ``scenes`` and along warm ones, the others."""
     solver = TranslatorSolver(params)

@@ -190,8 +190,10 @@ def measure_sequence(row: Row, sequence: np.ndarray, expected: list) -> None:
 def batch_per_answer(row: Row, sequence: np.ndarray, answers: list,
                      passes: int = 3) -> Tuple[float, float]:
     """
-    Per-answer time of ``solve_many`` along the sequence (fastest of ``passes``, each from a
-    fresh solver) and the largest distance (m) of its rows from the single solves' ``answers``.
+    Return (time per answer, distance) of ``solve_many`` along the sequence.
+
+    The time is the fastest of ``passes``, each from a fresh solver; the distance (m) is the
+    largest of its rows' end-disk positions from the single solves' ``answers``.
     """
     best = math.inf
     for _ in range(passes):
