@@ -194,11 +194,10 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) ->
         place_numbers(axes, canvas, points)
     handles = [Line2D([], [], color='grey', marker='o', linestyle='none'),
                Line2D([], [], markeredgecolor='grey', markerfacecolor='none', marker='s',
-                      linestyle='none'),
-               Line2D([], [], color='grey', marker='^', linestyle='none')]
+                      linestyle='none')]
     labels = ['static scenes, solved cold: worst error, median time of the paper cases',
-              f'{sequence_length}-wrench sequence, warm-started: worst error, median time',
-              'the same sequence in one solve_many call: worst error, time per answer']
+              f'{sequence_length}-wrench sequence, warm-started: worst error; median time of '
+              'one solve, or (filled triangle) time per answer of one solve_many call']
     for number, value in enumerate(measured, start=1):
         handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
                               marker='*' if value.level == 'paper' else 'o'))
