@@ -31,17 +31,15 @@ import signal
 import statistics
 import tempfile
 import time
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
+from bench.compliance_costs import compliance_costs
 from bench.speed_vs_error_figure import save_speed_error_figure
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.compliance import ComplianceAnalysis
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
 from cdr_translator.fidelity import validation
 from cdr_translator.fidelity.reduced import ROD_STEPS
-from cdr_translator.result import SolveResult
 from cdr_translator.studies import fidelity_validation
-from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / 'results'
@@ -169,20 +167,44 @@ def measure_sequence(row: Row, sequence: np.ndarray, expected: list) -> None:
         row.sequence_setup(solver, sequence[0])
     times, positions, angles = [], [], []
     used: Dict[str, int] = {}
+    solver_answers = []
     for wrench, reference in zip(sequence, expected):
         result, elapsed = timed_solve(solver, wrench)
         times.append(elapsed)
+        solver_answers.append(result.end_disk_position)
         position, angle = pose_errors(result, reference)
         positions.append(position)
         angles.append(math.degrees(angle))
         used[result.fidelity] = used.get(result.fidelity, 0) + 1
+    batch_s, deviation = batch_per_answer(row, sequence, solver_answers)
     row.sequence = {'median_time_s': statistics.median(times),
+                    'batch_per_answer_s': batch_s, 'batch_deviation_m': deviation,
                     'p95_time_s': float(np.percentile(times, 95)),
                     'mean_time_s': float(np.mean(times)),
                     'max_position_m': max(positions), 'median_position_m': float(
                         np.median(positions)),
                     'max_angle_deg': max(angles), 'median_angle_deg': float(np.median(angles)),
                     'levels': used}
+
+
+def batch_per_answer(row: Row, sequence: np.ndarray, answers: list,
+                     passes: int = 3) -> Tuple[float, float]:
+    """
+    Return (time per answer, distance) of ``solve_many`` along the sequence.
+
+    The time is the fastest of ``passes``, each from a fresh solver; the distance (m) is the
+    largest of its rows' end-disk positions from the single solves' ``answers``.
+    """
+    best = math.inf
+    for _ in range(passes):
+        solver = row.make()
+        if row.sequence_setup is not None:
+            row.sequence_setup(solver, sequence[0])
+        started = time.perf_counter()
+        batch = solver.solve_many(sequence[:, :3], sequence[:, 3:])
+        best = min(best, (time.perf_counter() - started) / len(sequence))
+    deviation = float(np.abs(batch.end_disk_position - np.array(answers)).max())
+    return best, deviation
 
 
 def paper_baseline(params: TranslatorParams, references: dict) -> dict:
@@ -198,49 +220,6 @@ def paper_baseline(params: TranslatorParams, references: dict) -> dict:
                           'position_m': position, 'angle_deg': math.degrees(angle),
                           'iterations': result.iterations}
     return measured
-
-
-def _compliance(result: SolveResult) -> ComplianceAnalysis:
-    """Return the compliance a solve with ``compliance=True`` computed (RuntimeError if none)."""
-    if result.compliance is None:
-        raise RuntimeError(f'no compliance: {result.message}')
-    return result.compliance
-
-
-def compliance_costs(params: TranslatorParams, sequence: np.ndarray) -> dict:
-    """Cost of C: implicit after a cold and along warm solves, finite differences, reduced."""
-    solver = TranslatorSolver(params)
-    cold, cold_solve = [], []
-    for name in SCENES:
-        solver.reset()
-        result = solver.solve(SCENES[name][:3], SCENES[name][3:], compliance=True)
-        cold.append(result.compliance.time_s)
-        cold_solve.append(result.solve_time_s)
-    warm, warm_solve = [], []
-    for wrench in sequence[:200]:
-        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
-        warm.append(result.compliance.time_s)
-        warm_solve.append(result.solve_time_s)
-    started = time.perf_counter()
-    finite_difference_compliance(params, SCENES['paper 12 N'][:3])
-    finite = time.perf_counter() - started
-    reduced = {}
-    for level in ('cc', 'rod'):
-        model = FidelitySolver(params, fidelity=level)
-        times = [_compliance(model.solve(w[:3], w[3:], compliance=True)).time_s
-                 for w in sequence[:100]]
-        reduced[level] = statistics.median(times)
-    tangent = FidelitySolver(params, fidelity='linear')
-    builds = []
-    for wrench in sequence[::100]:
-        tangent.cache_full_solution(wrench)
-        builds.append(tangent.tangent.build_time_s)
-    return {'implicit_after_cold_median_s': statistics.median(cold),
-            'cold_solve_median_s': statistics.median(cold_solve),
-            'implicit_along_sequence_median_s': statistics.median(warm),
-            'warm_solve_median_s': statistics.median(warm_solve),
-            'finite_difference_s': finite, 'reduced_median_s': reduced,
-            'linear_tangent_build_median_s': statistics.median(builds)}
 
 
 def node_rate(seconds: float = 3.0, rate_hz: float = 1000.0) -> dict:
@@ -298,7 +277,9 @@ def markdown(report: dict, table_rows: List[Row]) -> str:
              'Errors: end-disk position |p - p_ref| and the largest of the PJ/DJ bending-angle '
              'errors and the end-disk orientation error. Times: wall clock of `solve()`, '
              'median; static scenes are cold solves (from the unloaded state), the sequence '
-             f'is {SEQUENCE_LENGTH} wrenches warm-started one after the other.', '']
+             f'is {SEQUENCE_LENGTH} wrenches warm-started one after the other; "batch" is '
+             'the same sequence in one `solve_many` call, time per answer (its rows equal '
+             'the single solves: largest distance in the last column).', '']
     if paper:
         lines += ["Paper baseline (`method='paper'`: the same model interpreted, "
                   'Levenberg-Marquardt with a one-column-per-residual FD Jacobian, paper '
@@ -309,8 +290,9 @@ def markdown(report: dict, table_rows: List[Row]) -> str:
                   + f'; mean {paper_mean:.1f} s is the divisor of every "× paper" column.', '']
     lines += ['| level | setting | unknowns | cold, paper cases (ms) | × paper | static: max '
               'position error (mm) | static: max angle error (°) | sequence median (ms) | '
-              '× paper | sequence: max position error (mm) | sequence: max angle error (°) |',
-              '|---|---|---|---|---|---|---|---|---|---|---|']
+              '× paper | sequence: max position error (mm) | sequence: max angle error (°) | '
+              'batch per answer (µs) | batch rows from single solves (m) |',
+              '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     for row in table_rows:
         cold = statistics.median(row.static[name]['time_s'] for name in PAPER_SCENES)
         static_position = max(value['position_m'] for value in row.static.values())
@@ -322,7 +304,9 @@ def markdown(report: dict, table_rows: List[Row]) -> str:
             f'{_err(1e3 * static_position)} | {_err(static_angle)} | '
             f"{_ms(sequence['median_time_s'])} | "
             f"{_ratio(paper_mean, sequence['median_time_s']) if paper_mean else '-'} | "
-            f"{_err(1e3 * sequence['max_position_m'])} | {_err(sequence['max_angle_deg'])} |")
+            f"{_err(1e3 * sequence['max_position_m'])} | {_err(sequence['max_angle_deg'])} | "
+            f"{1e6 * sequence['batch_per_answer_s']:.3g} | "
+            f"{_err(sequence['batch_deviation_m'], 2)} |")
     lines += ['', '## Errors per static scene (position mm / angle °; level used by auto)', '',
               '| level | setting | ' + ' | '.join(SCENES) + ' |',
               '|---|---|' + '---|' * len(SCENES)]
@@ -466,7 +450,7 @@ def main() -> None:
         measure_static(row, static, args.repeats)
         measure_sequence(row, sequence, expected)
     print('compliance ...', flush=True)
-    report['compliance'] = compliance_costs(params, sequence)
+    report['compliance'] = compliance_costs(params, SCENES, sequence)
     report['paper_baseline'] = {}
     if not args.skip_paper:
         print('paper baseline (slow) ...', flush=True)

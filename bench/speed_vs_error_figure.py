@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 import re
 import statistics
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -51,6 +51,7 @@ class Measurement:
     sequence_time_s: float = math.nan
     sequence_position_m: float = math.nan
     sequence_angle_deg: float = math.nan
+    batch_time_s: float = math.nan  # solve_many along the sequence, per answer
 
 
 def key_label(level: str, setting: str) -> str:
@@ -75,7 +76,7 @@ def measurements(rows: Sequence[dict], paper: Dict[str, dict],
             max(value['position_m'] for value in static.values()),
             max(value['angle_deg'] for value in static.values()),
             sequence['median_time_s'], sequence['max_position_m'],
-            sequence['max_angle_deg']))
+            sequence['max_angle_deg'], sequence.get('batch_per_answer_s', math.nan)))
     for name, value in paper.items():
         result.append(Measurement(
             'paper', f"paper's numerics, {name} case, cold (method='paper': "
@@ -159,15 +160,21 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) ->
         points, floored = [], False
         for number, value in enumerate(measured, start=1):
             colour = COLOURS[value.level]
-            pairs = [(value.static_time_s, getattr(value, f'static_{field}'), True)]
+            # (time, error, cold: True, warm one by one: False, batch: None)
+            pairs: List[Tuple[float, float, Optional[bool]]] = [
+                (value.static_time_s, getattr(value, f'static_{field}'), True)]
             if math.isfinite(value.sequence_time_s):
                 pairs.append((value.sequence_time_s, getattr(value, f'sequence_{field}'),
                               False))
+            if math.isfinite(value.batch_time_s):  # its rows are the sequence's answers
+                pairs.append((value.batch_time_s, getattr(value, f'sequence_{field}'), None))
             for seconds, error, cold in pairs:
                 shown = max(scale * error, FLOOR)
                 floored |= scale * error < FLOOR
                 if value.level == 'paper':
                     axes.scatter(1e3 * seconds, shown, color=colour, marker='*', s=90)
+                elif cold is None:
+                    axes.scatter(1e3 * seconds, shown, color=colour, marker='^', s=30)
                 elif cold:
                     axes.scatter(1e3 * seconds, shown, color=colour, marker='o', s=30)
                 else:
@@ -179,7 +186,7 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) ->
         axes.set_yscale('log')
         axes.set_xlim(*_limits([point[0] for point in points], 2.0, 2.5))
         axes.set_ylim(*_limits([point[1] for point in points], 4.0, 4.0))
-        axes.set_xlabel('median solve time (ms)')
+        axes.set_xlabel('solve time per answer (ms)')
         axes.set_ylabel(f'{what} error, worst over the scenes ({unit})')
         axes.set_title(title + (f'\nerrors below {FLOOR:g} {unit} drawn at {FLOOR:g} {unit}'
                                 if floored else ''), fontsize=10)
@@ -189,7 +196,8 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) ->
                Line2D([], [], markeredgecolor='grey', markerfacecolor='none', marker='s',
                       linestyle='none')]
     labels = ['static scenes, solved cold: worst error, median time of the paper cases',
-              f'{sequence_length}-wrench sequence, warm-started: worst error, median time']
+              f'{sequence_length}-wrench sequence, warm-started: worst error; median time of '
+              'one solve, or (filled triangle) time per answer of one solve_many call']
     for number, value in enumerate(measured, start=1):
         handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
                               marker='*' if value.level == 'paper' else 'o'))

@@ -125,6 +125,31 @@ class BatchResult:
         if not self._good(row):
             self.message[row] = message
 
+    def record_poses(self, rows: slice, pose: np.ndarray, bending: np.ndarray, fidelity: str,
+                     solve_time_s: float, stable: Optional[bool] = None,
+                     matrix: Optional[np.ndarray] = None) -> None:
+        """
+        Write good converged ``rows`` from compiled poses, without an error estimate.
+
+        ``pose`` (n, 7: position, quaternion x, y, z, w) and ``bending`` (n, 4: PJ angle,
+        direction, DJ angle, direction) as fidelity.level_kernels.poses gives them;
+        ``stable`` and the compliance ``matrix`` are shared by the rows (the 'linear'
+        level's). A row that is not good goes through ``record_pose`` instead.
+        """
+        self.converged[rows] = True
+        self.stable[rows] = stable
+        self.accuracy_met[rows] = None
+        self.error_estimate_m[rows] = self.error_estimate_deg[rows] = math.nan
+        self.end_disk_position[rows] = pose[:, :3]
+        self.end_disk_quaternion_xyzw[rows] = pose[:, 3:]
+        self.pj_bending[rows] = bending[:, :2]
+        self.dj_bending[rows] = bending[:, 2:]
+        self.fidelity[rows] = fidelity
+        self.solve_time_s[rows] = solve_time_s
+        if self.compliance is not None:
+            self.compliance[rows] = math.nan if matrix is None else matrix
+        self.message[rows] = ''
+
     def _write(self, row: int, converged: bool, pe: np.ndarray, pm: np.ndarray,
                dm: np.ndarray, de: np.ndarray, stable: Optional[bool],
                accuracy_met: Optional[bool], error_m: float, error_deg: float,

@@ -53,21 +53,27 @@ def solve_row(model, x, data, origin, wrench, tolerance, max_iterations, lu, piv
 
 
 @jit
-def solve_sequence(model, data, wrenches, start, origin, tolerance, max_iterations, unknowns,
-                   norms, status, iterations):
+def solve_sequence(model, data, wrenches, start, origin, tolerance, max_iterations, lu, pivots,
+                   stop_at_failure, unknowns, norms, status, iterations):
     """
     Solve every row of ``wrenches`` (N, 6), each warm from the last converged row.
 
-    ``start`` solves ``origin`` (zeros: the unloaded state). Writes ``unknowns`` (N, size),
-    ``norms`` (N), ``status`` (N) and ``iterations`` (N); a failed row's unknowns are its
-    last converged continuation state.
+    ``start`` solves ``origin`` (zeros: the unloaded state); ``lu``/``pivots`` carry the
+    factorized Jacobian in and out. Writes ``unknowns`` (N, size), ``norms`` (N), ``status``
+    (N) and ``iterations`` (N); a failed row's unknowns are its last converged continuation
+    state. ``stop_at_failure``: end at the first failed row, ``lu``/``pivots`` as they were
+    before it (so that a caller can solve it again as the rows before it left things).
+    Returns the number of rows written.
     """
     size = start.shape[0]
-    lu = np.empty((size, size))
-    pivots = np.zeros(size + 1, dtype=np.int64)
+    saved_lu = np.empty((size, size))
+    saved_pivots = np.empty(size + 1, dtype=np.int64)
     x = start.copy()
     base = origin.copy()
     for row in range(wrenches.shape[0]):
+        if stop_at_failure:
+            saved_lu[:] = lu
+            saved_pivots[:] = pivots
         answer, norm, count, code = solve_row(model, x, data, base, wrenches[row], tolerance,
                                               max_iterations, lu, pivots)
         unknowns[row] = answer
@@ -77,6 +83,11 @@ def solve_sequence(model, data, wrenches, start, origin, tolerance, max_iteratio
         if code == CONVERGED:
             x[:] = answer
             base[:] = wrenches[row]
+        elif stop_at_failure:
+            lu[:] = saved_lu
+            pivots[:] = saved_pivots
+            return row + 1
+    return wrenches.shape[0]
 
 
 @jit

@@ -136,6 +136,33 @@ class ReducedModel:
         ``start`` = (unknowns, wrench) (None: unloaded). Returns unknowns (N, size),
         residual norms, status codes (newton.CONVERGED or a failure code) and iterations.
         """
+        size = self.size
+        unknowns, norms, status, iterations, _ = self._sequence(
+            wrenches, start, np.empty((size, size)), np.zeros(size + 1, dtype=np.int64), False)
+        return unknowns, norms, status, iterations
+
+    def continue_sequence(self, wrenches: np.ndarray,
+                          start: Optional[Tuple[np.ndarray, np.ndarray]]
+                          ) -> Tuple[np.ndarray, int]:
+        """
+        Solve rows of ``wrenches`` as consecutive ``solve`` calls would, up to a failure.
+
+        Each row continues from the last (the first from ``start``, None: unloaded) with the
+        model's stored factorized Jacobian, which it leaves as those calls would. Stops at
+        the first row that fails even from the unloaded state, the model as before that row.
+        Returns the unknowns (N, size) and the number of rows that converged (a prefix).
+        """
+        if start is None:
+            self._pivots[self.size] = 0
+        unknowns, _, status, _, count = self._sequence(wrenches, start, self._lu,
+                                                       self._pivots, True)
+        converged = count if count == 0 or status[count - 1] == newton.CONVERGED else count - 1
+        return unknowns, converged
+
+    def _sequence(self, wrenches: np.ndarray, start: Optional[Tuple[np.ndarray, np.ndarray]],
+                  lu: np.ndarray, pivots: np.ndarray, stop_at_failure: bool
+                  ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """Run level_kernels.solve_sequence; its columns and the number of rows it wrote."""
         wrenches = np.ascontiguousarray(wrenches, dtype=float)
         if start is None:
             start = (np.zeros(self.size), np.zeros(6))
@@ -144,11 +171,11 @@ class ReducedModel:
         norms = np.empty(count)
         status = np.empty(count, dtype=np.int64)
         iterations = np.empty(count, dtype=np.int64)
-        level_kernels.solve_sequence(self.code, self._data, wrenches,
-                                     np.asarray(start[0], dtype=float),
-                                     np.asarray(start[1], dtype=float), self.tolerance,
-                                     self.max_iterations, unknowns, norms, status, iterations)
-        return unknowns, norms, status, iterations
+        written = level_kernels.solve_sequence(
+            self.code, self._data, wrenches, np.asarray(start[0], dtype=float),
+            np.asarray(start[1], dtype=float), self.tolerance, self.max_iterations, lu, pivots,
+            stop_at_failure, unknowns, norms, status, iterations)
+        return unknowns, norms, status, iterations, int(written)
 
     def poses(self, wrenches: np.ndarray,
               unknowns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,6 @@ and falls back to 'full' outside every validated range. Every result says which 
 produced it (``result.fidelity``) and why (``result.message``).
 """
 
-from functools import partial
 import math
 from pathlib import Path
 import time
@@ -19,11 +18,11 @@ from typing import Any, Dict, Optional, Tuple, Union
 import numpy as np
 from numpy.typing import ArrayLike
 
+from . import batch_rows
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
-from .. import lean_rows
-from ..batch import BatchResult, check_wrenches, RowSolver
+from ..batch import BatchResult, check_wrenches
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
@@ -208,9 +207,10 @@ class FidelitySolver:
         """
         Solve the rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
-        The rows equal N consecutive ``solve`` calls; runs of rows at one reduced level go
-        to that level's row solver (``_solve_rows``), which writes the pose columns without
-        a SolveResult. A failing row is flagged, not raised (TranslatorSolver.solve_many).
+        The rows equal N consecutive ``solve`` calls, and the solver is left as they would
+        leave it; a run of rows at one reduced level goes to that level's compiled sequence
+        (``batch_rows.solve_run``), which writes the pose columns without a SolveResult. A
+        failing row is flagged, not raised (TranslatorSolver.solve_many).
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
@@ -220,74 +220,14 @@ class FidelitySolver:
             end = row + 1
             if level in self.reduced or (level == 'linear' and self.tangent.ready):
                 # these levels leave the choice alone: a run of them is chosen up front
+                if self.fidelity != 'auto':  # a fixed level: every row
+                    end = len(wrenches)
                 while end < len(wrenches) and self.choose(wrenches[end]) == (level, reason):
                     end += 1
-            self._solve_rows(level, reason, wrenches, range(row, end), batch, compliance)
+            batch_rows.solve_run(self, level, reason, wrenches, range(row, end), batch,
+                                 compliance)
             row = end
         return batch
-
-    def _solve_rows(self, level: str, reason: str, wrenches: np.ndarray, rows: range,
-                    batch: BatchResult, compliance: bool) -> None:
-        """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
-        whole = False
-        solve_row: RowSolver
-        if level in self.reduced:
-            solve_row = partial(self._reduced_row, level)
-        elif level == 'linear' and self.tangent.ready:
-            solve_row = self._linear_row
-        elif level == 'full' and not self._tangent_worth_building(wrenches[rows[0]]):
-            solve_row = self._full_row  # a run of 'full' is one row in 'auto'
-        else:  # 'auto' at full expanding the tangent there, or 'linear' without one
-            solve_row, whole = partial(self._result_row, level, reason), True
-        for row in rows:
-            batch.fidelity[row] = level  # what a row that raises was tried at
-            batch.run(row, solve_row, wrenches[row], compliance)
-            if batch.message[row] and not whole:  # a whole solve's message names its level
-                batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
-            self._last_wrench = wrenches[row]
-            self._last_level = str(batch.fidelity[row])
-
-    def _result_row(self, level: str, reason: str, batch: BatchResult, row: int,
-                    wrench: np.ndarray, compliance: bool) -> float:
-        """Row by a whole ``solve`` at ``level``."""
-        result = self._solve_at(level, reason, wrench, compliance, {})
-        batch.record(row, result)
-        return result.solve_time_s
-
-    def _full_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
-                  compliance: bool) -> float:
-        """Row of the full level (TranslatorSolver's row; the running cost kept)."""
-        elapsed = lean_rows.solve_row(self.full, batch, row, wrench, compliance)
-        if self._last_level == 'full':
-            self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
-        return elapsed
-
-    def _linear_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
-                    compliance: bool) -> float:
-        """Row of the 'linear' level: the expansion's frames."""
-        started = time.perf_counter()
-        frames = self.tangent.predict(wrench)[2]
-        elapsed = time.perf_counter() - started
-        analysis = self.tangent.compliance() if compliance else None
-        batch.record_pose(row, frames, None if analysis is None else analysis.stable, None,
-                          None if analysis is None else analysis.matrix, fidelity='linear')
-        return elapsed
-
-    def _reduced_row(self, level: str, batch: BatchResult, row: int, wrench: np.ndarray,
-                     compliance: bool) -> float:
-        """Row of a reduced level: its frames, or its result when it is not a good row."""
-        outcome, elapsed = self._reduced_outcome(level, wrench)
-        analysis, failure = (self._reduced_compliance(level, outcome, wrench, {})
-                             if compliance and outcome.converged else (None, ''))
-        if not outcome.converged or failure:
-            result = self._reduced_result(level, outcome, wrench, elapsed)
-            result.message += failure
-            batch.record(row, result)
-            return elapsed
-        batch.record_pose(row, self.reduced[level].frames(outcome.x, wrench),
-                          None if analysis is None else analysis.stable, None,
-                          None if analysis is None else analysis.matrix, fidelity=level)
-        return elapsed
 
     def _solve_at(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
                   compliance_options: dict) -> SolveResult:
@@ -327,13 +267,16 @@ class FidelitySolver:
         if not self._tangent_worth_building(wrench):
             result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
                                      **compliance_options)
-            if self._last_level == 'full':
-                self._full_time_s += FULL_TIME_WEIGHT * (result.solve_time_s
-                                                         - self._full_time_s)
+            self._note_full_time(result.solve_time_s)
             return result
         result = self.cache_full_solution(wrench, compliance, **compliance_options)
         self._build_time_s = self.tangent.build_time_s
         return result
+
+    def _note_full_time(self, elapsed: float) -> None:
+        """Fold a full solve's time into its running cost, when it followed a full one."""
+        if self._last_level == 'full':
+            self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
 
     def _tangent_worth_building(self, wrench: np.ndarray) -> bool:
         """

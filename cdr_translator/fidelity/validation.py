@@ -93,6 +93,11 @@ def box_scale(wrench: np.ndarray) -> float:
     return _box_scale(np.asarray(wrench, dtype=float), _HALF_WIDTHS)
 
 
+def box_scales(wrenches: np.ndarray) -> np.ndarray:
+    """``box_scale`` of each row of finite ``wrenches`` (N, 6), the same floats."""
+    return (np.abs(wrenches) / _HALF_WIDTHS).max(axis=1, initial=0.0)
+
+
 @jit
 def _box_scale(wrench, half_widths):
     """Return max |w_i| / h_i, NaN if any component is NaN (as numpy's max would)."""

@@ -129,3 +129,37 @@ def test_reach_lookup_chooses_as_the_box_by_box_rule(params, budget):
         assert solver.choose(wrench)[0] == expected, wrench
         chosen.add(expected)
     assert len(chosen) >= 2, chosen  # both sides of some reach were sampled
+
+
+@pytest.mark.parametrize('level', ['cc', 'rod', 'linear'])
+def test_batch_leaves_the_solver_as_single_solves_do(params, level):
+    """After solve_many, further solves and batches continue as after the single solves."""
+    forces, moments = wrenches(30)
+    forces[12] = [0.01, 0.0, 0.0]  # the unloaded state is nearer: a single solve starts cold
+    moments[12] = 0.0
+    single = FidelitySolver(params, fidelity=level)
+    results = [single.solve(force, moment) for force, moment in zip(forces, moments)]
+    batched = FidelitySolver(params, fidelity=level)
+    first = batched.solve_many(forces[:20], moments[:20])
+    second = batched.solve_many(forces[20:25], moments[20:25])
+    after = [batched.solve(force, moment) for force, moment in zip(forces[25:], moments[25:])]
+    assert_rows_equal(first, results[:20])
+    assert_rows_equal(second, results[20:25])
+    for result, expected in zip(after, results[25:]):
+        assert np.array_equal(result.unknowns, expected.unknowns)
+    if level != 'linear':
+        assert np.array_equal(batched._previous[level][0], single._previous[level][0])
+
+
+@pytest.mark.parametrize('level', ['cc', 'rod'])
+def test_reduced_runs_are_compiled(params, level, monkeypatch):
+    """Without compliance a reduced run solves no row through the per-row Python solve."""
+    forces, moments = wrenches(12)
+    solver = FidelitySolver(params, fidelity=level)
+
+    def refuse(*_):
+        raise AssertionError('a row was solved one by one')
+
+    monkeypatch.setattr(solver, '_reduced_outcome', refuse)
+    batch = solver.solve_many(forces, moments)
+    assert batch.converged.all() and (batch.solve_time_s > 0.0).all(), set(batch.message)

@@ -1,0 +1,168 @@
+"""
+Runs of rows of ``FidelitySolver.solve_many``: rows chosen at one level, in order.
+
+A run at 'cc' or 'rod' without compliance goes through the level's compiled sequence
+(``ReducedModel.continue_sequence``) and a run at 'linear' through the compiled poses of the
+expansion (``TangentModel.poses``): one call for many rows, each row what ``solve`` gives,
+and the solver left as those solves would leave it. Any other row is solved by a row
+function (``RowSolver``): the full level's lean row, a reduced or linear row without a
+SolveResult, or a whole ``solve`` where the level choice needs one.
+"""
+
+from functools import partial
+import time
+from typing import Optional, TYPE_CHECKING
+
+import numpy as np
+
+from .validation import box_scale, box_scales
+from .. import lean_rows
+from ..batch import BatchResult, RowSolver
+from ..compliance import ComplianceAnalysis
+
+if TYPE_CHECKING:
+    from .solver import FidelitySolver
+
+#: A compiled run has no deadline of its own: it is used when the time limit is at least
+#: this (s), far above the microseconds between a single solve's start and its deadline check.
+COMPILED_RUN_MIN_TIME_LIMIT_S = 1e-3
+
+
+def solve_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
+              rows: range, batch: BatchResult, compliance: bool) -> None:
+    """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
+    compiled = solver.time_limit_s >= COMPILED_RUN_MIN_TIME_LIMIT_S
+    if level in solver.reduced and not compliance and compiled:
+        _reduced_run(solver, level, reason, wrenches, rows, batch)
+    elif level == 'linear' and solver.tangent.ready:
+        _linear_run(solver, reason, wrenches, rows, batch, compliance)
+    else:
+        _rows(solver, level, reason, wrenches, rows, batch, compliance)
+
+
+def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
+          rows: range, batch: BatchResult, compliance: bool) -> None:
+    """Solve ``rows`` one by one with the row function of ``level``."""
+    whole = False
+    solve_row: RowSolver
+    if level in solver.reduced:
+        solve_row = partial(_reduced_row, solver, level)
+    elif level == 'linear' and solver.tangent.ready:
+        solve_row = partial(_linear_row, solver)
+    elif level == 'full' and not solver._tangent_worth_building(wrenches[rows[0]]):
+        solve_row = partial(_full_row, solver)  # a run of 'full' is one row in 'auto'
+    else:  # 'auto' at full expanding the tangent there, or 'linear' without one
+        solve_row, whole = partial(_result_row, solver, level, reason), True
+    for row in rows:
+        batch.fidelity[row] = level  # what a row that raises was tried at
+        batch.run(row, solve_row, wrenches[row], compliance)
+        if batch.message[row] and not whole:  # a whole solve's message names its level
+            batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
+        solver._last_wrench = wrenches[row]
+        solver._last_level = str(batch.fidelity[row])
+
+
+def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
+                 rows: range, batch: BatchResult) -> None:
+    """
+    Solve a run at a reduced level in compiled sequences, as row-by-row solves would.
+
+    A single solve starts from the unloaded state where that is nearer than the last
+    solution (``FidelitySolver._reduced_outcome``): each such row begins a new sequence. A
+    row that fails ends its sequence and is solved again by the row function, from the
+    state the rows before it left, for its message.
+    """
+    model = solver.reduced[level]
+    run = wrenches[rows.start:rows.stop]
+    scales = box_scales(run)
+    # rows (of the run) whose single solve starts cold: the unloaded state is nearer
+    cold = np.flatnonzero(box_scales(np.diff(run, axis=0)) > scales[1:]) + 1
+    first = 0
+    while first < len(run):
+        start = solver._previous[level]
+        if start is not None and box_scale(run[first] - start[1]) > scales[first]:
+            start = None
+        later = cold[cold > first]
+        stop = int(later[0]) if len(later) else len(run)
+        started = time.perf_counter()
+        unknowns, converged = model.continue_sequence(run[first:stop], start)
+        if converged:
+            solved = slice(first, first + converged)
+            pose, bending = model.poses(run[solved], unknowns[:converged])
+            elapsed = time.perf_counter() - started
+            batch.record_poses(slice(rows.start + first, rows.start + first + converged),
+                               pose, bending, level, elapsed / converged)
+            last = first + converged - 1
+            solver._previous[level] = (unknowns[converged - 1].copy(), run[last].copy())
+            solver._last_wrench, solver._last_level = run[last], level
+        first += converged
+        if first < stop:  # this row failed: its own solve gives its message
+            row = rows.start + first
+            _rows(solver, level, reason, wrenches, range(row, row + 1), batch, False)
+            first += 1
+
+
+def _linear_run(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
+                batch: BatchResult, compliance: bool) -> None:
+    """Solve a run at 'linear' by the compiled poses; its compliance is the cached one's."""
+    analysis: Optional[ComplianceAnalysis] = None
+    if compliance:
+        try:
+            analysis = solver.tangent.compliance()
+        except ArithmeticError:
+            analysis = None
+        if analysis is None or not analysis.stable:  # rows that are not good: one by one
+            _rows(solver, 'linear', reason, wrenches, rows, batch, compliance)
+            return
+    started = time.perf_counter()
+    pose, bending = solver.tangent.poses(wrenches[rows.start:rows.stop])
+    elapsed = time.perf_counter() - started
+    batch.record_poses(slice(rows.start, rows.stop), pose, bending, 'linear',
+                       elapsed / len(rows), None if analysis is None else analysis.stable,
+                       None if analysis is None else analysis.matrix)
+    solver._last_wrench, solver._last_level = wrenches[rows[-1]], 'linear'
+
+
+def _result_row(solver: 'FidelitySolver', level: str, reason: str, batch: BatchResult,
+                row: int, wrench: np.ndarray, compliance: bool) -> float:
+    """Row by a whole ``solve`` at ``level``."""
+    result = solver._solve_at(level, reason, wrench, compliance, {})
+    batch.record(row, result)
+    return result.solve_time_s
+
+
+def _full_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
+              compliance: bool) -> float:
+    """Row of the full level (TranslatorSolver's row; the running cost kept)."""
+    elapsed = lean_rows.solve_row(solver.full, batch, row, wrench, compliance)
+    solver._note_full_time(elapsed)
+    return elapsed
+
+
+def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
+                compliance: bool) -> float:
+    """Row of the 'linear' level: the expansion's frames."""
+    started = time.perf_counter()
+    frames = solver.tangent.predict(wrench)[2]
+    elapsed = time.perf_counter() - started
+    analysis = solver.tangent.compliance() if compliance else None
+    batch.record_pose(row, frames, None if analysis is None else analysis.stable, None,
+                      None if analysis is None else analysis.matrix, fidelity='linear')
+    return elapsed
+
+
+def _reduced_row(solver: 'FidelitySolver', level: str, batch: BatchResult, row: int,
+                 wrench: np.ndarray, compliance: bool) -> float:
+    """Row of a reduced level: its frames, or its result when it is not a good row."""
+    outcome, elapsed = solver._reduced_outcome(level, wrench)
+    analysis, failure = (solver._reduced_compliance(level, outcome, wrench, {})
+                         if compliance and outcome.converged else (None, ''))
+    if not outcome.converged or failure:
+        result = solver._reduced_result(level, outcome, wrench, elapsed)
+        result.message += failure
+        batch.record(row, result)
+        return elapsed
+    batch.record_pose(row, solver.reduced[level].frames(outcome.x, wrench),
+                      None if analysis is None else analysis.stable, None,
+                      None if analysis is None else analysis.matrix, fidelity=level)
+    return elapsed
