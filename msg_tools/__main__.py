@@ -129,11 +129,11 @@ def _run_replay(args: argparse.Namespace) -> int:
                 raise ValueError(f'{option} needs a file name, got {value!r}')
         if args.plot:
             check_plot_path(args.plot)
-        options = dict(topics=args.topic, params_path=args.params,
-                       compliance=not args.no_compliance, backbones=args.backbones,
-                       csv_path=args.csv, progress=stream,
-                       plot_samples=args.plot_samples or (),
-                       other_outputs=[('plot', args.plot)] if args.plot else [])
+        options = {'topics': args.topic, 'params_path': args.params,
+                   'compliance': not args.no_compliance, 'backbones': args.backbones,
+                   'csv_path': args.csv, 'progress': stream,
+                   'plot_samples': args.plot_samples or (),
+                   'other_outputs': [('plot', args.plot)] if args.plot else []}
         if args.workers is None and args.scheduler is None:
             summary = replay(args.input, args.out, **options)
         else:

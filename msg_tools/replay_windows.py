@@ -180,13 +180,16 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     futures: List[Future] = []
     try:
         count = max(1, len(client.scheduler_info(n_workers=-1)['workers']))
-        windows = plan_windows(*span, min(WINDOWS_PER_WORKER * count, max(
-            1, (total or 0) // max(window_messages, 1)))) if span else [LogTimeWindow()]
+        windows = [LogTimeWindow()]
+        if span:
+            windows = plan_windows(*span, min(WINDOWS_PER_WORKER * count, max(
+                1, (total or 0) // max(window_messages, 1))))
         futures = [
             client.submit(replay_window, str(input_path), str(parts / f'{k}.mcap'),
                           str(parts / f'{k}.csv') if csv_path else None, window, chosen,
                           str(params_path) if params_path else None, compliance, backbones,
-                          sorted(plot_samples), pure=False, key=f'replay-window-{k}-{time.time_ns()}')
+                          sorted(plot_samples), pure=False,
+                          key=f'replay-window-{k}-{time.time_ns()}')
             for k, window in enumerate(windows)]
         _merge(futures, parts, output_path, csv_path, summary, progress, total)
     finally:

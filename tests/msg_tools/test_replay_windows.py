@@ -104,8 +104,8 @@ def test_two_workers_equal_one_process(tmp_path):
                                                           axis=1)), 0.0, 1.0)))
     assert turn.max() <= ANGLE_TOLERANCE_DEG
     assert _counters(merged['/diagnostics']) == _counters(expected['/diagnostics'])
-    rows = [list(csv.reader(open(tmp_path / name, newline=''))) for name in ('one.csv',
-                                                                              'split.csv')]
+    rows = [list(csv.reader(open(tmp_path / name, newline='')))
+            for name in ('one.csv', 'split.csv')]
     assert len(rows[0]) == len(rows[1]) == 601 and rows[0][0] == rows[1][0]
     assert [row[:6] for row in rows[0]] == [row[:6] for row in rows[1]]
     assert not list(tmp_path.glob('.replay-parts-*'))
