@@ -5,6 +5,7 @@ Command line of msg_tools (no ROS needed): info, synth, replay.
     python -m msg_tools synth OUT.mcap --profile ramp|step|sinusoid|random-walk|paper|hard
     python -m msg_tools replay IN.mcap --out OUT.mcap [--topic NAME] [--params FILE]
                                [--csv FILE] [--plot FILE.png]
+                               [--workers K | --scheduler ADDRESS]
 
 Exit codes (replay; docs/replay.md): 0 all good; 1 the input was damaged, what could be
 read was replayed; 2 bad arguments, unusable input or an output that cannot be written
@@ -29,6 +30,7 @@ from msg_tools.plots import check_plot_path, plot_replay  # noqa: E402
 from msg_tools.replay import replay  # noqa: E402
 from msg_tools.replay_summary import (  # noqa: E402
     EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE)
+from msg_tools.replay_windows import replay_on_dask  # noqa: E402
 from msg_tools.synth import PROFILES  # noqa: E402
 
 __all__ = ['EXIT_BROKEN_PIPE', 'main']
@@ -74,6 +76,11 @@ def _parser() -> argparse.ArgumentParser:
                         help='skip the compliance topics (faster)')
     replay.add_argument('--backbones', action='store_true',
                         help='also write the backbones MarkerArray (large)')
+    cluster = replay.add_mutually_exclusive_group()
+    cluster.add_argument('--workers', type=int, metavar='K',
+                         help='replay in log-time windows on K local Dask worker processes')
+    cluster.add_argument('--scheduler', metavar='ADDRESS',
+                         help='replay in log-time windows on the Dask cluster at ADDRESS')
     replay.add_argument('--progress', choices=('auto', 'always', 'never'), default='auto',
                         help='progress bar on stderr; auto: when stderr is a terminal')
     return parser
@@ -122,13 +129,21 @@ def _run_replay(args: argparse.Namespace) -> int:
                 raise ValueError(f'{option} needs a file name, got {value!r}')
         if args.plot:
             check_plot_path(args.plot)
-        summary = replay(args.input, args.out, topics=args.topic, params_path=args.params,
-                         compliance=not args.no_compliance, backbones=args.backbones,
-                         csv_path=args.csv, progress=stream,
-                         plot_samples=args.plot_samples or (),
-                         other_outputs=[('plot', args.plot)] if args.plot else [])
+        options = {'topics': args.topic, 'params_path': args.params,
+                   'compliance': not args.no_compliance, 'backbones': args.backbones,
+                   'csv_path': args.csv, 'progress': stream,
+                   'plot_samples': args.plot_samples or (),
+                   'other_outputs': [('plot', args.plot)] if args.plot else []}
+        if args.workers is None and args.scheduler is None:
+            summary = replay(args.input, args.out, **options)
+        else:
+            summary = replay_on_dask(args.input, args.out, workers=args.workers,
+                                     scheduler=args.scheduler, **options)
     except (ReplayError, ValueError) as error:
         print(f'error: {error}', file=sys.stderr)
+        return EXIT_USAGE
+    except (OSError, TimeoutError) as error:  # no scheduler there, or no worker in time
+        print(f'error: Dask cluster {args.scheduler or "(local)"}: {error}', file=sys.stderr)
         return EXIT_USAGE
     for warning in summary.warnings:
         print(f'warning: {warning}', file=sys.stderr)

@@ -26,6 +26,7 @@ from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import WrenchProcessor
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
+from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.reader import Decoders, McapSource
@@ -101,7 +102,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
            backbones: bool = False, csv_path: Union[str, Path, None] = None,
            progress: Optional[IO[str]] = None, flush_every_messages: int = 1000,
            flush_every_s: float = 2.0, plot_samples: Collection[int] = (),
-           other_outputs: Sequence[Tuple[str, Union[str, Path]]] = ()) -> ReplaySummary:
+           other_outputs: Sequence[Tuple[str, Union[str, Path]]] = (),
+           window: Optional[LogTimeWindow] = None) -> ReplaySummary:
     """
     Replay ``input_path`` into ``output_path``; return the summary.
 
@@ -114,6 +116,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     in ``summary.series`` whatever its thinning (ValueError when one is negative, or
     beyond the input's messages). ``other_outputs``: (what, path) of files the caller
     writes afterwards (the plot), checked with the others before the input is read.
+    ``window``: replay only the messages logged in it (``log_time_window``).
     """
     if Path(input_path).is_dir():
         raise ReplayError(f'{input_path} is a folder, not an MCAP file')
@@ -160,7 +163,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             for topic in chosen:
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             try:
-                for index, raw in enumerate(source.messages()):
+                for index, raw in window_messages(source.messages(), window, lambda raw: warm_up(
+                        processors[raw.topic], decoders, raw)):
                     if interrupt.requested:
                         summary.interrupted = True
                         break
@@ -221,4 +225,5 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             if bar:
                 bar.close(summary.messages)
             summary.wall_s = time.perf_counter() - started
+            summary.first_stamp_ns = first_stamp_ns
     return summary

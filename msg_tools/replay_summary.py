@@ -79,6 +79,27 @@ class Series:
                 values = getattr(self, name)
                 setattr(self, name, [values[k] for k in chosen])
 
+    def merge(self, later: 'Series', time_shift_s: float = 0.0) -> None:
+        """
+        Append the points of ``later`` (a series of later messages), its times shifted.
+
+        The points left are those a single series fed every message would hold: the
+        coarser stride of the two, doubled until at most ``limit`` points remain.
+        """
+        self.stride = max(self.stride, later.stride)
+        self.time_s += [time_s + time_shift_s for time_s in later.time_s]
+        for name in ('joints', 'position', 'index', 'wrench'):
+            getattr(self, name).extend(getattr(later, name))
+        while True:
+            chosen = [k for k, kept in enumerate(self.index)
+                      if kept % self.stride == 0 or kept in self.keep]
+            for name in ('time_s', 'joints', 'position', 'index', 'wrench'):
+                values = getattr(self, name)
+                setattr(self, name, [values[k] for k in chosen])
+            if len(self.index) <= self.limit:
+                return
+            self.stride *= 2
+
 
 class TimeStats:
     """Count, maximum and percentiles (within 1.2 %) of durations, in constant memory."""
@@ -98,6 +119,12 @@ class TimeStats:
         position = (math.log10(max(seconds, self.LOW_S)) - math.log10(self.LOW_S)) * \
             self.PER_DECADE
         self._bins[min(int(position) + 1, len(self._bins) - 1)] += 1
+
+    def merge(self, other: 'TimeStats') -> None:
+        """Count the durations of ``other`` too."""
+        self.count += other.count
+        self.max_s = max(self.max_s, other.max_s)
+        self._bins += other._bins
 
     def percentile(self, q: float) -> float:
         """Return the ``q`` percentile in s (the geometric middle of its bin)."""
@@ -134,6 +161,8 @@ class ReplaySummary:
     output_error: str = ''
     #: Messages of the replayed topics the input's summary lists (None: no summary).
     total: Optional[int] = None
+    #: Header stamp (ns) of the first converged message: time zero of ``series``.
+    first_stamp_ns: Optional[int] = None
 
     @property
     def stopped_early(self) -> bool:
@@ -162,12 +191,42 @@ class ReplaySummary:
     def converged(self, joints: List[float], position: List[float]) -> None:
         """Count a converged message's joint angles (rad); widen the position (m) range."""
         self.joints.add(joints)
-        values = np.array(position)
+        self.converged_range(np.atleast_2d(position))
+
+    def merge(self, later: 'ReplaySummary') -> None:
+        """
+        Add the replay of later messages of the same input (a window) to this one.
+
+        Counts add, statistics combine, warnings append up to ``WARNING_LIMIT``; the read
+        report becomes ``later``'s (each window reads the whole input).
+        """
+        for name in ('messages', 'solved', 'not_converged', 'rejected', 'undecodable',
+                     'warnings_dropped'):
+            setattr(self, name, getattr(self, name) + getattr(later, name))
+        for text in later.warnings:
+            self.warn(text)
+        self.solve_times.merge(later.solve_times)
+        self.joints.merge(later.joints)
+        if later.position_range is not None:
+            self.converged_range(later.position_range)
+        shift = 0.0
+        if later.first_stamp_ns is not None:
+            if self.first_stamp_ns is None:
+                self.first_stamp_ns = later.first_stamp_ns
+            shift = 1e-9 * (later.first_stamp_ns - self.first_stamp_ns)
+        self.series.merge(later.series, shift)
+        self.interrupted = self.interrupted or later.interrupted
+        self.output_error = self.output_error or later.output_error
+        self.input_report = later.input_report
+
+    def converged_range(self, values: np.ndarray) -> None:
+        """Widen the position (m) range to hold ``values`` (rows: positions)."""
+        low, high = np.min(values, axis=0), np.max(values, axis=0)
         if self.position_range is None:
-            self.position_range = np.array([values, values])
+            self.position_range = np.array([low, high])
             return
-        self.position_range = np.array([np.minimum(self.position_range[0], values),
-                                        np.maximum(self.position_range[1], values)])
+        self.position_range = np.array([np.minimum(self.position_range[0], low),
+                                        np.maximum(self.position_range[1], high)])
 
     def exit_code(self) -> int:
         """Return the exit code (``EXIT_CODES``) this replay ends with."""

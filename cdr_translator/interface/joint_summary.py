@@ -46,6 +46,14 @@ class JointSummary:
         self._cos += np.cos(values).sum(axis=0)
         self._sin += np.sin(values).sum(axis=0)
 
+    def merge(self, other: 'JointSummary') -> None:
+        """Count the joint angles ``other`` counted too (as if added here)."""
+        self.count += other.count
+        self.low = np.minimum(self.low, other.low)
+        self.high = np.maximum(self.high, other.high)
+        self._cos += other._cos
+        self._sin += other._sin
+
     def mean_resultant_length(self) -> np.ndarray:
         """Return R of each joint: the length of the mean unit vector, 0..1 (NaN if empty)."""
         if not self.count:

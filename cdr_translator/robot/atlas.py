@@ -175,7 +175,7 @@ def dask_setup(worker: object) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _client(workers: Optional[int], scheduler: Optional[str]):
+def dask_client(workers: Optional[int], scheduler: Optional[str]):
     """Return a Dask client of the running cluster at ``scheduler`` or of a new LocalCluster."""
     from distributed import Client, LocalCluster
     if scheduler is not None:
@@ -226,7 +226,7 @@ def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
     owned = client is None
     cluster = None
     if owned:
-        client, cluster = _client(workers, scheduler)
+        client, cluster = dask_client(workers, scheduler)
     try:
         count = max(1, len(client.scheduler_info(n_workers=-1)['workers']))
         summary['workers'] = count
