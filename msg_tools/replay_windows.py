@@ -26,7 +26,6 @@ from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, U
 
 from cdr_translator.interface import messages
 from cdr_translator.robot.atlas import dask_client
-from distributed import Future, wait
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
@@ -47,7 +46,7 @@ WINDOWS_PER_WORKER = 2
 COUNTERS = ('received', 'rejected', 'solved', 'not_converged', 'skipped')
 
 #: How often the wait for windows looks for a Ctrl-C (s).
-POLL_S = 0.2
+POLL_S = 0.05
 
 
 def plan_windows(start_ns: int, end_ns: int, count: int) -> List[LogTimeWindow]:
@@ -177,7 +176,7 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     parts = Path(tempfile.mkdtemp(prefix='.replay-parts-', dir=Path(output_path).parent))
     summary = ReplaySummary(source.report, chosen, warnings, total=total)
     summary.series.keep = frozenset(plot_samples)
-    futures: List[Future] = []
+    futures: List[Any] = []   # distributed.Future (distributed is the atlas's optional extra)
     try:
         count = max(1, len(client.scheduler_info(n_workers=-1)['workers']))
         windows = [LogTimeWindow()]
@@ -204,7 +203,7 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     return summary
 
 
-def _merge(futures: List[Future], parts: Path, output_path: Union[str, Path],
+def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
            csv_path: Union[str, Path, None], summary: ReplaySummary,
            progress: Optional[IO[str]], total: Optional[int]) -> None:
     """Merge the windows' parts into the outputs in window order, as they complete."""
@@ -223,10 +222,7 @@ def _merge(futures: List[Future], parts: Path, output_path: Union[str, Path],
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             for k, future in enumerate(futures):
                 while not future.done() and not interrupt.requested:
-                    try:
-                        wait(future, timeout=POLL_S)
-                    except TimeoutError:   # not done yet: look for a Ctrl-C again
-                        pass
+                    time.sleep(POLL_S)   # not done yet: look for a Ctrl-C again
                 if interrupt.requested:
                     summary.interrupted = True
                     break

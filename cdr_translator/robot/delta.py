@@ -125,6 +125,8 @@ class DeltaRobot:
         self._held: Optional[HeldReference] = None  # made by the first compliance solve
         levels = (REDUCED_LEVELS if fidelity == 'auto' and max_position_error > 0.0
                   and max_angle_error > 0.0 else (fidelity,) if fidelity != 'auto' else ())
+        self._last_reduced: Optional[Tuple[DeltaResult, ReducedChain, Any, np.ndarray,
+                                           np.ndarray]] = None
         self._reduced = {level: ReducedChain(self._chain, self.params, level, max_iterations)
                          for level in levels if level != 'full'}
         validation = Validation.load() if self._reduced else None
@@ -233,6 +235,8 @@ class DeltaRobot:
         there), adds their count to ``result.leg_jacobians`` and their time to its
         ``solve_time_s``. The robot's own warm start is left as it is by then.
         """
+        if result.leg_fidelity[0] != 'full':
+            return self._deferred_reduced_linearization(result)
         path = self._continuation
         if not result.converged or path.previous is None:
             raise RuntimeError('only a converged solve can be linearized later')
@@ -310,8 +314,28 @@ class DeltaRobot:
                 with np.errstate(over='ignore', invalid='ignore'):
                     chain.linearize(result, outcome, inputs, held.critical_load_n)
             result.solve_time_s = time.perf_counter() - started
+            self._last_reduced = (result, chain, outcome, inputs, tolerances)
             return result
         return None
+
+    def _deferred_reduced_linearization(self, result: DeltaResult) -> Callable[[], None]:
+        """``deferred_linearization`` of a solve with reduced legs (its chain's linearize)."""
+        last = self._last_reduced
+        if not result.converged or last is None or last[0] is not result:
+            raise RuntimeError('only a converged solve can be linearized later')
+        _, chain, outcome, inputs, tolerances = last
+
+        def add() -> None:
+            held = self._held_reference()
+            started = time.perf_counter()
+            with np.errstate(over='ignore', invalid='ignore'):
+                # a walk from the solution to itself: the legs' compliances and the platform
+                # Jacobian made there, as a compliance solve makes them
+                there = chain.walk(outcome.state, inputs, inputs, tolerances, lambda: False, True)
+                chain.linearize(result, there, inputs, held.critical_load_n)
+            result.solve_time_s += time.perf_counter() - started
+
+        return add
 
     def _held_reference(self) -> HeldReference:
         """
