@@ -371,7 +371,7 @@ def test_node_rejections_name_their_stage_and_log_at_their_level(tmp_path):
         assert status.name == robot_messages.INVERSE_DIAGNOSTIC_NAME
         assert 'target rejected: malformed message' in status.message
         assert node.stop(signal.SIGINT) == 0, node.text()
-    lines = [line for line in node.text().splitlines() if 'rejected' in line]
+    lines = [line for line in node.text().splitlines() if 'rejected:' in line]
     wrong_frame = "inverse statics: target rejected: target frame_id 'elsewhere'"
     assert any(line.startswith('[ERROR]') and wrong_frame in line for line in lines), lines
     assert any(line.startswith('[ERROR]') and 'forward statics: payload rejected' in line
