@@ -1,11 +1,13 @@
 """A translator_node child process with a connected client, for the node tests."""
 
 from pathlib import Path
+import time
 from typing import Optional
 
 from cdr_translator.interface import messages
 from cdr_translator.ros.client import diagnostic_values, MODULE_COMMAND, NodeProcess
 from cdr_translator.ros.client import TranslatorClient
+from rclpy.serialization import serialize_message
 
 #: The first solve may compile the kernels (cached on disk after), DDS discovery takes
 #: seconds on a loaded machine: generous bounds, never waited for in full when all is well.
@@ -61,3 +63,17 @@ class Running:
     def last_diagnostic(self):
         """Return the key/values of the last diagnostic received."""
         return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])
+
+
+def send_behind_a_slow_first_solve(node, wrenches) -> None:
+    """
+    Hand ``wrenches`` (WrenchStamped) to a node's wrench callback while its first solve runs.
+
+    The first is sent alone and taken by the solver thread (the node's solve must be slowed
+    down by the caller) before the rest arrive, so they wait in the mailbox.
+    """
+    for index, wrench in enumerate(wrenches):
+        node._on_wrench(serialize_message(wrench))
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while index == 0 and node._mailbox._items and time.monotonic() < deadline:
+            time.sleep(0.001)   # the solver thread has taken the first

@@ -14,6 +14,7 @@ from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, WrenchStamped
 from mcap.reader import make_reader
+from nodes import send_behind_a_slow_first_solve
 import numpy as np
 import pytest
 import rclpy
@@ -21,7 +22,6 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 COMMAND = (sys.executable, '-m', 'cdr_translator.ros.cdr_node')
@@ -394,14 +394,11 @@ def test_inputs_waiting_at_shutdown_are_answered_or_counted(tmp_path):
 
         node.robot.solve = slow
         try:
-            for index in range(3):
-                wrench = WrenchStamped()
+            wrenches = [WrenchStamped() for _ in range(3)]
+            for index, wrench in enumerate(wrenches):
                 wrench.header.stamp.sec = index + 1
                 wrench.wrench.force.z = -1.0 - index
-                node._on_wrench(serialize_message(wrench))
-                deadline = time.monotonic() + 10.0
-                while index == 0 and node._mailbox._items and time.monotonic() < deadline:
-                    time.sleep(0.001)   # the solver thread has taken the first
+            send_behind_a_slow_first_solve(node, wrenches)
         finally:
             node.close()
             node.destroy_node()

@@ -25,7 +25,8 @@ from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay
-from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
+from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running
+from nodes import send_behind_a_slow_first_solve, START_TIMEOUT_S
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -33,7 +34,6 @@ import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 import yaml
 
@@ -323,14 +323,11 @@ def test_wrenches_waiting_at_shutdown_are_answered_and_counted(tmp_path):
 
         node._process = slow
         try:
-            for index in range(3):
-                wrench = WrenchStamped()
+            wrenches = [WrenchStamped() for _ in range(3)]
+            for index, wrench in enumerate(wrenches):
                 wrench.header.stamp.sec = index + 1
                 wrench.wrench.force.x = 1.0 + index
-                node._on_wrench(serialize_message(wrench))
-                deadline = time.monotonic() + ANSWER_TIMEOUT_S
-                while index == 0 and node._mailbox._items and time.monotonic() < deadline:
-                    time.sleep(0.001)   # the solver thread has taken the first
+            send_behind_a_slow_first_solve(node, wrenches)
         finally:
             node.close()
             node.destroy_node()
