@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import batch_rows
+from .._blas import one_blas_thread
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
@@ -202,6 +203,7 @@ class FidelitySolver:
             self.reset()
         return self._solve_at(*self.choose(wrench), wrench, compliance, compliance_options)
 
+    @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
                    compliance: bool = False) -> BatchResult:
         """
