@@ -1,6 +1,8 @@
 """BLAS runs on one thread inside a solve (its LAPACK factorizations) and as before after it."""
 
 from cdr_translator import _blas, _linalg
+from cdr_translator.fidelity import FidelitySolver
+import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 
@@ -10,7 +12,21 @@ def _blas_threads():
             if library['user_api'] == 'blas']
 
 
-def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver, monkeypatch):
+def _solve_alone(solver):
+    """Solve 12 N cold by ``solve``."""
+    solver.reset()
+    return solver.solve([12.0, 0.0, 0.0])
+
+
+def _solve_in_a_batch(solver):
+    """Solve 12 N cold as the one row of ``solve_many`` (a full-level FidelitySolver)."""
+    solver.reset()
+    return solver.solve_many([[12.0, 0.0, 0.0]]).row(0)
+
+
+@pytest.mark.parametrize('how', ['solve', 'solve_many'])
+def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver, params, how,
+                                                                         monkeypatch):
     """A cold 12 N solve factors Jacobians with one BLAS thread; two are set again after."""
     seen = []
     factor = _linalg.factorize
@@ -19,13 +35,18 @@ def test_factorizations_run_on_one_blas_thread_and_the_limit_is_restored(solver,
         seen.append(_blas_threads())
         return factor(*args, **kwargs)
 
+    batched = FidelitySolver(params, 'full') if how == 'solve_many' else None
     monkeypatch.setattr(_linalg, 'factorize', recording)
     with threadpool_limits(limits=2, user_api='blas'):
         before = _blas_threads()
-        solver.reset()
-        result = solver.solve([12.0, 0.0, 0.0])
+        if how == 'solve':
+            result = _solve_alone(solver)
+            converged, message = result.converged, result.message
+        else:
+            row = _solve_in_a_batch(batched)
+            converged, message = row['converged'], row['message']
         after = _blas_threads()
-    assert result.converged, result.message
+    assert converged, message
     assert seen, 'the solve made no factorization: the test checks nothing'
     assert all(threads == [1] * len(before) for threads in seen), seen
     assert before and after == before == [2] * len(before)
