@@ -19,10 +19,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import batch_rows
-from .._blas import one_blas_thread
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from .._blas import one_blas_thread
 from ..batch import BatchResult, check_wrenches
 from ..checks import check_number
 from ..compliance import analyse, ComplianceAnalysis, frame_twist
