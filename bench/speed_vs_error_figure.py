@@ -238,12 +238,13 @@ def _robot_panel(axes: Axes, canvas: FigureCanvasAgg, robot: dict) -> None:
     and payloads of ``robot`` (bench.robot_levels' numbers).
     """
     warm = robot['warm_forward_statics_s']
-    errors = robot['errors_against_full']
+    errors, rate = robot['errors_against_full'], robot['atlas_samples_per_s']
     points, labels = [], []
     for level, seconds in warm.items():
         error = 0.0 if level == 'full' else errors[level]['max_position_m']
         points.append((1e3 * seconds, max(1e3 * error, FLOOR), COLOURS[level], 'warm'))
-        labels.append((1e3 * seconds, max(1e3 * error, FLOOR), level, MARKER_HALF_PX))
+        labels.append((1e3 * seconds, max(1e3 * error, FLOOR),
+                       f'{level}\n(atlas {rate[level]:.0f} samples/s)', MARKER_HALF_PX))
     _draw_front(axes, points)
     axes.set_xscale('log')
     axes.set_yscale('log')
@@ -251,9 +252,9 @@ def _robot_panel(axes: Axes, canvas: FigureCanvasAgg, robot: dict) -> None:
     axes.set_ylim(*_limits([point[1] for point in points], 10.0, 10.0))
     axes.set_xlabel('warm forward statics per answer (ms)')
     axes.set_ylabel('platform position error against full legs (mm)')
-    axes.set_title(f"Delta robot, legs at each level: worst over {robot['settings']} slider "
-                   f"settings x {len(robot['payloads_n'])} payloads\nfull legs are the "
-                   f'reference: drawn at {FLOOR:g} mm', fontsize=10)
+    axes.set_title(f"Delta robot, legs at each level (warm, squares): worst over "
+                   f"{robot['settings']} slider settings x {len(robot['payloads_n'])} payloads;"
+                   f'\nfull legs are the reference, drawn at {FLOOR:g} mm', fontsize=10)
     axes.grid(True, which='major', alpha=0.3)
     place_numbers(axes, canvas, labels)
 
@@ -276,7 +277,7 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int,
                   figure.add_axes((0.57, 0.53, 0.4, 0.41))]
     _translator_panels(figure, canvas, panels, measured)
     if robot is not None:
-        _robot_panel(figure.add_axes((0.07, 0.05, 0.3, 0.36)), canvas, robot)
+        _robot_panel(figure.add_axes((0.07, 0.05, 0.36, 0.37)), canvas, robot)
     filled = tuple(Line2D([], [], color='grey', marker=marker, linestyle='none')
                    for marker, _ in KINDS.values())
     hollow = tuple(Line2D([], [], markeredgecolor='grey', markerfacecolor='none',
@@ -294,7 +295,7 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int,
         labels.append(f'{number}  {value.label}')
     placement = ({'loc': 'lower center', 'ncol': 2, 'bbox_to_anchor': (0.5, 0.005)}
                  if robot is None else {'loc': 'lower left', 'ncol': 1,
-                                        'bbox_to_anchor': (0.45, 0.005)})
+                                        'bbox_to_anchor': (0.5, 0.005)})
     figure.legend(handles, labels, fontsize=8, title='key: colour = fidelity level',
                   title_fontsize=8, handler_map={tuple: HandlerTuple(ndivide=None)},
                   **placement)
