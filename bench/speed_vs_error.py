@@ -303,8 +303,7 @@ def main() -> None:
                         'speed_vs_error.json')
     args = parser.parse_args()
     if args.redraw:
-        report = json.loads((RESULTS / 'speed_vs_error.json').read_text())
-        write_report(report)
+        write_report(json.loads((RESULTS / 'speed_vs_error.json').read_text()))
         return
     started = time.perf_counter()
     params = TranslatorParams.from_yaml()

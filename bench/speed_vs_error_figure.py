@@ -148,8 +148,14 @@ def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
                       else None, annotation_clip=False)
 
 
-def _limits(values: List[float], low: float, high: float) -> Tuple[float, float]:
-    return min(values) / low, max(values) * high
+def _log_axes(axes: Axes, points: Sequence[Tuple[float, float, str, str]],
+              x_margins: Tuple[float, float], y_margin: float) -> None:
+    """Make both axes logarithmic, spanning ``points`` with these factors to spare."""
+    axes.set_xscale('log')
+    axes.set_yscale('log')
+    times, errors = [point[0] for point in points], [point[1] for point in points]
+    axes.set_xlim(min(times) / x_margins[0], max(times) * x_margins[1])
+    axes.set_ylim(min(errors) / y_margin, max(errors) * y_margin)
 
 
 def non_dominated(points: Sequence[Tuple[float, float]]) -> List[bool]:
@@ -218,10 +224,7 @@ def _translator_panels(figure: Figure, canvas: FigureCanvasAgg, panels: List[Axe
                 numbers.append((1e3 * seconds, shown, str(number),
                                 STAR_HALF_PX if star else MARKER_HALF_PX))
         _draw_front(axes, points)
-        axes.set_xscale('log')
-        axes.set_yscale('log')
-        axes.set_xlim(*_limits([point[0] for point in points], 2.0, 2.5))
-        axes.set_ylim(*_limits([point[1] for point in points], 4.0, 4.0))
+        _log_axes(axes, points, (2.0, 2.5), 4.0)
         axes.set_xlabel('solve time per answer (ms)')
         axes.set_ylabel(f'{what} error, worst over the scenes ({unit})')
         axes.set_title(title + (f'\nerrors below {FLOOR:g} {unit} drawn at {FLOOR:g} {unit}'
@@ -246,13 +249,10 @@ def _robot_panel(axes: Axes, canvas: FigureCanvasAgg, robot: dict) -> None:
         labels.append((1e3 * seconds, max(1e3 * error, FLOOR),
                        f'{level}\n(atlas {rate[level]:.0f} samples/s)', MARKER_HALF_PX))
     _draw_front(axes, points)
-    axes.set_xscale('log')
-    axes.set_yscale('log')
-    axes.set_xlim(*_limits([point[0] for point in points], 3.0, 3.0))
-    axes.set_ylim(*_limits([point[1] for point in points], 10.0, 10.0))
+    _log_axes(axes, points, (3.0, 3.0), 10.0)
     axes.set_xlabel('warm forward statics per answer (ms)')
     axes.set_ylabel('platform position error against full legs (mm)')
-    axes.set_title(f"Delta robot, legs at each level (warm, squares): worst over "
+    axes.set_title('Delta robot, legs at each level (warm, squares): worst over '
                    f"{robot['settings']} slider settings x {len(robot['payloads_n'])} payloads;"
                    f'\nfull legs are the reference, drawn at {FLOOR:g} mm', fontsize=10)
     axes.grid(True, which='major', alpha=0.3)
@@ -293,12 +293,10 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int,
         handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
                               marker='*' if value.level == 'paper' else 'o'))
         labels.append(f'{number}  {value.label}')
-    placement = ({'loc': 'lower center', 'ncol': 2, 'bbox_to_anchor': (0.5, 0.005)}
-                 if robot is None else {'loc': 'lower left', 'ncol': 1,
-                                        'bbox_to_anchor': (0.5, 0.005)})
-    figure.legend(handles, labels, fontsize=8, title='key: colour = fidelity level',
-                  title_fontsize=8, handler_map={tuple: HandlerTuple(ndivide=None)},
-                  **placement)
+    figure.legend(handles, labels, loc='lower center' if robot is None else 'lower left',
+                  ncol=2 if robot is None else 1,
+                  bbox_to_anchor=(0.5, 0.005), fontsize=8, title='key: colour = fidelity level',
+                  title_fontsize=8, handler_map={tuple: HandlerTuple(ndivide=None)})
     figure.suptitle('Solve time against error of every fidelity level (translator reference: '
                     'the full model at 32 RK4 steps per disk interval, residual 1e-12)',
                     fontsize=11)

@@ -116,8 +116,8 @@ def markdown(report: dict, paper_scenes: Sequence[str],
     for row in table_rows:
         if row['level'] != 'auto':
             continue
-        budget = next(b for b in budgets if row['setting'] == f'budget {1e3 * b[0]:g} mm, '
-                                                           f'{b[1]:g} deg')
+        budget = next(b for b in budgets
+                      if row['setting'] == f'budget {1e3 * b[0]:g} mm, {b[1]:g} deg')
         sequence = row['sequence']
         used = ', '.join(f'{level} {count}' for level, count in sorted(
             sequence['levels'].items(), key=lambda item: -item[1]))
@@ -142,7 +142,8 @@ def markdown(report: dict, paper_scenes: Sequence[str],
         lines.append(f'| C of the {level} level (central differences of its own solves) | '
                      f'{format_ms(seconds)} ms |')
     lines.append('| linear level: expansion (C, dx/dw, frame and point sensitivities) about a '
-                 f"new cached solution | {format_ms(compliance['linear_tangent_build_median_s'])} ms |")
+                 'new cached solution | '
+                 f"{format_ms(compliance['linear_tangent_build_median_s'])} ms |")
     node = report['node']
     if 'error' in node:
         lines.append(f"| translator_node sustained rate | not measured: {node['error']} |")
