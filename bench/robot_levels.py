@@ -1,7 +1,8 @@
 """
 The Continuum Delta Robot on every leg level: its error against full legs, and its speed.
 
-Usage: python -m bench.robot_levels  (prints, and writes bench/results/robot_levels.md)
+Usage: python -m bench.robot_levels  (prints, and writes bench/results/robot_levels.md and
+robot_levels.json, the numbers the speed-against-error figure's robot panel reads)
 
 Error: at SETTINGS slider settings over the whole slider box (a scrambled Halton sample of
 the stroke cube) times PAYLOADS downward payloads, each level's cold forward statics
@@ -13,6 +14,7 @@ process, compliance and verdicts included, no Dask) at each level, as ratios to 
 the same run.
 """
 
+import json
 import math
 import os
 from pathlib import Path
@@ -27,6 +29,7 @@ import numpy as np
 from scipy.stats import qmc
 
 RESULT = Path(__file__).resolve().parent / 'results' / 'robot_levels.md'
+NUMBERS = RESULT.with_suffix('.json')
 
 LEVELS = ('full', 'rod', 'cc')
 SETTINGS = 24
@@ -96,7 +99,7 @@ def atlas_rate(level: str) -> float:
 
 
 def main() -> None:
-    """Measure, print and write bench/results/robot_levels.md."""
+    """Measure, print and write bench/results/robot_levels.md and robot_levels.json."""
     robots = {level: DeltaRobot(fidelity=level) for level in LEVELS}
     error = errors(robots)
     warm = {level: warm_time(robots[level]) for level in LEVELS}
@@ -129,6 +132,10 @@ def main() -> None:
     text = '\n'.join(lines) + '\n'
     print(text)
     RESULT.write_text(text)
+    NUMBERS.write_text(json.dumps({
+        'machine': f'{platform.machine()}, {os.cpu_count()} cores',
+        'settings': SETTINGS, 'payloads_n': PAYLOADS, 'errors_against_full': error,
+        'warm_forward_statics_s': warm, 'atlas_samples_per_s': rate}, indent=1) + '\n')
 
 
 if __name__ == '__main__':

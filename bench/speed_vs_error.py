@@ -15,7 +15,8 @@ over DDS. Writes speed_vs_error.md (tables), speed_vs_error.png (time against er
 speed_vs_error.json (every number) into bench/results/, and the validated ranges of the
 reduced levels into config/fidelity_validation.yaml (what FidelitySolver's error budget
 reads; ``--skip-validation`` keeps the file as it is). ``--redraw`` measures nothing: it
-draws speed_vs_error.png again from speed_vs_error.json.
+writes speed_vs_error.md and speed_vs_error.png again from speed_vs_error.json. The figure's
+robot panel reads bench/results/robot_levels.json (bench.robot_levels) when it exists.
 """
 
 import argparse
@@ -35,6 +36,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from bench.compliance_costs import compliance_costs
 from bench.speed_vs_error_figure import save_speed_error_figure
+from bench.speed_vs_error_report import format_ms, markdown
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.fidelity import FidelitySolver, pose_errors, reference_solver
 from cdr_translator.fidelity import validation
@@ -43,6 +45,7 @@ from cdr_translator.studies import fidelity_validation
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / 'results'
+ROBOT_NUMBERS = RESULTS / 'robot_levels.json'
 
 #: Static scenes, solved cold: name -> wrench [f (N); m (N m)] in {pe}.
 SCENES = {
@@ -249,139 +252,6 @@ def node_rate(seconds: float = 3.0, rate_hz: float = 1000.0) -> dict:
             'latency_p50_ms': float(np.median(row['latencies_ms']))}
 
 
-# report ------------------------------------------------------------------------------------
-def _ms(seconds: float) -> str:
-    milliseconds = 1e3 * seconds
-    return f'{milliseconds:.3g}' if milliseconds < 100 else f'{milliseconds:.0f}'
-
-
-def _ratio(reference_s: float, seconds: float) -> str:
-    value = reference_s / seconds
-    return f'{value:,.0f}×' if value >= 10 else f'{value:.2g}×'
-
-
-def _err(value: float, digits: int = 3) -> str:
-    return '0' if value == 0.0 else f'{value:.{digits}g}'
-
-
-def markdown(report: dict, table_rows: List[Row]) -> str:
-    """Return the Markdown report."""
-    paper = report['paper_baseline']
-    paper_mean = report['paper_mean_s']
-    lines = ['# Speed against error', '',
-             f"Measured {report['date']} on {report['machine']}; load average "
-             f"{report['load_before']} before and {report['load_after']} after the run "
-             '(the machine was shared with other jobs: times are pessimistic and vary by '
-             'tens of percent between runs).', '',
-             'Reference: the full model at 32 RK4 steps per disk interval, residual 1e-12. '
-             'Errors: end-disk position |p - p_ref| and the largest of the PJ/DJ bending-angle '
-             'errors and the end-disk orientation error. Times: wall clock of `solve()`, '
-             'median; static scenes are cold solves (from the unloaded state), the sequence '
-             f'is {SEQUENCE_LENGTH} wrenches warm-started one after the other; "batch" is '
-             'the same sequence in one `solve_many` call, time per answer (its rows equal '
-             'the single solves: largest distance in the last column).', '']
-    if paper:
-        lines += ["Paper baseline (`method='paper'`: the same model interpreted, "
-                  'Levenberg-Marquardt with a one-column-per-residual FD Jacobian, paper '
-                  'tolerances, cold): ' + ', '.join(
-                      f"{name} {value['time_s']:.1f} s ({value['position_m'] * 1e3:.3g} mm, "
-                      f"{value['angle_deg']:.2g}° from the reference)"
-                      for name, value in paper.items())
-                  + f'; mean {paper_mean:.1f} s is the divisor of every "× paper" column.', '']
-    lines += ['| level | setting | unknowns | cold, paper cases (ms) | × paper | static: max '
-              'position error (mm) | static: max angle error (°) | sequence median (ms) | '
-              '× paper | sequence: max position error (mm) | sequence: max angle error (°) | '
-              'batch per answer (µs) | batch rows from single solves (m) |',
-              '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
-    for row in table_rows:
-        cold = statistics.median(row.static[name]['time_s'] for name in PAPER_SCENES)
-        static_position = max(value['position_m'] for value in row.static.values())
-        static_angle = max(value['angle_deg'] for value in row.static.values())
-        sequence = row.sequence
-        lines.append(
-            f'| {row.level} | {row.setting} | {row.unknowns} | {_ms(cold)} | '
-            f"{_ratio(paper_mean, cold) if paper_mean else '-'} | "
-            f'{_err(1e3 * static_position)} | {_err(static_angle)} | '
-            f"{_ms(sequence['median_time_s'])} | "
-            f"{_ratio(paper_mean, sequence['median_time_s']) if paper_mean else '-'} | "
-            f"{_err(1e3 * sequence['max_position_m'])} | {_err(sequence['max_angle_deg'])} | "
-            f"{1e6 * sequence['batch_per_answer_s']:.3g} | "
-            f"{_err(sequence['batch_deviation_m'], 2)} |")
-    lines += ['', '## Errors per static scene (position mm / angle °; level used by auto)', '',
-              '| level | setting | ' + ' | '.join(SCENES) + ' |',
-              '|---|---|' + '---|' * len(SCENES)]
-    for row in table_rows:
-        cells = []
-        for name in SCENES:
-            value = row.static[name]
-            cell = f"{_err(1e3 * value['position_m'], 2)} / {_err(value['angle_deg'], 2)}"
-            if row.level == 'auto':
-                cell += f" ({value['fidelity']})"
-            if not value['converged']:
-                cell += ' (not converged)'
-            cells.append(cell)
-        lines.append(f'| {row.level} | {row.setting} | ' + ' | '.join(cells) + ' |')
-    lines += ['', '## Error budget along the sequence', '',
-              '| budget | levels used | median (ms) | mean (ms) | max position error (mm) | '
-              'max angle error (°) | inside the budget |', '|---|---|---|---|---|---|---|']
-    for row in table_rows:
-        if row.level != 'auto':
-            continue
-        budget = next(b for b in BUDGETS if row.setting == f'budget {1e3 * b[0]:g} mm, '
-                                                           f'{b[1]:g} deg')
-        sequence = row.sequence
-        used = ', '.join(f'{level} {count}' for level, count in sorted(
-            sequence['levels'].items(), key=lambda item: -item[1]))
-        inside = (sequence['max_position_m'] <= budget[0]
-                  and sequence['max_angle_deg'] <= budget[1])
-        lines.append(f"| {row.setting[7:]} | {used} | {_ms(sequence['median_time_s'])} | "
-                     f"{_ms(sequence['mean_time_s'])} | "
-                     f"{_err(1e3 * sequence['max_position_m'])} | "
-                     f"{_err(sequence['max_angle_deg'])} | {'yes' if inside else 'NO'} |")
-    compliance = report['compliance']
-    lines += ['', '## Compliance and node', '',
-              '| what | time |', '|---|---|',
-              '| implicit C after a cold solve (median over the scenes) | '
-              f"{_ms(compliance['implicit_after_cold_median_s'])} ms |",
-              '| implicit C along the sequence (warm solves of '
-              f"{_ms(compliance['warm_solve_median_s'])} ms) | "
-              f"{_ms(compliance['implicit_along_sequence_median_s'])} ms |",
-              '| C by central differences of 12 full solves '
-              '(`finite_difference_compliance`, the check) | '
-              f"{_ms(compliance['finite_difference_s'])} ms |"]
-    for level, seconds in compliance['reduced_median_s'].items():
-        lines.append(f'| C of the {level} level (central differences of its own solves) | '
-                     f'{_ms(seconds)} ms |')
-    lines.append('| linear level: expansion (C, dx/dw, frame and point sensitivities) about a '
-                 f"new cached solution | {_ms(compliance['linear_tangent_build_median_s'])} ms |")
-    node = report['node']
-    if 'error' in node:
-        lines.append(f"| translator_node sustained rate | not measured: {node['error']} |")
-    else:
-        lines.append(f"| translator_node sustained rate ({node['offered_hz']:.0f} Hz offered "
-                     f"for {node['seconds']:g} s over DDS by a client sharing the 2 cores, no "
-                     'MCAP log, latest wins) | '
-                     f"{node['answers_per_s']:.0f} answers/s ({node['received']} received, "
-                     f"median latency {node['latency_p50_ms']:.1f} ms) |")
-    lines += ['', '## Targets', '', '| target | measured |', '|---|---|']
-    lines += [f'| {target} | {value} |' for target, value in report['targets']]
-    bounds = report.get('validation')
-    if bounds:
-        lines += ['', '## Validated ranges (config/fidelity_validation.yaml)', '',
-                  'Largest errors over the samples in each nested box |f_i| <= s·'
-                  f'{validation.BOX_FORCE_N[0]:g} N, |m_i| <= s·{validation.BOX_MOMENT_NM[0]:g} '
-                  "N m (for 'linear': offsets from the cached wrench).", '',
-                  '| level | s | samples | max position error (mm) | max angle error (°) |',
-                  '|---|---|---|---|---|']
-        for level, bound in bounds.items():
-            for scale, count, position, angle in zip(bound['scales'], bound['samples'],
-                                                     bound['max_position_error_m'],
-                                                     bound['max_angle_error_deg']):
-                lines.append(f'| {level} | {scale:g} | {count} | {_err(1e3 * position)} | '
-                             f'{_err(angle)} |')
-    return '\n'.join(lines) + '\n'
-
-
 def targets(report: dict, table_rows: List[Row]) -> list:
     """Measured against the issue's targets."""
     default = next(row for row in table_rows if row.setting == '8 steps (default)')
@@ -391,19 +261,33 @@ def targets(report: dict, table_rows: List[Row]) -> list:
     warm = default.sequence['median_time_s']
     result = [
         ('full model, warm along a sequence <= 0.5 ms median',
-         f'{_ms(warm)} ms at the default tolerance 1e-10; '
-         f"{_ms(paper_tol.sequence['median_time_s'])} ms at 1e-6 (about the paper's)"),
+         f'{format_ms(warm)} ms at the default tolerance 1e-10; '
+         f"{format_ms(paper_tol.sequence['median_time_s'])} ms at 1e-6 (about the paper's)"),
         ('full model cold <= 10 ms',
-         f'{_ms(cold)} ms (slower paper case); median over all six scenes {_ms(cold_all)} ms'),
+         f'{format_ms(cold)} ms (slower paper case); median over all six scenes '
+         f'{format_ms(cold_all)} ms'),
         ('compliance <= 0.2 ms on top of a solve',
-         f"{_ms(report['compliance']['implicit_along_sequence_median_s'])} ms along the "
-         f"sequence, {_ms(report['compliance']['implicit_after_cold_median_s'])} ms after a "
-         'cold solve')]
+         f"{format_ms(report['compliance']['implicit_along_sequence_median_s'])} ms along the "
+         f"sequence, {format_ms(report['compliance']['implicit_after_cold_median_s'])} ms "
+         'after a cold solve')]
     if report['paper_mean_s']:
         result.insert(2, ('>= 1000× faster than the paper baseline',
                           f"{report['paper_mean_s'] / cold:,.0f}× cold, "
                           f"{report['paper_mean_s'] / warm:,.0f}× warm"))
     return result
+
+
+def write_report(report: dict) -> None:
+    """
+    Write speed_vs_error.md and speed_vs_error.png of ``report`` (its JSON form).
+
+    The figure's robot panel reads bench.robot_levels' robot_levels.json when there is one.
+    """
+    (RESULTS / 'speed_vs_error.md').write_text(
+        markdown(report, PAPER_SCENES, BUDGETS, SEQUENCE_LENGTH))
+    robot = json.loads(ROBOT_NUMBERS.read_text()) if ROBOT_NUMBERS.exists() else None
+    save_speed_error_figure(report, PAPER_SCENES, SEQUENCE_LENGTH,
+                            RESULTS / 'speed_vs_error.png', robot)
 
 
 def main() -> None:
@@ -415,11 +299,11 @@ def main() -> None:
                         help='keep config/fidelity_validation.yaml as it is')
     parser.add_argument('--repeats', type=int, default=5, help='cold solves per scene')
     parser.add_argument('--redraw', action='store_true',
-                        help='only draw speed_vs_error.png again from speed_vs_error.json')
+                        help='only write speed_vs_error.md and .png again from '
+                        'speed_vs_error.json')
     args = parser.parse_args()
     if args.redraw:
-        save_speed_error_figure(json.loads((RESULTS / 'speed_vs_error.json').read_text()),
-                                PAPER_SCENES, SEQUENCE_LENGTH, RESULTS / 'speed_vs_error.png')
+        write_report(json.loads((RESULTS / 'speed_vs_error.json').read_text()))
         return
     started = time.perf_counter()
     params = TranslatorParams.from_yaml()
@@ -465,10 +349,8 @@ def main() -> None:
                        'static': row.static, 'sequence': row.sequence} for row in table_rows]
     report['runtime_s'] = time.perf_counter() - started
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / 'speed_vs_error.md').write_text(markdown(report, table_rows))
-    save_speed_error_figure(report, PAPER_SCENES, SEQUENCE_LENGTH,
-                            RESULTS / 'speed_vs_error.png')
     (RESULTS / 'speed_vs_error.json').write_text(json.dumps(report, indent=1, default=str))
+    write_report(report)
     print((RESULTS / 'speed_vs_error.md').read_text())
     print(f"benchmark took {report['runtime_s']:.0f} s")
 

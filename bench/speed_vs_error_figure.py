@@ -2,9 +2,12 @@
 The figure of bench.speed_vs_error: solve time against error of every fidelity level.
 
 Drawn from the report's rows (``speed_vs_error.json`` holds them, so the figure can be
-redrawn without measuring again). Every configuration is a number on the plot and a line
-of the key below it; a number that has no room beside its point moves away along a leader
-line, so no label covers another.
+redrawn without measuring again) and, in a third panel, from bench.robot_levels' numbers
+(``robot_levels.json``). Each kind of measurement has its Pareto front: the points no
+other point of that kind beats in both time and error, joined by a step line; dominated
+points are hollow. Every configuration is a number on the plot and a line of the key; a
+number that has no room beside its point moves away along a leader line, so no label
+covers another.
 """
 
 from dataclasses import dataclass
@@ -12,11 +15,12 @@ import math
 from pathlib import Path
 import re
 import statistics
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
@@ -144,75 +148,164 @@ def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
                       else None, annotation_clip=False)
 
 
-def _limits(values: List[float], low: float, high: float) -> Tuple[float, float]:
-    return min(values) / low, max(values) * high
+def _log_axes(axes: Axes, points: Sequence[Tuple[float, float, str, str]],
+              x_margins: Tuple[float, float], y_margin: float) -> None:
+    """Make both axes logarithmic, spanning ``points`` with these factors to spare."""
+    axes.set_xscale('log')
+    axes.set_yscale('log')
+    times, errors = [point[0] for point in points], [point[1] for point in points]
+    axes.set_xlim(min(times) / x_margins[0], max(times) * x_margins[1])
+    axes.set_ylim(min(errors) / y_margin, max(errors) * y_margin)
 
 
-def speed_error_figure(measured: Sequence[Measurement], sequence_length: int) -> Figure:
-    """Draw solve time against position and angle error; return the Figure."""
-    figure = Figure(figsize=(13, 9), dpi=110)
-    canvas = FigureCanvasAgg(figure)
-    panels = [figure.add_axes((0.07, 0.32, 0.4, 0.6)), figure.add_axes((0.57, 0.32, 0.4, 0.6))]
+def non_dominated(points: Sequence[Tuple[float, float]]) -> List[bool]:
+    """
+    Return, for each (time, error), whether it is on the Pareto front.
+
+    A point is dominated when another is no slower and no less wrong, and better in one
+    of the two; equal points are both on the front.
+    """
+    return [not any(t <= time and e <= error and (t < time or e < error) for t, e in points)
+            for time, error in points]
+
+
+#: Marker and step-line style of each kind of measurement (cold, warm one by one, batch).
+KINDS = {'cold': ('o', '-'), 'warm': ('s', '--'), 'batch': ('^', ':')}
+
+
+def _draw_front(axes: Axes, points: List[Tuple[float, float, str, str]]) -> None:
+    """
+    Draw each kind's points (x, y, colour, kind) with the kind's Pareto front.
+
+    Points on the front are filled and joined by a step line, dominated points hollow. A
+    kind ending in '*' is a star (the paper's numerics) of that kind.
+    """
+    for kind, (marker, style) in KINDS.items():
+        group = [point for point in points if point[3] in (kind, f'{kind}*')]
+        if not group:
+            continue
+        front = non_dominated([(x, y) for x, y, _, _ in group])
+        for (x, y, colour, name), on_front in zip(group, front):
+            shape, size = ('*', 90) if name.endswith('*') else (marker, 30)
+            if on_front:
+                axes.scatter(x, y, color=colour, marker=shape, s=size, zorder=3)
+            else:
+                axes.scatter(x, y, facecolors='none', edgecolors=colour, marker=shape, s=size,
+                             linewidths=0.9, zorder=3)
+        corners = sorted((x, y) for (x, y, _, _), on_front in zip(group, front) if on_front)
+        axes.plot([x for x, _ in corners], [y for _, y in corners], color='0.35',
+                  linestyle=style, linewidth=0.9, drawstyle='steps-post', marker=marker,
+                  markersize=2, zorder=2)
+
+
+def _translator_panels(figure: Figure, canvas: FigureCanvasAgg, panels: List[Axes],
+                       measured: Sequence[Measurement]) -> None:
+    """Time against position error (left) and angle error (right) of every configuration."""
     for axes, (field, scale, unit, what, title) in zip(panels, (
             ('position_m', 1e3, 'mm', 'position', 'End-disk position error'),
             ('angle_deg', 1.0, 'deg', 'angle',
              'Angle error (PJ, DJ bending and end-disk orientation)'))):
-        points, floored = [], False
+        points: List[Tuple[float, float, str, str]] = []
+        numbers, floored = [], False
         for number, value in enumerate(measured, start=1):
-            colour = COLOURS[value.level]
-            # (time, error, cold: True, warm one by one: False, batch: None)
-            pairs: List[Tuple[float, float, Optional[bool]]] = [
-                (value.static_time_s, getattr(value, f'static_{field}'), True)]
+            pairs = [(value.static_time_s, getattr(value, f'static_{field}'), 'cold')]
             if math.isfinite(value.sequence_time_s):
                 pairs.append((value.sequence_time_s, getattr(value, f'sequence_{field}'),
-                              False))
+                              'warm'))
             if math.isfinite(value.batch_time_s):  # its rows are the sequence's answers
-                pairs.append((value.batch_time_s, getattr(value, f'sequence_{field}'), None))
-            for seconds, error, cold in pairs:
+                pairs.append((value.batch_time_s, getattr(value, f'sequence_{field}'),
+                              'batch'))
+            for seconds, error, kind in pairs:
                 shown = max(scale * error, FLOOR)
                 floored |= scale * error < FLOOR
-                if value.level == 'paper':
-                    axes.scatter(1e3 * seconds, shown, color=colour, marker='*', s=90)
-                elif cold is None:
-                    axes.scatter(1e3 * seconds, shown, color=colour, marker='^', s=30)
-                elif cold:
-                    axes.scatter(1e3 * seconds, shown, color=colour, marker='o', s=30)
-                else:
-                    axes.scatter(1e3 * seconds, shown, facecolors='none', edgecolors=colour,
-                                 marker='s', s=30)
-                points.append((1e3 * seconds, shown, str(number),
-                               STAR_HALF_PX if value.level == 'paper' else MARKER_HALF_PX))
-        axes.set_xscale('log')
-        axes.set_yscale('log')
-        axes.set_xlim(*_limits([point[0] for point in points], 2.0, 2.5))
-        axes.set_ylim(*_limits([point[1] for point in points], 4.0, 4.0))
+                star = value.level == 'paper'
+                points.append((1e3 * seconds, shown, COLOURS[value.level],
+                               kind + ('*' if star else '')))
+                numbers.append((1e3 * seconds, shown, str(number),
+                                STAR_HALF_PX if star else MARKER_HALF_PX))
+        _draw_front(axes, points)
+        _log_axes(axes, points, (2.0, 2.5), 4.0)
         axes.set_xlabel('solve time per answer (ms)')
         axes.set_ylabel(f'{what} error, worst over the scenes ({unit})')
         axes.set_title(title + (f'\nerrors below {FLOOR:g} {unit} drawn at {FLOOR:g} {unit}'
                                 if floored else ''), fontsize=10)
         axes.grid(True, which='major', alpha=0.3)
-        place_numbers(axes, canvas, points)
-    handles = [Line2D([], [], color='grey', marker='o', linestyle='none'),
-               Line2D([], [], markeredgecolor='grey', markerfacecolor='none', marker='s',
-                      linestyle='none')]
-    labels = ['static scenes, solved cold: worst error, median time of the paper cases',
-              f'{sequence_length}-wrench sequence, warm-started: worst error; median time of '
-              'one solve, or (filled triangle) time per answer of one solve_many call']
+        place_numbers(axes, canvas, numbers)
+
+
+def _robot_panel(axes: Axes, canvas: FigureCanvasAgg, robot: dict) -> None:
+    """
+    Draw the robot's platform error against its warm forward-statics time, per leg level.
+
+    The error is the worst platform position error against full legs over the slider box
+    and payloads of ``robot`` (bench.robot_levels' numbers).
+    """
+    warm = robot['warm_forward_statics_s']
+    errors, rate = robot['errors_against_full'], robot['atlas_samples_per_s']
+    points, labels = [], []
+    for level, seconds in warm.items():
+        error = 0.0 if level == 'full' else errors[level]['max_position_m']
+        points.append((1e3 * seconds, max(1e3 * error, FLOOR), COLOURS[level], 'warm'))
+        labels.append((1e3 * seconds, max(1e3 * error, FLOOR),
+                       f'{level}\n(atlas {rate[level]:.0f} samples/s)', MARKER_HALF_PX))
+    _draw_front(axes, points)
+    _log_axes(axes, points, (3.0, 3.0), 10.0)
+    axes.set_xlabel('warm forward statics per answer (ms)')
+    axes.set_ylabel('platform position error against full legs (mm)')
+    axes.set_title('Delta robot, legs at each level (warm, squares): worst over '
+                   f"{robot['settings']} slider settings x {len(robot['payloads_n'])} payloads;"
+                   f'\nfull legs are the reference, drawn at {FLOOR:g} mm', fontsize=10)
+    axes.grid(True, which='major', alpha=0.3)
+    place_numbers(axes, canvas, labels)
+
+
+def speed_error_figure(measured: Sequence[Measurement], sequence_length: int,
+                       robot: Optional[dict] = None) -> Figure:
+    """
+    Draw solve time against position and angle error; return the Figure.
+
+    ``robot``: the numbers of bench.robot_levels (its JSON form); with them a third panel
+    shows the robot's platform error against its warm forward-statics time per leg level.
+    """
+    figure = Figure(figsize=(13, 9 if robot is None else 13), dpi=110)
+    canvas = FigureCanvasAgg(figure)
+    if robot is None:
+        panels = [figure.add_axes((0.07, 0.32, 0.4, 0.6)),
+                  figure.add_axes((0.57, 0.32, 0.4, 0.6))]
+    else:
+        panels = [figure.add_axes((0.07, 0.53, 0.4, 0.41)),
+                  figure.add_axes((0.57, 0.53, 0.4, 0.41))]
+    _translator_panels(figure, canvas, panels, measured)
+    if robot is not None:
+        _robot_panel(figure.add_axes((0.07, 0.05, 0.36, 0.37)), canvas, robot)
+    filled = tuple(Line2D([], [], color='grey', marker=marker, linestyle='none')
+                   for marker, _ in KINDS.values())
+    hollow = tuple(Line2D([], [], markeredgecolor='grey', markerfacecolor='none',
+                          marker=marker, linestyle='none') for marker, _ in KINDS.values())
+    handles: List[Any] = [filled, hollow]
+    labels = ['Pareto front, joined by a step line per kind: static scenes solved cold\n'
+              '(circle, solid: worst error, median time of the paper cases); the '
+              f'{sequence_length}-wrench\nsequence warm-started (square, dashed: worst error, '
+              'median time of one solve);\nthe same sequence in one solve_many call '
+              '(triangle, dotted: time per answer)',
+              'dominated: another point of the same kind is no slower and no less wrong']
     for number, value in enumerate(measured, start=1):
         handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
                               marker='*' if value.level == 'paper' else 'o'))
         labels.append(f'{number}  {value.label}')
-    figure.legend(handles, labels, loc='lower center', ncol=2, fontsize=8,
-                  bbox_to_anchor=(0.5, 0.005), title='key: colour = fidelity level',
-                  title_fontsize=8)
-    figure.suptitle('Translator: solve time against error of every fidelity level '
-                    '(reference: the full model at 32 RK4 steps per disk interval, '
-                    'residual 1e-12)', fontsize=11)
+    figure.legend(handles, labels, loc='lower center' if robot is None else 'lower left',
+                  ncol=2 if robot is None else 1,
+                  bbox_to_anchor=(0.5, 0.005), fontsize=8, title='key: colour = fidelity level',
+                  title_fontsize=8, handler_map={tuple: HandlerTuple(ndivide=None)})
+    figure.suptitle('Solve time against error of every fidelity level (translator reference: '
+                    'the full model at 32 RK4 steps per disk interval, residual 1e-12)',
+                    fontsize=11)
     return figure
 
 
 def save_speed_error_figure(report: dict, paper_scenes: Sequence[str],
-                            sequence_length: int, path: Path) -> None:
-    """Draw the figure of a speed_vs_error report (its JSON form) to ``path``."""
+                            sequence_length: int, path: Path,
+                            robot: Optional[dict] = None) -> None:
+    """Draw the figure of a speed_vs_error report (and robot_levels' numbers) to ``path``."""
     measured = measurements(report['rows'], report['paper_baseline'], paper_scenes)
-    speed_error_figure(measured, sequence_length).savefig(path, dpi=110)
+    speed_error_figure(measured, sequence_length, robot).savefig(path, dpi=110)

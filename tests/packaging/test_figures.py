@@ -6,7 +6,7 @@ unit, short series have markers, legends name the physical case, and colour scal
 when a quantity hardly varies (figure_checks has the geometric checks).
 """
 
-from bench.speed_vs_error_figure import Measurement, speed_error_figure
+from bench.speed_vs_error_figure import Measurement, non_dominated, speed_error_figure
 from cdr_translator.plotting import colour_scale, load_text
 from cdr_translator.robot.atlas_figures import AtlasBlock, stiffness_figure, workspace_figure
 from figure_checks import assert_readable, label_problems, text_problems
@@ -89,6 +89,43 @@ def test_speed_vs_error_figure_is_readable_with_piled_points():
     assert 'drawn at 1e-07 mm' in titles[0] and 'drawn at 1e-07 deg' in titles[1]
     numbers = [text.get_text() for text in figure.axes[0].texts]
     assert sorted(numbers, key=int) == [str(n) for n in range(1, 9) for _ in range(2)][:-1]
+
+
+def test_non_dominated_keeps_the_front_and_ties():
+    """A point beaten in time and error is off the front; equal points both stay on it."""
+    points = [(1.0, 1.0), (2.0, 0.5), (2.0, 2.0), (3.0, 0.5), (1.0, 1.0), (0.5, 3.0)]
+    assert non_dominated(points) == [True, True, False, False, True, True]
+
+
+def _robot_numbers() -> dict:
+    """Numbers of bench.robot_levels' JSON form: rod slower and less exact than full."""
+    return {'settings': 24, 'payloads_n': [0.0, 9.81, 19.62],
+            'errors_against_full': {'rod': {'max_position_m': 1.7e-6},
+                                    'cc': {'max_position_m': 3.8e-5}},
+            'warm_forward_statics_s': {'full': 6.4e-4, 'rod': 6.5e-4, 'cc': 2.0e-4},
+            'atlas_samples_per_s': {'full': 64.0, 'rod': 114.0, 'cc': 406.0}}
+
+
+def test_speed_vs_error_figure_has_a_readable_robot_panel_with_its_front():
+    """The robot panel names each leg level; a level beaten in time and error is hollow."""
+    measured = [Measurement('cc', 'cc: one arc per joint', 4e-5, 3e-3, 0.9, 2e-5, 2e-3, 0.6,
+                            1.3e-5),
+                Measurement('full', 'full: 8 steps (default)', 8e-3, 8e-8, 1e-4, 1.4e-4,
+                            5e-8, 7e-5, 5e-4)]
+    figure = speed_error_figure(measured, 1000, _robot_numbers())
+    assert_readable(figure)
+    key = _legend_texts(figure)
+    assert key[0].startswith('Pareto front') and key[1].startswith('dominated')
+    robot = figure.axes[2]
+    assert 'Delta robot' in robot.get_title() and '(ms)' in robot.get_xlabel()
+    assert sorted(text.get_text() for text in robot.texts) == [
+        'cc\n(atlas 406 samples/s)', 'full\n(atlas 64 samples/s)', 'rod\n(atlas 114 samples/s)']
+    hollow = [collection.get_facecolor().size == 0 or collection.get_facecolor()[0][3] == 0
+              for collection in robot.collections]
+    assert hollow == [False, True, False]
+    front = [line for line in robot.get_lines() if line.get_drawstyle() == 'steps-post']
+    assert [list(line.get_xdata()) for line in front] == [[pytest.approx(0.2),
+                                                           pytest.approx(0.64)]]
 
 
 def _block(margin_spread: float, grid: int = 3, stable: bool = True) -> AtlasBlock:
