@@ -149,13 +149,16 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     bar = Progress(progress, total) if progress is not None else None
     started = time.perf_counter()
     first_stamp_ns = None
-    try:
-        csv_file = open(csv_path, 'w', newline='') if csv_path else None
-        log = McapLog(output_path, flush_every_messages=flush_every_messages,
-                      flush_every_s=flush_every_s, if_exists='overwrite')
-    except OSError as error:
-        raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
+    # Ctrl-C is deferred from before the outputs exist: once the output file is created, an
+    # interrupt always ends in a finalized file and the summary's "interrupted"
     with deferred_sigint() as interrupt:
+        try:
+            csv_file = open(csv_path, 'w', newline='') if csv_path else None
+            log = McapLog(output_path, flush_every_messages=flush_every_messages,
+                          flush_every_s=flush_every_s, if_exists='overwrite')
+        except OSError as error:
+            raise OutputError(f'cannot write {error.filename or output_path}: '
+                              f'{error}') from None
         try:
             table = csv.writer(csv_file) if csv_file else None
             if table:
