@@ -47,6 +47,7 @@ from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
 from .robot.levels import ROBOT_FIDELITIES
 from .robot.result import DeltaResult
+from .robot.samples import AtlasSpec, solve_chunk
 from .solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
@@ -338,6 +339,9 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
         robot = DeltaRobot.from_yaml(params_path, fidelity=level)
         for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
             robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
+        if level != 'full':  # and their atlas's compiled loop over samples
+            solve_chunk(AtlasSpec.build(2, [(0.0, 0.0, -1.0)], [params_path], fidelity=level),
+                        0, 4)
 
 
 def _compile_kernels(params: TranslatorParams, params_path: str) -> int:

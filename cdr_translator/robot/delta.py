@@ -45,7 +45,7 @@ linearization at the solution on request (robot/linearization.py).
 from dataclasses import fields
 from pathlib import Path
 import time
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -55,14 +55,13 @@ from .continuation import ChainContinuation
 from .coupled_newton import CoupledNewton, Limits, Outcome
 from .inverse import InverseResult, InverseSolver
 from .legs import ChainLegs
-from .levels import check_fidelity, leg_error_bound, REDUCED_LEVELS, within_budget
+from .levels import check_fidelity
 from .linearization import Factorization, factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
-from .reduced_chain import ReducedChain
+from .reduced_batch import solve_rows
+from .reduced_legs import ReducedLegs
 from .result import DeltaResult
 from .._blas import one_blas_thread
-from ..fidelity import Validation
-from ..fidelity.reduced import ROD_STEPS
 from ..held import held_critical_load, held_reference, HeldReference
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..result import SolveResult
@@ -123,15 +122,8 @@ class DeltaRobot:
         home = self._chain_legs.home_state(self.home_position)
         self._home = (home, factorize(self._chain, self._chain_legs, home, np.zeros(12)))
         self._held: Optional[HeldReference] = None  # made by the first compliance solve
-        levels = (REDUCED_LEVELS if fidelity == 'auto' and max_position_error > 0.0
-                  and max_angle_error > 0.0 else (fidelity,) if fidelity != 'auto' else ())
-        self._last_reduced: Optional[Tuple[DeltaResult, ReducedChain, Any, np.ndarray,
-                                           np.ndarray]] = None
-        self._reduced = {level: ReducedChain(self._chain, self.params, level, max_iterations)
-                         for level in levels if level != 'full'}
-        validation = Validation.load() if self._reduced else None
-        self._validation = (validation if validation is not None
-                            and validation.matches(self.params, ROD_STEPS) else None)
+        self._reduced = ReducedLegs(self._chain, self.params, fidelity, self.max_position_error,
+                                    self.max_angle_error, max_iterations, self.home_position)
 
     @property
     def leg_solvers(self) -> Tuple[TranslatorSolver, ...]:
@@ -154,11 +146,9 @@ class DeltaRobot:
         self._continuation.reset()
         self._inverse.reset()
         self._chain_legs.reset()
-        for reduced in self._reduced.values():
-            reduced.reset()
+        self._reduced.reset()
 
     # public ----------------------------------------------------------------------------------
-    @one_blas_thread
     def solve(self, sliders: ArrayLike, payload_force: ArrayLike,
               payload_moment: ArrayLike = (0.0, 0.0, 0.0),
               payload_offset: ArrayLike = (0.0, 0.0, 0.0),
@@ -186,9 +176,18 @@ class DeltaRobot:
         held = self._held_reference() if compliance else None
         started = time.perf_counter()
         if self._reduced:
-            reduced = self._solve_reduced(inputs, warm_start, held, started)
+            tolerances = np.array([self.equilibrium_tolerance, self.position_tolerance,
+                                   self.rotation_tolerance])
+            reduced = self._reduced.solve(inputs, warm_start, tolerances, held, started,
+                                          self.time_limit_s)
             if reduced is not None:
                 return reduced
+        return self._solve_full(inputs, warm_start, held, started)
+
+    @one_blas_thread
+    def _solve_full(self, inputs: np.ndarray, warm_start: bool, held: Optional[HeldReference],
+                    started: float) -> DeltaResult:
+        """Solve with full legs (``solve``'s inputs checked, ``held`` made)."""
         self._chain_legs.begin(started, self.time_limit_s)
         self._newton.limits = self._limits()
         path = self._continuation
@@ -225,6 +224,32 @@ class DeltaRobot:
             self._chain_legs.count_into(result)
         return result
 
+    def solve_columns(self, sliders: np.ndarray, payload_forces: np.ndarray,
+                      out: Dict[str, np.ndarray],
+                      store: Callable[[Dict[str, np.ndarray], int, DeltaResult], None]) -> bool:
+        """
+        Solve samples in order, each warm from the last, with compliance, into columns.
+
+        ``sliders`` and ``payload_forces`` (N, 3; at the platform origin); ``out``: the
+        atlas's result columns (robot/samples.py), ``store`` its copy of one DeltaResult
+        into a row. Only for legs at one reduced level ('cc', 'rod': one compiled loop,
+        robot/reduced_batch.py); row i equals ``solve(sliders[i], payload_forces[i],
+        compliance=True)`` made after row i - 1. False, ``out`` untouched, for other levels.
+        """
+        chain = self._reduced.chains.get(self.fidelity)
+        if chain is None:
+            return False
+        rows = np.zeros((len(sliders), SIZE // 2))
+        rows[:, :3] = sliders
+        rows[:, 3:6] = payload_forces
+        tolerances = np.array([self.equilibrium_tolerance, self.position_tolerance,
+                               self.rotation_tolerance])
+        solve_rows(chain, rows, tolerances, self._held_reference().critical_load_n,
+                   self._reduced.bound_tables[self.fidelity],
+                   lambda row: self.solve(sliders[row], payload_forces[row], compliance=True),
+                   out, store)
+        return True
+
     def deferred_linearization(self, result: DeltaResult) -> Callable[[], None]:
         """
         Return a call adding ``compliance=True``'s parts to ``result``, this robot's last solve.
@@ -236,7 +261,7 @@ class DeltaRobot:
         ``solve_time_s``. The robot's own warm start is left as it is by then.
         """
         if result.leg_fidelity[0] != 'full':
-            return self._deferred_reduced_linearization(result)
+            return self._reduced.deferred_linearization(result, self._held_reference)
         path = self._continuation
         if not result.converged or path.previous is None:
             raise RuntimeError('only a converged solve can be linearized later')
@@ -268,75 +293,6 @@ class DeltaRobot:
                                    payload_offset, warm_start)
 
     # private ---------------------------------------------------------------------------------
-    def _solve_reduced(self, inputs: np.ndarray, warm_start: bool,
-                       held: Optional[HeldReference], started: float) -> Optional[DeltaResult]:
-        """
-        Solve with reduced legs (robot/reduced_chain.py); None: 'auto' needs full legs.
-
-        'auto' takes the first level in REDUCED_LEVELS that converges with every leg's
-        validated error inside the budget; a level that does not leaves its legs at their
-        last solution (the next solve at that level starts there).
-        """
-        deadline = started + self.time_limit_s
-        tolerances = np.array([self.equilibrium_tolerance, self.position_tolerance,
-                               self.rotation_tolerance])
-        for level, chain in self._reduced.items():
-            if not (warm_start and chain.previous is not None):
-                chain.reset()
-                chain.previous = (chain.home(self.home_position), np.zeros(12))
-            start, origin = chain.previous
-            with np.errstate(over='ignore', invalid='ignore'):
-                outcome = chain.walk(start, origin, inputs, tolerances,
-                                     lambda: time.perf_counter() > deadline, held is not None)
-            bounds = [leg_error_bound(self._validation, level, wrench)
-                      for wrench in outcome.state.wrenches]
-            if outcome.converged:
-                chain.previous = (outcome.state, inputs)
-            if self.fidelity == 'auto' and not (outcome.converged and within_budget(
-                    bounds, self.max_position_error, self.max_angle_error)):
-                continue
-            residual = outcome.residual if np.all(np.isfinite(outcome.residual)) \
-                else np.full(SIZE, np.nan)
-            state = outcome.state
-            result = DeltaResult(
-                converged=outcome.converged, message=outcome.message,
-                iterations=outcome.iterations, sliders=inputs[:3].copy(),
-                payload_force=inputs[3:6].copy(), payload_moment=inputs[6:9].copy(),
-                payload_offset=inputs[9:].copy(), platform_position=state.position.copy(),
-                platform_rotation=state.rotation.copy(),
-                home_position=self.home_position.copy(), leg_results=chain.leg_results(outcome),
-                leg_tip_wrenches=state.wrenches.copy(), equilibrium_residual=residual[18:].copy(),
-                compatibility_residual=residual[:18].reshape(3, 6).copy(),
-                solve_time_s=0.0, leg_solves=0, leg_fidelity=(level,) * 3,
-                leg_error_bound_m=tuple(bound[0] for bound in bounds),
-                leg_error_bound_deg=tuple(bound[1] for bound in bounds))
-            if held is not None and outcome.converged:
-                with np.errstate(over='ignore', invalid='ignore'):
-                    chain.linearize(result, outcome, inputs, held.critical_load_n)
-            result.solve_time_s = time.perf_counter() - started
-            self._last_reduced = (result, chain, outcome, inputs, tolerances)
-            return result
-        return None
-
-    def _deferred_reduced_linearization(self, result: DeltaResult) -> Callable[[], None]:
-        """``deferred_linearization`` of a solve with reduced legs (its chain's linearize)."""
-        last = self._last_reduced
-        if not result.converged or last is None or last[0] is not result:
-            raise RuntimeError('only a converged solve can be linearized later')
-        _, chain, outcome, inputs, tolerances = last
-
-        def add() -> None:
-            held = self._held_reference()
-            started = time.perf_counter()
-            with np.errstate(over='ignore', invalid='ignore'):
-                # a walk from the solution to itself: the legs' compliances and the platform
-                # Jacobian made there, as a compliance solve makes them
-                there = chain.walk(outcome.state, inputs, inputs, tolerances, lambda: False, True)
-                chain.linearize(result, there, inputs, held.critical_load_n)
-            result.solve_time_s += time.perf_counter() - started
-
-        return add
-
     def _held_reference(self) -> HeldReference:
         """
         Return the unloaded leg and its held buckling load, which the held verdicts compare with.

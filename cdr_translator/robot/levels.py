@@ -15,7 +15,8 @@ import numpy as np
 
 from ..checks import check_number
 from ..fidelity import LEVEL_COST_ORDER, Validation
-from ..fidelity.validation import box_scale
+from ..fidelity.validation import box_half_widths
+from .._jit import jit
 
 #: Leg levels a DeltaRobot offers.
 ROBOT_FIDELITIES = ('full', 'rod', 'cc', 'auto')
@@ -34,22 +35,45 @@ def check_fidelity(fidelity: str, max_position_error: float, max_angle_error: fl
         raise ValueError(f"an error budget needs fidelity 'auto', got {fidelity!r}")
 
 
-def leg_error_bound(validation: Optional[Validation], level: str,
-                    wrench: np.ndarray) -> Tuple[float, float]:
+class BoundTable:
     """
-    Return the validated (position m, angle deg) error of ``level`` at a leg's tip ``wrench``.
+    A level's validated end-disk errors by wrench box, looked up for many leg wrenches.
 
-    The errors of the smallest validated box holding the wrench; NaN outside the largest
-    box, or without validation data for these parameters.
+    The errors of the smallest validated box holding a wrench (fidelity/validation.py's
+    nested boxes); NaN outside the largest box, or without validation data for these
+    parameters (``validation`` None).
     """
-    bound = None if validation is None else validation.levels.get(level)
-    if bound is None:
-        return math.nan, math.nan
-    scale = box_scale(np.asarray(wrench, dtype=float))
-    for index, limit in enumerate(bound.scales):
-        if scale <= limit * (1.0 + 1e-12):
-            return bound.max_position_error_m[index], bound.max_angle_error_deg[index]
-    return math.nan, math.nan
+
+    def __init__(self, validation: Optional[Validation], level: str) -> None:
+        """Arrays of ``level``'s box scales and errors (m, deg) in ``validation``."""
+        bound = None if validation is None else validation.levels.get(level)
+        rows = () if bound is None else tuple(zip(bound.scales, bound.max_position_error_m,
+                                                  bound.max_angle_error_deg))
+        self.table = np.array(rows, dtype=float).reshape(-1, 3)
+        self.half_widths = box_half_widths()
+
+    def bounds(self, wrenches: np.ndarray) -> np.ndarray:
+        """Return the (position m, angle deg) bound of each leg wrench (N, 6) as (N, 2)."""
+        out = np.empty((len(wrenches), 2))
+        _bounds(np.ascontiguousarray(wrenches, dtype=float), self.half_widths, self.table, out)
+        return out
+
+
+@jit
+def _bounds(wrenches, half_widths, table, out):
+    """BoundTable.bounds, compiled: validation.box_scale of each wrench, then its box."""
+    for k in range(wrenches.shape[0]):
+        scale = 0.0
+        for i in range(6):
+            ratio = abs(wrenches[k, i]) / half_widths[i]
+            scale = math.nan if math.isnan(ratio) or math.isnan(scale) else max(scale, ratio)
+        out[k, 0] = math.nan
+        out[k, 1] = math.nan
+        for index in range(table.shape[0]):
+            if scale <= table[index, 0] * (1.0 + 1e-12):
+                out[k, 0] = table[index, 1]
+                out[k, 1] = table[index, 2]
+                break
 
 
 def within_budget(bounds: Sequence[Tuple[float, float]], max_position_error: float,

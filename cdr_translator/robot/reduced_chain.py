@@ -1,13 +1,16 @@
 """
-The CDR's forward statics with reduced legs ('cc', 'rod'): continuation and linearization.
+The CDR's forward statics with reduced legs ('cc', 'rod'): its iterations and linearization.
 
 Each leg is the reduced model of cdr_translator/fidelity (``ReducedModel``) instead of a
-full TranslatorSolver; the chain's Newton over the platform's 24 unknowns runs compiled
-(robot/reduced_kernels.chain_newton), each leg entering through its end-disk pose and its
-6x6 compliance from implicit differentiation of the reduced model. This module walks the
-inputs from the previous solution (a failed step is halved, as robot/continuation.py does
-for full legs), and gives the linearization at a solution (platform compliance, input
-sensitivity, the legs' verdicts held at both ends) and the legs' SolveResults.
+full TranslatorSolver. A warm solve is one coupled Newton over the legs' unknowns and the
+platform's (robot/coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
+(cold solves, and warm ones the coupled Newton did not converge) runs the chain's Newton
+over the platform's 24 unknowns (robot/reduced_kernels.chain_newton), each iterate
+solving every leg's reduced model in full, and halves a failed step, as
+robot/continuation.py does for full legs. Each leg enters through its end-disk pose and its
+6x6 compliance from implicit differentiation of the reduced model. This module also gives
+the linearization at a solution (platform compliance, input sensitivity, the legs'
+verdicts held at both ends) and the legs' SolveResults.
 """
 
 from dataclasses import dataclass
@@ -16,6 +19,7 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from .chain import Chain, ChainState, SIZE
+from .coupled_kernels import coupled_newton, linearize_solution, SOLVED as COUPLED_SOLVED
 from .linearization import chain_verdict
 from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
 from .result import DeltaResult, LegResults
@@ -62,6 +66,7 @@ class ReducedOutcome:
     jacobian: np.ndarray  # (24, 24) SI platform Jacobian at the state
     frames: np.ndarray  # (3, 4, 4) end disks in {pe_i}
     compliances: np.ndarray  # (3, 6, 6)
+    leg_jacobians: int = 0  # legs linearized anew by a coupled Newton
 
 
 def model_data(params: TranslatorParams, level: str) -> np.ndarray:
@@ -91,6 +96,15 @@ class ReducedChain:
         self.factors = np.zeros((SIZE, SIZE))
         self.factor_pivots = np.zeros(SIZE + 1, dtype=np.int64)
         self.previous: Optional[Tuple[ReducedState, np.ndarray]] = None
+        #: the end disks (3, 4, 4) of the previous solution
+        self.previous_frames = np.zeros((3, 4, 4))
+        #: what the coupled Newton keeps across solves: each leg's H LU, dx/dw and
+        #: compliance, and the scaled platform Jacobian's LU (coupled_kernels.coupled_newton)
+        self.kept = (np.zeros((3, size, size)), np.zeros((3, size + 1), dtype=np.int64),
+                     np.zeros((3, size, 6)), np.zeros((3, 6, 6)), np.zeros((SIZE, SIZE)),
+                     np.zeros(SIZE + 1, dtype=np.int64))
+        #: an outcome's Jacobian and compliances when not linearized (NaN, never written)
+        self._not_linearized = (np.full((SIZE, SIZE), np.nan), np.full((3, 6, 6), np.nan))
         self._held: Optional[HeldReference] = None
 
     def reset(self) -> None:
@@ -98,6 +112,45 @@ class ReducedChain:
         self.previous = None
         self.pivots[:, -1] = 0
         self.factor_pivots[-1] = 0
+        self.kept[1][:, -1] = 0
+        self.kept[5][-1] = 0
+
+    def accept(self, outcome: 'ReducedOutcome', inputs: np.ndarray) -> None:
+        """Keep a converged outcome as the next solve's start."""
+        self.previous = (outcome.state, inputs)
+        self.previous_frames = outcome.frames
+
+    def coupled(self, inputs: np.ndarray, tolerances: np.ndarray,
+                linearized: bool) -> Optional['ReducedOutcome']:
+        """
+        Solve ``inputs`` by the coupled Newton from the previous solution; None if it fails.
+
+        ``linearized``: the legs' compliances and the platform Jacobian at the solution too
+        (made exact there, the next solve's chord steps start from them).
+        """
+        if self.previous is None:
+            return None
+        state = self.previous[0].copy()
+        frames = self.previous_frames.copy()
+        residual = np.empty(SIZE)
+        code, iterations, refreshes = coupled_newton(
+            self.model.code, self.data, self.model.tolerance, state.leg_x, state.wrenches,
+            state.position, state.rotation, frames, True, inputs, self.chain.platform,
+            tolerances, self.max_iterations, *self.kept, residual)
+        if code != COUPLED_SOLVED:  # what it kept may be made far off: make it anew next time
+            self.kept[1][:, -1] = 0
+            self.kept[5][-1] = 0
+            return None
+        if not linearized:
+            return ReducedOutcome(state, True, 'converged', iterations, residual,
+                                  self._not_linearized[0], frames, self._not_linearized[1],
+                                  refreshes)
+        jacobian = np.full((SIZE, SIZE), np.nan)
+        linearize_solution(self.model.code, self.data, state.leg_x, state.wrenches,
+                           state.rotation, inputs, self.chain.platform, residual, *self.kept,
+                           np.zeros(3, dtype=np.int64), jacobian)
+        return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
+                              self.kept[3].copy(), refreshes + 3)
 
     def home(self, position: np.ndarray) -> ReducedState:
         """Straight legs, no load, platform at ``position``."""
@@ -175,7 +228,7 @@ class ReducedChain:
         pivots = np.zeros(size, dtype=np.int64)
         sign = leg_compliance(self.model.code, np.ascontiguousarray(x), self.data,
                               np.ascontiguousarray(wrench, dtype=float), frame, compliance,
-                              lu, pivots)
+                              lu, pivots, np.empty((size, 6)))
         if sign == 0:
             compliance[:] = np.nan
         return frame, compliance, (lu, pivots)
@@ -228,7 +281,7 @@ class ReducedChain:
         stiffness = np.linalg.inv(result.platform_compliance)
         scaled = scale[:, None] * stiffness * scale[None, :]
         result.stiffness_margin = float(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[0])
-        reference = self._held_reference(critical_load_n)
+        reference = self.unloaded_reference(critical_load_n)
         verdicts = []
         for k in range(3):
             _, compliance, lu = self.leg_linearization(outcome.state.leg_x[k],
@@ -240,7 +293,8 @@ class ReducedChain:
             if verdict.stable is not True:
                 result.message += f'; leg {k}: {verdict.message}'
 
-    def _held_reference(self, critical_load_n: Optional[float]) -> HeldReference:
+    def unloaded_reference(self, critical_load_n: Optional[float]) -> HeldReference:
+        """Return the held verdicts' reference: the unloaded reduced leg, ``critical_load_n``."""
         if self._held is None or self._held.critical_load_n != critical_load_n:
             _, compliance, lu = self.leg_linearization(np.zeros(self.model.size), np.zeros(6))
             self._held = held_reference(lu, compliance, self.params.stack_height,

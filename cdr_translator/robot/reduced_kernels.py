@@ -42,7 +42,8 @@ CHORD_RATE = 0.25
 
 
 @jit
-def _frames(model, x, data, frames):
+def leg_frames(model, x, data, frames):
+    """Frames {pe}, {pm}, {dm}, {de} (4, 4, 4) of reduced model ``model`` at x."""
     if model == CC:
         cc_frames(x, data, frames)
     else:
@@ -65,7 +66,7 @@ def _twist(before, after, out):
 
 
 @jit
-def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots):
+def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots, sensitivity):
     """
     End-disk frame (4x4, {pe}) and 6x6 compliance of a reduced leg solved at x; sign of det.
 
@@ -77,14 +78,15 @@ def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots):
     differences at unit wrenches, T follows from it, and the frames do not depend on the
     wrench. 'rod' (a shooting residual, nonlinear in the wrench): dr/dw, T and the
     frames' wrench derivative by central differences of its compiled shots. Returns the
-    sign of det H (0: singular); ``lu``/``pivots`` hold H's factorization.
+    sign of det H (0: singular); ``lu``/``pivots`` hold H's factorization and
+    ``sensitivity`` (n, 6) dx/dw.
     """
     size = x.shape[0]
     rs = np.empty(size)
     data[:6] = wrench
     system(model, x, data, rs, lu, True)
     frame_set = np.empty((4, 4, 4))
-    _frames(model, x, data, frame_set)
+    leg_frames(model, x, data, frame_set)
     frame[:, :] = frame_set[3]
     if not lu_factor(lu, pivots):
         return 0
@@ -146,6 +148,8 @@ def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots):
     solved = np.empty(size)
     for j in range(6):
         lu_solve(lu, pivots, gradient[:, j], solved)
+        for c in range(size):
+            sensitivity[c, j] = -solved[c]
         for i in range(6):
             total = direct[i, j]
             for c in range(size):
@@ -227,14 +231,14 @@ def _evaluate(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, leg
             return False
         trial_x[k] = answer
         data[:6] = wrenches[k]
-        _frames(model, answer, data, frame_set)
+        leg_frames(model, answer, data, frame_set)
         frames[k] = frame_set[3]
     return True
 
 
 @jit
-def _move(position, rotation, wrenches, step, scale, x_scale, out_position, out_rotation,
-          out_wrenches):
+def move_platform(position, rotation, wrenches, step, scale, x_scale, out_position,
+                  out_rotation, out_wrenches):
     """Apply scale * step (scaled platform unknowns); the platform turns by exp([dphi])."""
     for i in range(3):
         out_position[i] = position[i] + scale * step[i] * x_scale[i]
@@ -257,7 +261,8 @@ def _move(position, rotation, wrenches, step, scale, x_scale, out_position, out_
 
 
 @jit
-def _scaled_norm(values, scale):
+def scaled_norm(values, scale):
+    """Euclidean norm of values / scale."""
     total = 0.0
     for i in range(values.shape[0]):
         total += (values[i] / scale[i]) ** 2
@@ -273,9 +278,10 @@ def _linearize(model, data, leg_x, wrenches, rotation, residual_now, inputs, leg
     frame = np.empty((4, 4))
     h_lu = np.empty((size, size))
     h_pivots = np.zeros(size, dtype=np.int64)
+    sensitivity = np.empty((size, 6))
     for k in range(3):
         signs[k] = leg_compliance(model, leg_x[k], data, wrenches[k], frame, compliance, h_lu,
-                                  h_pivots)
+                                  h_pivots, sensitivity)
         compliances[k] = compliance
     platform_jacobian(rotation, wrenches, residual_now, inputs, leg_rotations, attachments,
                       compliances, jacobian)
@@ -317,7 +323,7 @@ def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, 
     if not platform_residual(position, rotation, wrenches, frames, inputs, leg_rotations,
                              attachments, home_bases, slider_axes, residual_now):
         return NO_DESCENT, 0
-    norm = _scaled_norm(residual_now, r_scale)
+    norm = scaled_norm(residual_now, r_scale)
     fresh = False
     iteration = 0
     while iteration <= max_iterations:
@@ -345,14 +351,14 @@ def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, 
         accepted = False
         trial_norm = norm
         for _ in range(HALVINGS):
-            _move(position, rotation, wrenches, step, -scale, x_scale, trial_position,
+            move_platform(position, rotation, wrenches, step, -scale, x_scale, trial_position,
                   trial_rotation, trial_wrenches)
             if _evaluate(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin,
                          leg_lu, leg_pivots, trial_wrenches, trial_x, trial_frames) \
                     and platform_residual(trial_position, trial_rotation, trial_wrenches,
                                           trial_frames, inputs, leg_rotations, attachments,
                                           home_bases, slider_axes, trial_residual):
-                trial_norm = _scaled_norm(trial_residual, r_scale)
+                trial_norm = scaled_norm(trial_residual, r_scale)
                 if trial_norm < (1.0 - 1e-4 * scale) * norm:
                     accepted = True
                     break

@@ -73,7 +73,7 @@ def test_warm_solves_equal_cold_ones(reduced):
 def test_leg_compliance_equals_finite_differences_of_leg_solves(reduced):
     """A reduced leg's implicit compliance equals differences of its own solves."""
     level = reduced.fidelity
-    chain = reduced._reduced[level]
+    chain = reduced._reduced.chains[level]
     wrench = np.array([1.5, -0.8, -4.0, 0.02, -0.03, 0.005])
     single = FidelitySolver(reduced.params, level)
     solved = single.solve(wrench[:3], wrench[3:], compliance=True)

@@ -1,0 +1,74 @@
+"""Reduced legs: the coupled warm solve and the atlas's compiled loop over samples."""
+
+from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.robot.samples import empty_results, store
+import numpy as np
+import pytest
+
+GRAVITY_1KG = (0.0, 0.0, -9.81)
+
+
+@pytest.fixture(scope='module', params=['cc', 'rod'])
+def level(request) -> str:
+    """Return each reduced level."""
+    return request.param
+
+
+def _samples(stroke: float) -> tuple:
+    """A path of slider settings with steps of a coarse atlas grid, and payloads."""
+    sliders = np.array([[-0.5, -0.5, 0.0], [0.0, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.0, 0.2],
+                        [0.0, 0.0, 0.2], [-0.5, 0.0, 0.2], [-0.5, 0.5, -0.4]]) * stroke
+    payloads = np.array([GRAVITY_1KG, GRAVITY_1KG, (1.0, 0.0, -15.0), (1.0, 0.0, -15.0),
+                         (0.0, -2.0, -5.0), (0.0, -2.0, -5.0), GRAVITY_1KG])
+    return sliders, payloads
+
+
+def test_columns_equal_solves_sample_by_sample(level):
+    """Each row of the compiled loop equals a compliance solve made after the row before."""
+    batch = DeltaRobot(fidelity=level)
+    sliders, payloads = _samples(batch.geometry.slider_stroke)
+    columns = empty_results(len(sliders))
+    assert batch.solve_columns(sliders, payloads, columns, store)
+    direct = DeltaRobot(fidelity=level)
+    expected = empty_results(len(sliders))
+    for row, (setting, payload) in enumerate(zip(sliders, payloads)):
+        store(expected, row, direct.solve(setting, payload, compliance=True))
+    assert np.all(columns['converged']) and np.all(expected['converged'])
+    assert list(columns['message']) == list(expected['message'])
+    assert np.array_equal(columns['stable'], expected['stable'])
+    for name in ('platform_position', 'platform_rotation_vector', 'parasitic_rotation',
+                 'leg_bending', 'leg_axial_force'):
+        assert np.allclose(columns[name], expected[name], rtol=0.0, atol=1e-8), name
+    for name in ('compliance_eigenvalues_translation', 'compliance_eigenvalues_rotation',
+                 'slider_jacobian', 'stiffness_margin'):
+        scale = np.abs(expected[name]).max()
+        assert np.allclose(columns[name], expected[name], rtol=1e-6, atol=1e-9 * scale), name
+    for name in ('leg_error_bound_position', 'leg_error_bound_angle'):
+        assert np.array_equal(columns[name], expected[name], equal_nan=True), name
+
+
+def test_full_legs_have_no_compiled_loop():
+    """solve_columns is for reduced legs only: full legs leave the columns untouched."""
+    robot = DeltaRobot()
+    columns = empty_results(1)
+    assert not robot.solve_columns(np.zeros((1, 3)), np.array([GRAVITY_1KG]), columns, store)
+    assert not columns['converged'][0]
+
+
+def test_warm_solves_take_the_coupled_newton_and_equal_cold_ones(level):
+    """Along a slider circle the warm solves converge in a few coupled iterates, as cold ones."""
+    robot = DeltaRobot(fidelity=level)
+    cold = DeltaRobot(fidelity=level)
+    for step in range(6):
+        angle = np.radians(2.0 * step)
+        sliders = [0.015 * np.sin(angle + 2.0 * np.pi * k / 3) for k in range(3)]
+        warm = robot.solve(sliders, GRAVITY_1KG)
+        assert warm.converged and warm.message == 'converged'
+        if step == 0:
+            continue  # the first solve walks from home
+        assert warm.iterations <= 5
+        kept_factorization = robot._reduced.chains[level].kept[5]
+        assert kept_factorization[-1] == 1  # made and kept by the coupled Newton
+        reference = cold.solve(sliders, GRAVITY_1KG, warm_start=False)
+        assert np.allclose(warm.platform_position, reference.platform_position, atol=1e-9)
+        assert np.allclose(warm.leg_tip_wrenches, reference.leg_tip_wrenches, atol=1e-7)
