@@ -32,11 +32,13 @@ import math
 import numpy as np
 
 from .kernels import platform_residual, small_rotation_vector, within
-from .reduced_kernels import (leg_compliance, leg_frames, move_platform, platform_jacobian,
-                              scaled_norm)
+from .reduced_kernels import (determinant_sign, leg_compliance, leg_frames, move_platform,
+                              platform_jacobian, scaled_norm)
 from .._jit import jit
+from ..fidelity.cc import BENDING_STIFFNESS, JOINT_LENGTH, TUBE_LENGTH
+from ..fidelity.cc_derivatives import joint_derivatives, JOINT_UNKNOWNS
 from ..fidelity.level_kernels import frames_pose
-from ..fidelity.newton import lu_factor, lu_solve, residual
+from ..fidelity.newton import CC, lu_factor, lu_solve, residual, system
 
 #: Outcomes of ``coupled_newton`` (and ``solve_samples``' rows).
 SOLVED = 0
@@ -54,17 +56,108 @@ PLATFORM = 24
 
 
 @jit
+def cc_twist(x, data, twist):
+    """
+    Write T = d twist / dx (6, 8) of the 'cc' leg's end disk at x, in {pe}.
+
+    Column c: [dp/dx_c; vee(dR/dx_c R^T)].
+
+    From each joint's closed-form derivatives (cc_derivatives.joint_derivatives): the end
+    disk is at p = p1 + R1 (L_m e_z + p2) with R = R1 R2 (fidelity.cc's kinematics).
+    """
+    rot = np.empty((2, 3, 3))
+    pos = np.empty((2, 3))
+    d_rot = np.empty((2, 4, 3, 3))
+    d_pos = np.empty((2, 4, 3))
+    for j in range(2):
+        _joint(x, data[JOINT_LENGTH], j, rot[j], pos[j], d_rot[j], d_pos[j])
+    lever = pos[1].copy()
+    lever[2] += data[TUBE_LENGTH]
+    end_rot = np.zeros((3, 3))
+    _multiply(rot[0], rot[1], end_rot)
+    turned = np.empty((3, 3))
+    for a in range(4):
+        first, second = JOINT_UNKNOWNS[0][a], JOINT_UNKNOWNS[1][a]
+        for i in range(3):
+            twist[i, first] = d_pos[0, a, i]
+            twist[i, second] = 0.0
+            for m in range(3):
+                twist[i, first] += d_rot[0, a, i, m] * lever[m]
+                twist[i, second] += rot[0, i, m] * d_pos[1, a, m]
+        _multiply(d_rot[0, a], rot[1], turned)  # dR / dx of the proximal joint's unknown
+        _vee_times(turned, end_rot, twist[3:, first])
+        _multiply(rot[0], d_rot[1, a], turned)
+        _vee_times(turned, end_rot, twist[3:, second])
+
+
+@jit
+def _joint(x, length, j, rot, pos, d_rot, d_pos):
+    """Joint j's rotation, tip and their first derivatives (joint_derivatives' local ones)."""
+    joint_derivatives(x[2 * j], x[2 * j + 1], x[4 + j], length * (1.0 + x[6 + j]), length, rot,
+                      pos, d_rot, np.empty((4, 4, 3, 3)), d_pos, np.empty((4, 4, 3)))
+
+
+@jit
+def _multiply(left, right, out):
+    """3x3 product without a BLAS call."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = left[i, 0] * right[0, j] + left[i, 1] * right[1, j] \
+                + left[i, 2] * right[2, j]
+
+
+@jit
+def _vee_times(derivative, rotation, out):
+    """vee(dR R^T) of a rotation's derivative dR (skew for a true derivative)."""
+    turned = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            turned[i, j] = derivative[i, 0] * rotation[j, 0] + derivative[i, 1] * rotation[j, 1] \
+                + derivative[i, 2] * rotation[j, 2]
+    out[0] = 0.5 * (turned[2, 1] - turned[1, 2])
+    out[1] = 0.5 * (turned[0, 2] - turned[2, 0])
+    out[2] = 0.5 * (turned[1, 0] - turned[0, 1])
+
+
+@jit
 def refresh_leg(model, x, data, wrench, lu, pivots, sensitivity, compliance):
     """
     Make a leg's H LU (``lu``, ``pivots``), S = dx/dw (n, 6) and C (6, 6) at (x, wrench).
 
-    reduced_kernels.leg_compliance (implicit differentiation); ``pivots[n]`` says whether
-    the factorization is usable. Returns the sign of det H (0: singular, C then NaN).
+    Implicit differentiation, as reduced_kernels.leg_compliance: S = -H^-1 dr/dw and C =
+    T S (+ d twist / dw at fixed x for 'rod'). 'cc': its residual (grad U - T^T w) L / EI
+    gives dr/dw = -(L / EI) T^T with T in closed form (``cc_twist``), no residual
+    differences. ``pivots[n]`` says whether the factorization is usable. Returns the sign
+    of det H (0: singular, C then NaN).
     """
     size = x.shape[0]
-    frame = np.empty((4, 4))
-    sign = leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots[:size],
-                          sensitivity)
+    if model != CC:
+        frame = np.empty((4, 4))
+        sign = leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots[:size],
+                              sensitivity)
+    else:
+        data[:6] = wrench
+        rs = np.empty(size)
+        system(model, x, data, rs, lu, True)
+        sign = determinant_sign(lu, pivots) if lu_factor(lu, pivots) else 0
+        if sign != 0:
+            twist = np.empty((6, size))
+            cc_twist(x, data, twist)
+            scale = data[JOINT_LENGTH] / data[BENDING_STIFFNESS]
+            column = np.empty(size)
+            solved = np.empty(size)
+            for j in range(6):
+                for c in range(size):
+                    column[c] = -scale * twist[j, c]
+                lu_solve(lu, pivots, column, solved)
+                for c in range(size):
+                    sensitivity[c, j] = -solved[c]
+            for i in range(6):
+                for j in range(6):
+                    total = 0.0
+                    for c in range(size):
+                        total += twist[i, c] * sensitivity[c, j]
+                    compliance[i, j] = total
     pivots[size] = 0 if sign == 0 else 1
     if sign == 0:
         compliance[:, :] = math.nan
@@ -87,8 +180,9 @@ def coupled_newton(model, data, leg_tolerance, leg_x, wrenches, position, rotati
                    evaluated, inputs, platform, tolerances, max_iterations, leg_lu, leg_pivots,
                    sensitivities, compliances, factors, factor_pivots, residual_now):
     """
-    Coupled Newton of the chain with reduced legs, in place; return (outcome, iterations,
-    legs linearized anew).
+    Coupled Newton of the chain with reduced legs, in place; return its work and outcome.
+
+    Returns (outcome, iterations, legs linearized anew).
 
     State: ``leg_x`` (3, n), ``wrenches`` (3, 6), ``position``, ``rotation``, ``frames``
     (3, 4, 4: each leg's end disk at its x). ``evaluated``: the state is a solution of

@@ -13,10 +13,10 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
+from .._jit import jit
 from ..checks import check_number
 from ..fidelity import LEVEL_COST_ORDER, Validation
 from ..fidelity.validation import box_half_widths
-from .._jit import jit
 
 #: Leg levels a DeltaRobot offers.
 ROBOT_FIDELITIES = ('full', 'rod', 'cc', 'auto')

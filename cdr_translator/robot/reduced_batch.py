@@ -12,7 +12,7 @@ The columns equal what ``DeltaRobot.solve(..., compliance=True)`` gives sample b
 """
 
 import time
-from typing import Callable, Dict
+from typing import Callable, Dict, Optional
 
 import numpy as np
 
@@ -31,7 +31,8 @@ _LOOP_OUTPUTS = {'leg_x': None, 'wrenches': ((3, 6), float), 'position': ((3,), 
 
 
 def solve_rows(chain: ReducedChain, rows: np.ndarray, tolerances: np.ndarray,
-               critical_load_n, table: BoundTable, fallback: Callable[[int], DeltaResult], out: Dict[str, np.ndarray],
+               critical_load_n: Optional[float], table: BoundTable,
+               fallback: Callable[[int], DeltaResult], out: Dict[str, np.ndarray],
                store: Callable[[Dict[str, np.ndarray], int, DeltaResult], None]) -> None:
     """
     Solve ``rows`` (N, 12 inputs: sliders, payload force, moment, offset) into ``out``.
@@ -73,7 +74,8 @@ def solve_rows(chain: ReducedChain, rows: np.ndarray, tolerances: np.ndarray,
 
 
 def _columns(chain: ReducedChain, loop: Dict[str, np.ndarray], rows: slice, share: float,
-             critical_load_n, table: BoundTable, out: Dict[str, np.ndarray]) -> None:
+             critical_load_n: Optional[float], table: BoundTable,
+             out: Dict[str, np.ndarray]) -> None:
     """Fill ``out``'s rows from the loop's outputs (DeltaResult's derived values, in bulk)."""
     count = rows.stop - rows.start
     rotation = loop['rotation'][rows]
@@ -150,7 +152,7 @@ def _held_verdicts(signs: np.ndarray, compliances: np.ndarray, wrenches: np.ndar
 
 def _leg_messages(chain: ReducedChain, loop: Dict[str, np.ndarray], row: int,
                   reference: HeldReference) -> str:
-    """The '; leg k: ...' parts of a row whose legs are not all stable (ReducedChain.linearize's)."""
+    """Return the '; leg k: ...' message parts of a row whose legs are not all stable."""
     text = ''
     for k in range(3):
         wrench = loop['wrenches'][row, k]
@@ -159,4 +161,3 @@ def _leg_messages(chain: ReducedChain, loop: Dict[str, np.ndarray], row: int,
         if verdict.stable is not True:
             text += f'; leg {k + 1}: {verdict.message}'
     return text
-

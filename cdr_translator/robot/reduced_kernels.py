@@ -66,6 +66,18 @@ def _twist(before, after, out):
 
 
 @jit
+def determinant_sign(lu, pivots):
+    """Sign of the determinant of a matrix factorized by newton.lu_factor (nonsingular)."""
+    sign = 1
+    for k in range(lu.shape[0]):
+        if pivots[k] != k:
+            sign = -sign
+        if lu[k, k] < 0.0:
+            sign = -sign
+    return sign
+
+
+@jit
 def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots, sensitivity):
     """
     End-disk frame (4x4, {pe}) and 6x6 compliance of a reduced leg solved at x; sign of det.
@@ -90,12 +102,7 @@ def leg_compliance(model, x, data, wrench, frame, compliance, lu, pivots, sensit
     frame[:, :] = frame_set[3]
     if not lu_factor(lu, pivots):
         return 0
-    sign = 1
-    for k in range(size):
-        if pivots[k] != k:
-            sign = -sign
-        if lu[k, k] < 0.0:
-            sign = -sign
+    sign = determinant_sign(lu, pivots)
     gradient = np.empty((size, 6))  # dr/dw
     twist = np.empty((6, size))  # d twist / dx
     direct = np.zeros((6, 6))  # d twist / dw at fixed x
@@ -352,7 +359,7 @@ def chain_newton(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin, 
         trial_norm = norm
         for _ in range(HALVINGS):
             move_platform(position, rotation, wrenches, step, -scale, x_scale, trial_position,
-                  trial_rotation, trial_wrenches)
+                          trial_rotation, trial_wrenches)
             if _evaluate(model, data, leg_tolerance, leg_iterations, leg_x, leg_origin,
                          leg_lu, leg_pivots, trial_wrenches, trial_x, trial_frames) \
                     and platform_residual(trial_position, trial_rotation, trial_wrenches,

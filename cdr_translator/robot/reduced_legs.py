@@ -119,7 +119,7 @@ class ReducedLegs:
 
     def _result(self, level: str, chain: ReducedChain, outcome: ReducedOutcome,
                 inputs: np.ndarray, bounds: list) -> DeltaResult:
-        """The DeltaResult of ``outcome`` (its legs' SolveResults built when first read)."""
+        """Return the DeltaResult of ``outcome`` (its legs' SolveResults built on first read)."""
         residual = outcome.residual if np.all(np.isfinite(outcome.residual)) \
             else np.full(SIZE, np.nan)
         state = outcome.state

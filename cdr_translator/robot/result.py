@@ -101,7 +101,8 @@ class DeltaResult:
     (TranslatorSolver.result_at, 0.3-1 ms a leg, not in ``solve_time_s``). The work the
     solve took: ``leg_solves`` (full TranslatorSolver solves of a leg, not judged),
     ``leg_shots`` (residual shots of one leg in the coupled Newton) and ``leg_jacobians``
-    (exact leg Jacobians, one tangent-linear shot each: the costly part).
+    (exact leg Jacobians, one tangent-linear shot each: the costly part; for reduced legs,
+    the leg linearizations, H with dx/dw and the compliance, a coupled Newton made).
 
     With ``solve(..., compliance=True)`` (a converged solve) the linearization of the
     assembled closed chain at the solution is added, from the Newton Jacobian J exact at

@@ -1,7 +1,10 @@
 """Reduced legs: the coupled warm solve and the atlas's compiled loop over samples."""
 
+from cdr_translator.fidelity import FidelitySolver
+from cdr_translator.robot.coupled_kernels import refresh_leg
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import empty_results, store
+from cdr_translator.stability import determinant_sign
 import numpy as np
 import pytest
 
@@ -15,7 +18,7 @@ def level(request) -> str:
 
 
 def _samples(stroke: float) -> tuple:
-    """A path of slider settings with steps of a coarse atlas grid, and payloads."""
+    """Return a path of slider settings with steps of a coarse atlas grid, and payloads."""
     sliders = np.array([[-0.5, -0.5, 0.0], [0.0, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.0, 0.2],
                         [0.0, 0.0, 0.2], [-0.5, 0.0, 0.2], [-0.5, 0.5, -0.4]]) * stroke
     payloads = np.array([GRAVITY_1KG, GRAVITY_1KG, (1.0, 0.0, -15.0), (1.0, 0.0, -15.0),
@@ -72,3 +75,20 @@ def test_warm_solves_take_the_coupled_newton_and_equal_cold_ones(level):
         reference = cold.solve(sliders, GRAVITY_1KG, warm_start=False)
         assert np.allclose(warm.platform_position, reference.platform_position, atol=1e-9)
         assert np.allclose(warm.leg_tip_wrenches, reference.leg_tip_wrenches, atol=1e-7)
+
+
+def test_closed_form_cc_linearization_equals_the_implicit_differences():
+    """The coupled Newton's 'cc' leg compliance (twist Jacobian in closed form) is exact."""
+    robot = DeltaRobot(fidelity='cc')
+    chain = robot._reduced.chains['cc']
+    wrench = np.array([1.5, -0.8, -4.0, 0.02, -0.03, 0.005])
+    single = FidelitySolver(robot.params, 'cc')
+    x = single.solve(wrench[:3], wrench[3:]).unknowns / chain.model.unknown_scale
+    size = chain.model.size
+    lu, pivots = np.zeros((size, size)), np.zeros(size + 1, dtype=np.int64)
+    sensitivity, compliance = np.zeros((size, 6)), np.zeros((6, 6))
+    sign = refresh_leg(chain.model.code, x, chain.data, wrench, lu, pivots, sensitivity,
+                       compliance)
+    _, reference, reference_lu = chain.leg_linearization(x, wrench)
+    assert sign == determinant_sign(reference_lu) and pivots[-1] == 1
+    assert np.abs(compliance - reference).max() < 1e-9 * np.abs(reference).max()
