@@ -232,12 +232,12 @@ class DeltaRobot:
 
         ``sliders`` and ``payload_forces`` (N, 3; at the platform origin); ``out``: the
         atlas's result columns (robot/samples.py), ``store`` its copy of one DeltaResult
-        into a row. Only for legs at one reduced level ('cc', 'rod': one compiled loop,
-        robot/reduced_batch.py); row i equals ``solve(sliders[i], payload_forces[i],
-        compliance=True)`` made after row i - 1. False, ``out`` untouched, for other levels.
+        into a row. Only for 'cc' legs (one compiled loop, robot/reduced_batch.py); row i
+        equals ``solve(sliders[i], payload_forces[i], compliance=True)`` made after row
+        i - 1. False, ``out`` untouched, for other levels.
         """
         chain = self._reduced.chains.get(self.fidelity)
-        if chain is None:
+        if chain is None or not chain.couples:
             return False
         rows = np.zeros((len(sliders), SIZE // 2))
         rows[:, :3] = sliders

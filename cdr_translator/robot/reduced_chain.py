@@ -2,9 +2,9 @@
 The CDR's forward statics with reduced legs ('cc', 'rod'): its iterations and linearization.
 
 Each leg is the reduced model of cdr_translator/fidelity (``ReducedModel``) instead of a
-full TranslatorSolver. A warm solve is one coupled Newton over the legs' unknowns and the
-platform's (robot/coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
-(cold solves, and warm ones the coupled Newton did not converge) runs the chain's Newton
+full TranslatorSolver. A warm 'cc' solve is one coupled Newton over the legs' unknowns and
+the platform's (robot/coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
+(cold solves, 'rod' legs, and warm ones the coupled Newton did not converge) runs the chain's Newton
 over the platform's 24 unknowns (robot/reduced_kernels.chain_newton), each iterate
 solving every leg's reduced model in full, and halves a failed step, as
 robot/continuation.py does for full legs. Each leg enters through its end-disk pose and its
@@ -87,6 +87,10 @@ class ReducedChain:
         self.model = (ReducedModel.constant_curvature(params) if level == 'cc'
                       else ReducedModel.equivalent_rod(params))
         self.data = model_data(params, level)
+        #: whether warm solves take the coupled Newton: 'cc', whose wrench derivatives are
+        #: in closed form; a 'rod' leg's differenced ones (about 40 shots a linearization)
+        #: made it slower than solving the legs in full at every iterate
+        self.couples = level == 'cc'
         self.max_iterations = max_iterations
         self.params = params
         size = self.model.size
@@ -128,7 +132,7 @@ class ReducedChain:
         ``linearized``: the legs' compliances and the platform Jacobian at the solution too
         (made exact there, the next solve's chord steps start from them).
         """
-        if self.previous is None:
+        if self.previous is None or not self.couples:
             return None
         state = self.previous[0].copy()
         frames = self.previous_frames.copy()

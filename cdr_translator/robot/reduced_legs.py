@@ -1,9 +1,9 @@
 """
 A DeltaRobot's legs at the reduced levels ('cc', 'rod', or 'auto' over both): its solves.
 
-A warm solve runs the coupled Newton (robot/coupled_kernels.py: the legs' unknowns and the
-platform's in one compiled call, Jacobians kept across solves); a cold one, or a warm one
-that does not converge that way, walks from the previous solution by damped continuation
+A warm 'cc' solve runs the coupled Newton (robot/coupled_kernels.py: the legs' unknowns and
+the platform's in one compiled call, Jacobians kept across solves); a cold one, a 'rod'
+one, or a warm one that does not converge that way, walks from the previous solution by damped continuation
 (ReducedChain.walk, the legs solved in full at every iterate). The result records each
 leg's level and its validated error bound (robot/levels.py); 'auto' takes the first level
 whose bounds meet the budget. ``solve_samples`` gives an atlas chunk's columns from the
@@ -120,8 +120,8 @@ class ReducedLegs:
     def _result(self, level: str, chain: ReducedChain, outcome: ReducedOutcome,
                 inputs: np.ndarray, bounds: list) -> DeltaResult:
         """Return the DeltaResult of ``outcome`` (its legs' SolveResults built on first read)."""
-        residual = outcome.residual if np.all(np.isfinite(outcome.residual)) \
-            else np.full(SIZE, np.nan)
+        residual = outcome.residual if outcome.converged or np.all(
+            np.isfinite(outcome.residual)) else np.full(SIZE, np.nan)
         state = outcome.state
         return DeltaResult(
             converged=outcome.converged, message=outcome.message,

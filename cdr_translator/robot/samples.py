@@ -211,9 +211,9 @@ def solve_chunk(spec: AtlasSpec, start: int, stop: int) -> Dict[str, np.ndarray]
     Solve samples ``start:stop`` of ``spec`` in order, warm-started from each other.
 
     The chunk starts cold. Every sample's outcome is recorded, converged or not (its
-    ``message`` says why); an exception inside a solve is a bug and propagates. Legs at one
-    reduced level are solved in one compiled loop (DeltaRobot.solve_columns), else sample
-    by sample.
+    ``message`` says why); an exception inside a solve is a bug and propagates. 'cc' legs
+    are solved in one compiled loop (DeltaRobot.solve_columns), other levels sample by
+    sample.
     """
     inputs = spec.inputs(start, stop)
     out = empty_results(stop - start)

@@ -11,10 +11,6 @@ import pytest
 GRAVITY_1KG = (0.0, 0.0, -9.81)
 
 
-@pytest.fixture(scope='module', params=['cc', 'rod'])
-def level(request) -> str:
-    """Return each reduced level."""
-    return request.param
 
 
 def _samples(stroke: float) -> tuple:
@@ -26,8 +22,9 @@ def _samples(stroke: float) -> tuple:
     return sliders, payloads
 
 
-def test_columns_equal_solves_sample_by_sample(level):
+def test_columns_equal_solves_sample_by_sample():
     """Each row of the compiled loop equals a compliance solve made after the row before."""
+    level = 'cc'
     batch = DeltaRobot(fidelity=level)
     sliders, payloads = _samples(batch.geometry.slider_stroke)
     columns = empty_results(len(sliders))
@@ -50,16 +47,18 @@ def test_columns_equal_solves_sample_by_sample(level):
         assert np.array_equal(columns[name], expected[name], equal_nan=True), name
 
 
-def test_full_legs_have_no_compiled_loop():
-    """solve_columns is for reduced legs only: full legs leave the columns untouched."""
-    robot = DeltaRobot()
+@pytest.mark.parametrize('level', ['full', 'rod'])
+def test_other_levels_have_no_compiled_loop(level):
+    """solve_columns is for 'cc' legs only: other levels leave the columns untouched."""
+    robot = DeltaRobot(fidelity=level)
     columns = empty_results(1)
     assert not robot.solve_columns(np.zeros((1, 3)), np.array([GRAVITY_1KG]), columns, store)
     assert not columns['converged'][0]
 
 
-def test_warm_solves_take_the_coupled_newton_and_equal_cold_ones(level):
-    """Along a slider circle the warm solves converge in a few coupled iterates, as cold ones."""
+def test_warm_solves_take_the_coupled_newton_and_equal_cold_ones():
+    """Along a slider circle warm 'cc' solves converge in a few coupled iterates, as cold ones."""
+    level = 'cc'
     robot = DeltaRobot(fidelity=level)
     cold = DeltaRobot(fidelity=level)
     for step in range(6):
