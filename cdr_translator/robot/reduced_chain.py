@@ -4,8 +4,8 @@ The CDR's forward statics with reduced legs ('cc', 'rod'): its iterations and li
 Each leg is the reduced model of cdr_translator/fidelity (``ReducedModel``) instead of a
 full TranslatorSolver. A warm 'cc' solve is one coupled Newton over the legs' unknowns and
 the platform's (robot/coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
-(cold solves, 'rod' legs, and warm ones the coupled Newton did not converge) runs the chain's Newton
-over the platform's 24 unknowns (robot/reduced_kernels.chain_newton), each iterate
+(cold solves, 'rod' legs, and warm ones the coupled Newton did not converge) runs the
+chain's Newton over the platform's 24 unknowns (robot/reduced_kernels.chain_newton), each iterate
 solving every leg's reduced model in full, and halves a failed step, as
 robot/continuation.py does for full legs. Each leg enters through its end-disk pose and its
 6x6 compliance from implicit differentiation of the reduced model. This module also gives

@@ -3,11 +3,11 @@ A DeltaRobot's legs at the reduced levels ('cc', 'rod', or 'auto' over both): it
 
 A warm 'cc' solve runs the coupled Newton (robot/coupled_kernels.py: the legs' unknowns and
 the platform's in one compiled call, Jacobians kept across solves); a cold one, a 'rod'
-one, or a warm one that does not converge that way, walks from the previous solution by damped continuation
-(ReducedChain.walk, the legs solved in full at every iterate). The result records each
-leg's level and its validated error bound (robot/levels.py); 'auto' takes the first level
-whose bounds meet the budget. ``solve_samples`` gives an atlas chunk's columns from the
-compiled loop over samples (robot/reduced_batch.py).
+one, or a warm one that does not converge that way, walks from the previous solution by
+damped continuation (ReducedChain.walk, the legs solved in full at every iterate). The
+result records each leg's level and its validated error bound (robot/levels.py); 'auto'
+takes the first level whose bounds meet the budget. The atlas's compiled loop over
+samples is robot/reduced_batch.py.
 """
 
 import time

@@ -11,8 +11,6 @@ import pytest
 GRAVITY_1KG = (0.0, 0.0, -9.81)
 
 
-
-
 def _samples(stroke: float) -> tuple:
     """Return a path of slider settings with steps of a coarse atlas grid, and payloads."""
     sliders = np.array([[-0.5, -0.5, 0.0], [0.0, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.0, 0.2],
