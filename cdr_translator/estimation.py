@@ -34,7 +34,7 @@ and its message. Bad input (non-finite, wrong shape, a non-unit quaternion, a co
 that is not symmetric positive semidefinite) raises InputError, a ValueError.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import time
 from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
@@ -48,7 +48,9 @@ from .branch import RECHECK_MARGIN
 from .checks import check_covariance, check_unit_quaternion, check_vector
 from .compliance import ComplianceAnalysis, frame_twist
 from .errors import InputError
-from .wrench_estimate import observability, TRANSLATOR_WRENCH_LABELS, WrenchEstimate
+from .stability import load_scale
+from .wrench_estimate import (CONDITION_LIMIT, observability, TRANSLATOR_WRENCH_LABELS,
+                              WrenchEstimate)
 
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
@@ -58,8 +60,9 @@ __all__ = ['estimate_wrench', 'Evaluation', 'measured_target', 'search', 'Target
 #: Newton iterations (forward solves) of one estimate at most.
 MAX_ITERATIONS = 40
 
-#: First trust radius and its ceiling, in the scaled wrench norm (N).
-TRUST_RADIUS_N = 20.0
+#: Trust radius after an estimate's first (damped) step, at least, and at most: scaled
+#: wrench norm (N).
+TRUST_RADIUS_N = 1.0
 MAX_TRUST_RADIUS_N = 400.0
 
 #: The model's pose matches the measured one when the scaled residual (position, and the
@@ -78,6 +81,11 @@ ROUNDING_M = 1e-9
 #: Below this stability margin another equilibrium branch is close (branch.RECHECK_MARGIN):
 #: a second wrench may match the pose, and the estimate is flagged.
 AMBIGUOUS_MARGIN = RECHECK_MARGIN
+
+#: Wrenches beyond this many times the translator's load scale w* (stability.load_scale:
+#: 31.4 N for the shipped one, the axial buckling load 29.3 N) are not tried: a pose that
+#: only such a load could match is reported as unmatched, not solved at kilonewtons.
+LOAD_LIMIT = 20.0
 
 #: No equilibrium puts the end-disk centre further from the base than this many stack
 #: heights (the backbones would have to stretch by a percent: kilonewtons).
@@ -110,6 +118,7 @@ class Target:
     covariance: Optional[np.ndarray]  # of the measured components
     length: float  # the scaling length H
     labels: Tuple[str, ...]  # names of the six wrench components
+    load_limit: float = math.inf  # largest scaled wrench norm tried (N)
 
     def error(self, evaluation: Evaluation) -> np.ndarray:
         """Model pose minus measured pose, the measured components (m, rad)."""
@@ -192,7 +201,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if start is None:
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
-    current, radius = start, TRUST_RADIUS_N
+    current, radius = start, None
     found.best = current
     scale = np.repeat([1.0, target.length], 3)
     rows, free = list(target.rows), list(target.free)
@@ -204,6 +213,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             return found
         block = scale[rows, None] * current.compliance[np.ix_(rows, free)] * scale[None, free]
         step, newton = _trust_region_step(block, error, radius)
+        size = float(np.linalg.norm(step))
+        radius = max(2.0 * size, TRUST_RADIUS_N) if radius is None else radius
         floor = STEP_TOLERANCE * max(float(np.linalg.norm(current.wrench / scale)), 1.0)
         if newton <= floor:
             found.converged, found.message = True, 'converged'
@@ -219,11 +230,11 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         found.iterations += 1
         wrench = current.wrench.copy()
         wrench[free] += scale[free] * step
-        trial = evaluate(wrench)
-        found.solves += 1
+        beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
+        trial = None if beyond else evaluate(wrench)
+        found.solves += 0 if beyond else 1
         predicted = merit ** 2 - float(np.linalg.norm(error + block @ step)) ** 2
         trial_error = None if trial is None else scale[rows] * target.error(trial)
-        size = float(np.linalg.norm(step))
         if trial is not None and trial_error is not None and np.linalg.norm(trial_error) < merit:
             gain = (merit ** 2 - float(np.linalg.norm(trial_error)) ** 2) / predicted
             if gain > 0.75 and size >= 0.99 * radius:
@@ -240,12 +251,14 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         radius = 0.25 * size
         if radius <= floor:
             found.message = 'no nearby wrench lowers the pose residual: no equilibrium ' \
-                'matches the measured pose'
+                'matches the measured pose' + (
+                    f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
+                    else '')
             return found
 
 
 def _trust_region_step(block: np.ndarray, error: np.ndarray,
-                       radius: float) -> Tuple[np.ndarray, float]:
+                       radius: Optional[float]) -> Tuple[np.ndarray, float]:
     """
     Return (step, Newton step's size): the Levenberg-Marquardt step of size at most ``radius``.
 
@@ -253,12 +266,19 @@ def _trust_region_step(block: np.ndarray, error: np.ndarray,
     lambda >= 0 that keeps the step within the radius (Newton's step when it fits), picked
     on a logarithmic grid from the SVD of the block: the step bends from Newton's towards
     the compliant directions, where the linearization at the iterate can be trusted.
+    Without a radius (an estimate's first step) lambda is (sigma_max / CONDITION_LIMIT)^2:
+    the poorly observable directions (the axial force) barely move until the others fit,
+    since there the pose error is mostly the others' second-order effect (the end disk
+    drops as it swings sideways) that a first-order model reads as axial load.
     """
     left, values, right = np.linalg.svd(block)
     weights = values * (left.T @ error)
     with np.errstate(divide='ignore', invalid='ignore'):
         newton = -right.T @ (weights / values ** 2)
     size = float(np.linalg.norm(newton))
+    if radius is None:  # the first step: damp the directions the pose hardly observes
+        damped = -right.T @ (weights / (values ** 2 + (values[0] / CONDITION_LIMIT) ** 2))
+        return damped, size
     if size <= radius or not math.isfinite(size):
         return newton, size
     top = float(np.linalg.norm(weights)) / radius  # |step| <= |J^T e| / lambda
@@ -328,15 +348,29 @@ def _estimated(target: Target) -> str:
 _STARTS: 'WeakKeyDictionary[Any, Evaluation]' = WeakKeyDictionary()
 
 
-def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray
-                           ) -> Optional[Evaluation]:
-    """Solve the translator at ``wrench`` with its compliance (None if it fails)."""
-    result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray,
+                           deadline: float) -> Optional[Evaluation]:
+    """Solve the translator at ``wrench`` with its compliance by ``deadline`` (None: failed)."""
+    limit = solver.time_limit_s
+    solver.time_limit_s = max(deadline - time.perf_counter(), 0.0)
+    try:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+    finally:
+        solver.time_limit_s = limit
     if not result.converged or result.compliance is None:
         return None
-    return Evaluation(wrench.copy(), result.frames['de'], result.compliance.matrix,
-                      result.stable, result.stability_margin, bool(result.accuracy_met),
-                      result.message, result.compliance, result)
+    # the margin from the exact compliance here: the solve's may come from a factorization
+    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
+    compliance = result.compliance.matrix
+    scale = np.repeat([1.0, solver.params.stack_height], 3)
+    try:
+        stiffness = np.linalg.inv(scale[:, None] * compliance * scale[None, :])
+        margin = float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0]
+                       / solver._origin().smallest_stiffness)
+    except np.linalg.LinAlgError:
+        margin = -math.inf
+    return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable, margin,
+                      bool(result.accuracy_met), result.message, result.compliance, result)
 
 
 def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
@@ -347,7 +381,9 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
     """Return the end-disk wrench matching a measured pose (TranslatorSolver's method)."""
     started = time.perf_counter()
     length = solver.params.stack_height
-    target = measured_target(position, quaternion_xyzw, pose_covariance, moment, force, length)
+    target = replace(measured_target(position, quaternion_xyzw, pose_covariance, moment, force,
+                                     length),
+                     load_limit=LOAD_LIMIT * load_scale(solver._origin()))
     reach = float(np.linalg.norm(target.frame[:3, 3]))
     if reach > REACH * length:
         return estimate(Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m '
@@ -355,8 +391,20 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
                         target, started)
     # a reset solver starts cold: from the given components and no load
     start = _STARTS.get(solver) if solver._previous is not None else None
-    found = search(lambda wrench: _translator_evaluation(solver, wrench), start, target,
-                   started + solver.time_limit_s)
-    if found.best is not None:
+    deadline = started + solver.time_limit_s
+    found = search(lambda wrench: _translator_evaluation(solver, wrench, deadline), start,
+                   target, deadline)
+    if not found.converged and start is not None and time.perf_counter() < deadline:
+        # the previous estimate may sit past buckling or far away: restart from no load
+        solver.reset()
+        restart = search(lambda wrench: _translator_evaluation(solver, wrench, deadline), None,
+                         target, deadline)
+        restart.iterations += found.iterations
+        restart.solves += found.solves
+        restart.message += ' (after a restart from no load)'
+        found = restart
+    if found.converged and found.best is not None:
         _STARTS[solver] = found.best
+    else:
+        _STARTS.pop(solver, None)
     return estimate(found, target, started)
