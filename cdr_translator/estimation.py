@@ -55,7 +55,8 @@ from .wrench_estimate import (CONDITION_LIMIT, observability, TRANSLATOR_WRENCH_
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
 
-__all__ = ['estimate_wrench', 'Evaluation', 'measured_target', 'search', 'Target']
+__all__ = ['estimate', 'estimate_along', 'estimate_wrench', 'Evaluation', 'LOAD_LIMIT',
+           'measured_target', 'search', 'Target']
 
 #: Newton iterations (forward solves) of one estimate at most.
 MAX_ITERATIONS = 40
@@ -147,7 +148,8 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     covariance: Optional[ArrayLike], moment: Optional[ArrayLike],
                     force: Optional[ArrayLike], length: float,
                     labels: Tuple[str, ...] = TRANSLATOR_WRENCH_LABELS,
-                    names: Tuple[str, str] = ('position', 'quaternion_xyzw')) -> Target:
+                    names: Tuple[str, str, str] = ('position', 'quaternion_xyzw',
+                                                   'pose_covariance')) -> Target:
     """
     Check a measured pose and the given wrench components; return the Target (InputError).
 
@@ -179,7 +181,7 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     checked = None
     if covariance is not None:
         size = 3 if len(rows) == 3 and np.shape(covariance) == (3, 3) else 6
-        checked = check_covariance('pose_covariance', covariance, size)[:len(rows), :len(rows)]
+        checked = check_covariance(names[2], covariance, size)[:len(rows), :len(rows)]
     return Target(frame, rows, free, given, checked, float(length), labels)
 
 
@@ -344,7 +346,7 @@ def _estimated(target: Target) -> str:
 
 
 # the translator ------------------------------------------------------------------------------
-#: Each solver's last accepted iterate: the next estimate's first linearization.
+#: Each solver's (or robot's) last converged iterate: the next estimate's first linearization.
 _STARTS: 'WeakKeyDictionary[Any, Evaluation]' = WeakKeyDictionary()
 
 
@@ -389,22 +391,33 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
         return estimate(Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m '
                                f'from the base (stack height {length:.4g} m)'),
                         target, started)
-    # a reset solver starts cold: from the given components and no load
-    start = _STARTS.get(solver) if solver._previous is not None else None
     deadline = started + solver.time_limit_s
-    found = search(lambda wrench: _translator_evaluation(solver, wrench, deadline), start,
-                   target, deadline)
+    return estimate_along(solver, lambda wrench: _translator_evaluation(solver, wrench, deadline),
+                          target, started, deadline, solver._previous is not None,
+                          solver.reset)
+
+
+def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluation]],
+                   target: Target, started: float, deadline: float, warm: bool,
+                   reset: Callable[[], None]) -> WrenchEstimate:
+    """
+    Search from ``owner``'s last estimate when ``warm`` (else cold), and build the estimate.
+
+    A warm search that fails is repeated from no load after ``reset`` (the previous
+    estimate may sit past buckling or far away), within ``deadline``; a converged one is
+    the next warm start.
+    """
+    start = _STARTS.get(owner) if warm else None
+    found = search(evaluate, start, target, deadline)
     if not found.converged and start is not None and time.perf_counter() < deadline:
-        # the previous estimate may sit past buckling or far away: restart from no load
-        solver.reset()
-        restart = search(lambda wrench: _translator_evaluation(solver, wrench, deadline), None,
-                         target, deadline)
+        reset()
+        restart = search(evaluate, None, target, deadline)
         restart.iterations += found.iterations
         restart.solves += found.solves
         restart.message += ' (after a restart from no load)'
         found = restart
     if found.converged and found.best is not None:
-        _STARTS[solver] = found.best
+        _STARTS[owner] = found.best
     else:
-        _STARTS.pop(solver, None)
+        _STARTS.pop(owner, None)
     return estimate(found, target, started)

@@ -21,7 +21,8 @@ import numpy as np
 
 from .compliance import analyse, ComplianceAnalysis
 
-__all__ = ['CONDITION_LIMIT', 'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
+__all__ = ['CONDITION_LIMIT', 'json_safe', 'observability', 'TRANSLATOR_WRENCH_LABELS',
+           'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
@@ -33,14 +34,14 @@ TRANSLATOR_WRENCH_LABELS = ('lateral force x', 'lateral force y', 'axial force',
                             'bending moment x', 'bending moment y', 'torsion')
 
 
-def _json(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """JSON-safe form: arrays as nested lists, NaN and infinities as None."""
     if isinstance(value, np.ndarray):
-        return [_json(item) for item in value.tolist()]
+        return [json_safe(item) for item in value.tolist()]
     if isinstance(value, (list, tuple)):
-        return [_json(item) for item in value]
+        return [json_safe(item) for item in value]
     if isinstance(value, dict):
-        return {key: _json(item) for key, item in value.items()}
+        return {key: json_safe(item) for key, item in value.items()}
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (float, np.floating)):
@@ -112,7 +113,7 @@ class WrenchEstimate:
                 'residual_m', 'residual_deg', 'conditioning', 'message', 'estimated',
                 'condition_number', 'ill_conditioned', 'stability_margin', 'iterations',
                 'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity')
-        return {key: _json(getattr(self, key)) for key in keys}
+        return {key: json_safe(getattr(self, key)) for key in keys}
 
 
 def _scale(length: float) -> np.ndarray:
