@@ -26,12 +26,6 @@ ROUND_TRIP = 1e-6
 
 
 @pytest.fixture(scope='module')
-def forward(params):
-    """Solve the wrenches whose poses are measured (a solver of its own)."""
-    return TranslatorSolver(params)
-
-
-@pytest.fixture(scope='module')
 def estimator(params):
     """Estimate the wrenches (a solver of its own: its warm starts follow the estimates)."""
     return TranslatorSolver(params)
@@ -50,11 +44,11 @@ def random_wrenches(seed: int, count: int, moments: bool = True) -> np.ndarray:
     return rng.uniform(-1.0, 1.0, (count, 6)) * bounds
 
 
-def test_estimate_of_a_solved_pose_is_its_wrench(forward, estimator, params):
+def test_estimate_of_a_solved_pose_is_its_wrench(solver, estimator, params):
     """Position and orientation: all six components back to 1e-6 (relative)."""
     length = params.stack_height
     for wrench in random_wrenches(11, 12):
-        solved = forward.solve(wrench[:3], wrench[3:])
+        solved = solver.solve(wrench[:3], wrench[3:])
         assert solved.converged and solved.stable
         estimate = estimator.estimate_wrench(solved.end_disk_position,
                                              solved.end_disk_quaternion_xyzw)
@@ -66,22 +60,22 @@ def test_estimate_of_a_solved_pose_is_its_wrench(forward, estimator, params):
         np.testing.assert_allclose(estimate.position, solved.end_disk_position, atol=1e-10)
 
 
-def test_position_only_estimates_the_force_or_the_moment(forward, estimator, params):
+def test_position_only_estimates_the_force_or_the_moment(solver, estimator, params):
     """A position gives the force under a known moment, or the moment under a known force."""
     length = params.stack_height
     for wrench in random_wrenches(12, 8):
-        solved = forward.solve(wrench[:3], wrench[3:])
+        solved = solver.solve(wrench[:3], wrench[3:])
         force = estimator.estimate_wrench(solved.end_disk_position, moment=wrench[3:])
         assert force.converged and force.estimated == 'force', force.message
         assert scaled_error(force.wrench, wrench, length) < ROUND_TRIP
         np.testing.assert_array_equal(force.moment, wrench[3:])
         assert math.isnan(force.residual_deg)
     for wrench in random_wrenches(13, 3, moments=False):  # the default moment: none
-        solved = forward.solve(wrench[:3])
+        solved = solver.solve(wrench[:3])
         force = estimator.estimate_wrench(solved.end_disk_position)
         assert force.converged and scaled_error(force.wrench, wrench, length) < ROUND_TRIP
     wrench = np.array([3.0, -2.0, 1.0, 0.2, -0.1, 0.3])
-    solved = forward.solve(wrench[:3], wrench[3:])
+    solved = solver.solve(wrench[:3], wrench[3:])
     moment = estimator.estimate_wrench(solved.end_disk_position, force=wrench[:3])
     assert moment.converged and moment.estimated == 'moment', moment.message
     np.testing.assert_array_equal(moment.force, wrench[:3])
@@ -89,12 +83,12 @@ def test_position_only_estimates_the_force_or_the_moment(forward, estimator, par
     assert scaled_error(moment.wrench, wrench, length) < 1e-5
 
 
-def test_covariance_covers_the_spread_of_noisy_estimates(forward, params):
+def test_covariance_covers_the_spread_of_noisy_estimates(solver, params):
     """200 seeded noisy poses: the 95 % ellipsoids hold the true wrench 90-99 % of the time."""
     estimator = TranslatorSolver(params)
     rng = np.random.default_rng(2024)
     wrench = np.array([4.0, -3.0, -5.0, 0.1, -0.05, 0.08])
-    solved = forward.solve(wrench[:3], wrench[3:])
+    solved = solver.solve(wrench[:3], wrench[3:])
     position, rotation = solved.end_disk_position, Rotation.from_quat(
         solved.end_disk_quaternion_xyzw)
     mixing = np.eye(6) + 0.3 * rng.normal(size=(6, 6))
@@ -120,10 +114,10 @@ def test_covariance_covers_the_spread_of_noisy_estimates(forward, params):
         assert 0.90 <= count / 200 <= 0.99, (dof, count)
 
 
-def test_the_axial_force_is_flagged_as_poorly_observable(forward, estimator):
+def test_the_axial_force_is_flagged_as_poorly_observable(solver, estimator):
     """The compliance's stiff direction is named, with its singular value and role."""
     wrench = np.array([5.0, 2.0, -3.0, 0.1, -0.2, 0.05])
-    solved = forward.solve(wrench[:3], wrench[3:], compliance=True)
+    solved = solver.solve(wrench[:3], wrench[3:], compliance=True)
     estimate = estimator.estimate_wrench(solved.end_disk_position,
                                          solved.end_disk_quaternion_xyzw,
                                          pose_covariance=np.eye(6) * 1e-12)

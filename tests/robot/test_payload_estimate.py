@@ -11,19 +11,14 @@ SLIDERS = np.array([0.006, -0.004, 0.002])
 
 
 @pytest.fixture(scope='module')
-def forward():
-    """Solve the payloads whose platform poses are measured (a robot of its own)."""
-    return DeltaRobot()
+def robots():
+    """Two robots: one solves the payloads, the other estimates them (warm along its own)."""
+    return DeltaRobot(), DeltaRobot()
 
 
-@pytest.fixture(scope='module')
-def estimator():
-    """Estimate the payloads (a robot of its own: it warm-starts along the estimates)."""
-    return DeltaRobot()
-
-
-def test_payload_estimate_of_a_solved_pose_is_its_payload(forward, estimator):
+def test_payload_estimate_of_a_solved_pose_is_its_payload(robots):
     """Platform pose -> payload to 1e-6 (relative), with its covariance and verdict."""
+    forward, estimator = robots
     length = forward.params.stack_height
     scale = np.repeat([1.0, length], 3)
     for payload in ([0.8, -0.5, -9.81, 0.02, -0.01, 0.01], [1.5, 0.4, -6.0, -0.03, 0.0, 0.02]):
@@ -44,8 +39,9 @@ def test_payload_estimate_of_a_solved_pose_is_its_payload(forward, estimator):
         assert data['sliders'] == SLIDERS.tolist() and data['estimated'] == 'wrench'
 
 
-def test_platform_position_gives_the_payload_force(forward, estimator):
+def test_platform_position_gives_the_payload_force(robots):
     """A platform position alone gives the force (no moment), the moment staying zero."""
+    forward, estimator = robots
     force = np.array([-0.7, 1.1, -8.0])
     solved = forward.solve(SLIDERS, force)
     estimate = estimator.estimate_payload(solved.platform_position, SLIDERS,
@@ -56,8 +52,9 @@ def test_platform_position_gives_the_payload_force(forward, estimator):
     assert not estimate.covariance[3:].any()
 
 
-def test_payload_estimate_bad_input_is_a_value_error(estimator):
+def test_payload_estimate_bad_input_is_a_value_error(robots):
     """Sliders out of the stroke, a bad quaternion or covariance: ValueError naming it."""
+    estimator = robots[1]
     with pytest.raises(ValueError, match='slider 1'):
         estimator.estimate_payload([0.0, 0.0, -0.15], [1.0, 0.0, 0.0])
     with pytest.raises(ValueError, match='platform_quaternion_xyzw'):
