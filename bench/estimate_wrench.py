@@ -36,7 +36,7 @@ def timed(call: Callable[[], WrenchEstimate]) -> Tuple[float, WrenchEstimate]:
 
 
 def stream(samples: int, step_n: float, cold: int) -> Dict[str, List[float]]:
-    """Time forward solves and estimates along one stream (see the module docstring)."""
+    """Time forward solves and estimates along one stream of poses (module docstring)."""
     forward, estimator = TranslatorSolver(), TranslatorSolver()
     times: Dict[str, List[float]] = {'forward': [], 'warm': [], 'cold': [], 'position': [],
                                      'warm iterations': [], 'cold iterations': []}
