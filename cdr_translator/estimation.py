@@ -48,6 +48,7 @@ from .branch import RECHECK_MARGIN
 from .checks import check_covariance, check_unit_quaternion, check_vector
 from .compliance import ComplianceAnalysis, frame_twist
 from .errors import InputError
+from .geometry import quaternion_xyzw
 from .stability import load_scale
 from .wrench_estimate import (CONDITION_LIMIT, observability, TRANSLATOR_WRENCH_LABELS,
                               WrenchEstimate)
@@ -326,7 +327,7 @@ def estimate(found: Search, target: Target, started: float) -> WrenchEstimate:
             f"{direction['label']} ({direction['ratio']:.3g} x)" for direction in directions))
     accuracy_met = (found.converged and best.accuracy_met and best.stable is True
                     and not best.margin < AMBIGUOUS_MARGIN)
-    rotation = Rotation.from_matrix(best.frame[:3, :3]).as_quat()
+    rotation = quaternion_xyzw(best.frame[:3, :3])
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
         converged=found.converged, stable=best.stable, accuracy_met=accuracy_met,
