@@ -76,6 +76,10 @@ MATCH_M = 1e-11
 #: iteration: the pose is matched to the rounding of the forward solve.
 STEP_TOLERANCE = 1e-10
 
+#: Two matches further apart than this (relative, scaled wrench norm, at least 1 N) are
+#: different wrenches: the forward solves converge to 1e-10, the matches to about 1e-9.
+MATCH_DISTANCE = 1e-6
+
 #: A rejected step from a residual below this (m, scaled) ends the iteration as converged:
 #: the forward solve's rounding, not the wrench, sets the residual there.
 ROUNDING_M = 1e-9
@@ -143,6 +147,8 @@ class Search:
     message: str
     iterations: int = 0
     solves: int = 0
+    #: another matching wrench, found by the second search (see estimate_along)
+    alternative: Optional[np.ndarray] = None
 
 
 def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
@@ -187,9 +193,10 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
 
 
 def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
-           start: Optional[Evaluation], target: Target, deadline: float) -> Search:
+           start: Optional[Evaluation], target: Target, deadline: float,
+           begin: Optional[np.ndarray] = None) -> Search:
     """
-    Newton on the estimated components from ``start`` (None: the given wrench, else zero).
+    Newton on the estimated components from ``start`` (None: from ``begin``, else zero).
 
     ``evaluate`` solves the forward model at a wrench (None when that solve fails).
     """
@@ -197,8 +204,9 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     fixed = [index for index in range(6) if index not in target.free]
     if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
         wrench = target.given.copy()
-        if start is not None:
-            wrench[list(target.free)] = start.wrench[list(target.free)]
+        origin = start.wrench if start is not None else begin
+        if origin is not None:
+            wrench[list(target.free)] = origin[list(target.free)]
         start = evaluate(wrench)
         found.solves += 1
         if start is None:
@@ -322,11 +330,14 @@ def estimate(found: Search, target: Target, started: float) -> WrenchEstimate:
                         'wrench may match this pose')
     if not best.accuracy_met:
         messages.append('the forward solve misses its accuracy target')
+    if found.alternative is not None:
+        messages.append('ambiguous: the moment ' + ', '.join(
+            f'{value:.4g}' for value in found.alternative[3:]) + ' N m matches too')
     if directions:
         messages.append('poorly observable: ' + ', '.join(
             f"{direction['label']} ({direction['ratio']:.3g} x)" for direction in directions))
     accuracy_met = (found.converged and best.accuracy_met and best.stable is True
-                    and not best.margin < AMBIGUOUS_MARGIN)
+                    and not best.margin < AMBIGUOUS_MARGIN and found.alternative is None)
     rotation = quaternion_xyzw(best.frame[:3, :3])
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
@@ -337,6 +348,7 @@ def estimate(found: Search, target: Target, started: float) -> WrenchEstimate:
         conditioning=directions, message='; '.join(messages), estimated=_estimated(target),
         condition_number=condition, ill_conditioned=bool(directions),
         stability_margin=best.margin, iterations=found.iterations, solves=found.solves,
+        alternative=found.alternative,
         estimate_time_s=time.perf_counter() - started, position=best.frame[:3, 3].copy(),
         quaternion_xyzw=rotation, sensitivity=sensitivity, solution=best.solution)
 
@@ -398,6 +410,30 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
                           solver.reset)
 
 
+def _other_match(evaluate: Callable[[np.ndarray], Optional[Evaluation]], found: Search,
+                 target: Target, deadline: float) -> Optional[np.ndarray]:
+    """Search from the other starts of a moment (estimate_along); return a second match."""
+    assert found.best is not None and found.best.compliance is not None
+    scale = np.repeat([1.0, target.length], 3)
+    rows, free = list(target.rows), list(target.free)
+    block = scale[rows, None] * found.best.compliance[np.ix_(rows, free)] * scale[None, free]
+    least = np.zeros(6)
+    least[free] = np.linalg.svd(block)[2][-1] * scale[free]
+    reach = 0.1 * target.load_limit / LOAD_LIMIT  # a tenth of w* (scaled N)
+    match = found.best.wrench
+    for begin in (target.given, match + reach * least, match - reach * least):
+        if time.perf_counter() > deadline:
+            break
+        other = search(evaluate, None, target, deadline, begin)
+        found.iterations += other.iterations
+        found.solves += other.solves
+        if other.converged and other.best is not None and np.linalg.norm(
+                (other.best.wrench - match) / scale) > MATCH_DISTANCE * max(
+                float(np.linalg.norm(match / scale)), 1.0):
+            return other.best.wrench.copy()
+    return None
+
+
 def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                    target: Target, started: float, deadline: float, warm: bool,
                    reset: Callable[[], None]) -> WrenchEstimate:
@@ -406,7 +442,12 @@ def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluat
 
     A warm search that fails is repeated from no load after ``reset`` (the previous
     estimate may sit past buckling or far away), within ``deadline``; a converged one is
-    the next warm start.
+    the next warm start. A moment from a position is searched again from no moment and
+    from the match moved either way along its least observable direction (by a tenth of
+    the load scale w*): a position sees the moment only through the couplings of the
+    compliance, and several moments put the end disk at the same point (each of five
+    random moments within 0.5 N m tried had another match within 0.6 N m); a second match
+    found is ``alternative``.
     """
     start = _STARTS.get(owner) if warm else None
     found = search(evaluate, start, target, deadline)
@@ -417,6 +458,8 @@ def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluat
         restart.solves += found.solves
         restart.message += ' (after a restart from no load)'
         found = restart
+    if found.converged and found.best is not None and _estimated(target) == 'moment':
+        found.alternative = _other_match(evaluate, found, target, deadline)
     if found.converged and found.best is not None:
         _STARTS[owner] = found.best
     else:

@@ -68,8 +68,9 @@ class WrenchEstimate:
     orientation was not measured). ``stable`` is the forward solve's verdict at the
     estimate and ``stability_margin`` its margin (docs/stability.md). ``accuracy_met``:
     converged, the forward solve's discretization error within its target, the equilibrium
-    stable and not so close to a bifurcation that another wrench could match the pose
-    (``message`` says which failed). ``conditioning`` lists the poorly observable wrench
+    stable and not so close to a bifurcation that another wrench could match the pose, and
+    no other match found (``alternative``: a moment from a position is searched twice,
+    cdr_translator/estimation.py); ``message`` says which failed. ``conditioning`` lists the poorly observable wrench
     directions (module docstring), each a dict: 'label' (the wrench component it mostly
     is), 'direction' (unit in the scaled units, SI components), 'singular_value' (m/N,
     scaled), 'ratio' (largest singular value over it), 'twist' and 'role' (the
@@ -99,6 +100,8 @@ class WrenchEstimate:
     position: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     quaternion_xyzw: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
     sensitivity: Optional[np.ndarray] = field(default=None, repr=False)
+    #: another wrench that matches the pose as well (then ``accuracy_met`` is False)
+    alternative: Optional[np.ndarray] = None
     #: the forward solve at the estimate (a SolveResult, or a DeltaResult for the robot)
     solution: Any = field(default=None, repr=False)
 
@@ -112,7 +115,8 @@ class WrenchEstimate:
         keys = ('force', 'moment', 'covariance', 'converged', 'stable', 'accuracy_met',
                 'residual_m', 'residual_deg', 'conditioning', 'message', 'estimated',
                 'condition_number', 'ill_conditioned', 'stability_margin', 'iterations',
-                'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity')
+                'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity',
+                'alternative')
         return {key: json_safe(getattr(self, key)) for key in keys}
 
 

@@ -82,6 +82,13 @@ def test_position_only_estimates_the_force_or_the_moment(solver, estimator, para
     np.testing.assert_array_equal(moment.force, wrench[:3])
     # the position observes a moment poorly (cond ~ 1e4): the model's rounding shows more
     assert scaled_error(moment.wrench, wrench, length) < 1e-5
+    # and not uniquely: another moment puts the end disk at the same point, and is named
+    assert not moment.accuracy_met and 'ambiguous' in moment.message
+    other = moment.alternative
+    assert scaled_error(other, wrench, length) > 0.1
+    np.testing.assert_array_equal(other[:3], wrench[:3])
+    again = solver.solve(other[:3], other[3:])
+    np.testing.assert_allclose(again.end_disk_position, solved.end_disk_position, atol=1e-10)
 
 
 def test_covariance_covers_the_spread_of_noisy_estimates(solver, params):
