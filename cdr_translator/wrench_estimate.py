@@ -69,9 +69,10 @@ class WrenchEstimate:
     estimate and ``stability_margin`` its margin (docs/stability.md). ``accuracy_met``:
     converged, the forward solve's discretization error within its target, the equilibrium
     stable and not so close to a bifurcation that another wrench could match the pose, and
-    no other match found (``alternative``: a moment from a position is searched twice,
-    cdr_translator/estimation.py); ``message`` says which failed. ``conditioning`` lists the poorly observable wrench
-    directions (module docstring), each a dict: 'label' (the wrench component it mostly
+    no other match found (``alternative``: a moment from a position is searched from
+    several starts, cdr_translator/estimation.py); ``message`` says which failed.
+    ``conditioning`` lists the poorly observable wrench directions (module docstring),
+    each a dict: 'label' (the wrench component it mostly
     is), 'direction' (unit in the scaled units, SI components), 'singular_value' (m/N,
     scaled), 'ratio' (largest singular value over it), 'twist' and 'role' (the
     primary-mobility analysis' label and role of the eigen-twist it moves the pose along),
