@@ -29,8 +29,9 @@ stiffness); observability and the conditioning flag: cdr_translator/wrench_estim
 Never an exception for a pose the model cannot match: beyond the translator's reach, a
 pose no wrench reaches (the trust radius collapses, or the iterations or the time run
 out), an equilibrium past buckling (unstable) or one close to a bifurcation (another
-wrench may match the same pose) give a result flagged by ``converged`` or ``accuracy_met``
-and its message. Bad input (non-finite, wrong shape, a non-unit quaternion, a covariance
+wrench may match the same pose), or a second match found (a moment from a position:
+``estimate_along``) give a result flagged by ``converged`` or ``accuracy_met`` and its
+message. Bad input (non-finite, wrong shape, a non-unit quaternion, a covariance
 that is not symmetric positive semidefinite) raises InputError, a ValueError.
 """
 
