@@ -264,6 +264,7 @@ class TranslatorSolver:
         return self._judged(outcome, self._verdict(outcome, wrench), wrench, started,
                             compliance, verify, compliance_options)
 
+    @one_blas_thread
     def estimate_wrench(self, position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None,
                         *, pose_covariance: Optional[ArrayLike] = None,
                         moment: Optional[ArrayLike] = None,

@@ -268,6 +268,7 @@ class DeltaRobot:
         return self._inverse.solve(platform_position, payload_force, payload_moment,
                                    payload_offset, warm_start)
 
+    @one_blas_thread
     def estimate_payload(self, platform_position: ArrayLike, sliders: ArrayLike,
                          platform_quaternion_xyzw: Optional[ArrayLike] = None, *,
                          covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
