@@ -12,8 +12,9 @@ of one residual per column, stopping at the paper's tolerances. It is the baseli
 benchmarks divide by.
 
 The solver is the front of its parts: continuation.py (the load path, with the state
-carried between solves), correctors.py, branch.py (stability verdict, stable branch) and
-refinement.py (error estimate, accuracy target).
+carried between solves), correctors.py, branch.py (stability verdict, stable branch),
+refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at``) and
+estimation.py (the wrench from a measured pose).
 """
 
 from functools import partial
