@@ -44,6 +44,14 @@ __all__ = ['FitResult', 'MAX_CONDITION', 'PoseSamples', 'UnidentifiableError', '
 #: the data fix only a combination of them: youngs_modulus and backbone_diameter under
 #: lateral loads (both enter as E d^4) give 194.
 MAX_CONDITION = 100.0
+#: Farthest a trial may move a model key from its start (units: a factor e for a positive
+#: key); a trial beyond counts as failed, unsolved, so that a fit far from its data does not
+#: wander into models whose solves take long or fail. A fit ending at it is not converged.
+MAX_UNITS = 1.0
+#: Time limit of each solve of a fit (s): a trial whose solves stall counts as failed.
+SOLVE_TIME_LIMIT_S = 2.0
+#: Reduced chi-square above which a fit is reported as not explaining its measurements.
+POOR_FIT = 4.0
 #: Forward-difference step of the model keys (in units).
 DIFFERENCE_STEP = 1e-6
 #: Whitened error given to a sample whose solve failed at a trial point (LM rejects the step).
@@ -130,6 +138,20 @@ class FitResult:
         return self.chi_square / self.degrees_of_freedom if self.degrees_of_freedom else math.nan
 
     @property
+    def warnings(self) -> List[str]:
+        """Say what makes the fit doubtful though it converged (empty when nothing does)."""
+        texts = []
+        if self.reduced_chi_square > POOR_FIT:
+            texts.append(f'the residuals are {math.sqrt(self.reduced_chi_square):.3g} times '
+                         'the measurement standard deviations: a key left out, a wrong '
+                         'tracker frame, or covariances too small')
+        if self.max_discretization_error_m > 0.1 * rms_position(self.errors):
+            texts.append(f'the discretization error estimate '
+                         f'({self.max_discretization_error_m:.2g} m) is not small against '
+                         'the residuals: raise steps_per_segment')
+        return texts
+
+    @property
     def covariance_scale(self) -> float:
         """The factor the standard errors carry: the reduced chi-square (1 with no dof)."""
         scale = self.reduced_chi_square
@@ -173,14 +195,18 @@ class PoseModel:
 
     def _solve(self, model_x: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Solve every wrench at the model keys of ``model_x`` (one pass)."""
-        self.passes += 1
         count = len(self.samples.wrenches)
+        failed = np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1)), np.zeros(
+            count, dtype=bool)
+        if np.any(np.abs(model_x) > MAX_UNITS):
+            return failed
         try:
             params = self.params.with_changes(**self.unknowns.model_values(model_x))
         except ValueError:   # a trial outside the keys' valid ranges: every sample fails
-            return np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1)), np.zeros(
-                count, dtype=bool)
-        solver = TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0))
+            return failed
+        self.passes += 1
+        solver = TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0),
+                                  time_limit_s=SOLVE_TIME_LIMIT_S)
         batch = solver.solve_many(self.samples.wrenches[:, :3], self.samples.wrenches[:, 3:])
         converged = batch.converged.astype(bool) & np.all(
             np.isfinite(batch.end_disk_quaternion_xyzw), axis=1)
@@ -326,14 +352,16 @@ def fit_poses(samples: PoseSamples, params: TranslatorParams, names: Sequence[st
     deviations = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     correlation = covariance / np.outer(np.where(deviations > 0, deviations, 1.0),
                                         np.where(deviations > 0, deviations, 1.0))
-    edge = unknowns.at_edge(x)
+    edge = unknowns.at_edge(x) + [name for name, value in zip(unknowns.model_names, x)
+                                  if abs(value) > 0.99 * MAX_UNITS]
     ok = bool(solution.success) and bool(converged.all()) and not edge
     message = solution.message if ok else (
         f'not converged: {solution.message}' if not solution.success else
         'not converged: some wrenches do not solve at the last trial values'
         if not converged.all() else
-        f'not converged: {", ".join(edge)} ran to the end of its valid range (the chosen '
-        'keys cannot explain the measurements)')
+        f'not converged: {", ".join(edge)} ran to the end of its valid range or '
+        f'{MAX_UNITS:g} unit from its start (the chosen keys cannot explain the '
+        'measurements, or the start is too far)')
     result = FitResult(
         names=tuple(unknowns.names), initial=unknowns.physical(x0), values=unknowns.physical(x),
         standard_errors=unknowns.physical_errors(x, deviations), correlation=correlation,
@@ -397,6 +425,7 @@ def fit_summary(result: FitResult) -> List[str]:
         f'{rms_angle_deg(result.errors_initial):.4g} deg -> {rms_angle_deg(result.errors):.4g}'
         f' deg; reduced chi-square {result.reduced_chi_square:.4g} ({result.degrees_of_freedom}'
         ' dof)')
+    lines += [f'warning: {text}' for text in result.warnings]
     if result.cross_validation_folds:
         lines.append(f'{result.cross_validation_folds}-fold cross-validated rms error: '
                      f'position {rms_position(result.cross_validated_errors) * 1e3:.4g} mm, '

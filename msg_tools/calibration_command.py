@@ -95,6 +95,7 @@ def _fit_report(result: FitResult) -> Dict[str, Any]:
         'degrees_of_freedom': result.degrees_of_freedom,
         'condition_number': _number(result.condition_number), 'rank': result.rank,
         'converged': result.converged, 'message': result.message,
+        'warnings': result.warnings,
         'max_discretization_error_m': _number(result.max_discretization_error_m),
         'timing': {'fit_s': result.fit_time_s,
                    'cross_validation_s': result.cross_validation_time_s,

@@ -36,7 +36,8 @@ def calibration_figure(result: FitResult) -> Figure:
                      markersize=4, label=name)
     low = float(min(measured.min(), predicted.min()))
     high = float(max(measured.max(), predicted.max()))
-    scatter.plot([low, high], [low, high], color='black', linewidth=0.8, label='equal')
+    diagonal = np.linspace(low, high, 100)   # a drawn line, not two samples
+    scatter.plot(diagonal, diagonal, color='black', linewidth=0.8, label='equal')
     scatter.set(xlabel='measured - mean measured (mm)',
                 ylabel='predicted - mean measured (mm)',
                 title='End-disk position, fitted model')
