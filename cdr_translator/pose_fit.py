@@ -104,8 +104,7 @@ class FitResult:
 
     ``values``, ``initial`` and ``standard_errors`` are keyed by the fitted names (model keys
     in SI units, then the frame's six numbers, pose_error.FRAME_NAMES). Standard errors are
-    those of the linearized model at the optimum, scaled by the reduced chi-square (see
-    ``covariance_scale``). Errors are predicted - measured in the tracker frame: position
+    those of the linearized model at the optimum, scaled by the reduced chi-square. Errors are predicted - measured in the tracker frame: position
     (m) and rotation (rad), (N, 6), at the initial and at the fitted values.
     """
 
@@ -151,11 +150,6 @@ class FitResult:
                          'the residuals: raise steps_per_segment')
         return texts
 
-    @property
-    def covariance_scale(self) -> float:
-        """The factor the standard errors carry: the reduced chi-square (1 with no dof)."""
-        scale = self.reduced_chi_square
-        return scale if math.isfinite(scale) else 1.0
 
 
 def rms_position(errors: np.ndarray) -> float:
@@ -220,7 +214,7 @@ class PoseModel:
             quaternions), converged)
 
     def errors(self, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """Return the pose errors (N, 6) at unknowns ``x`` and the converged mask."""
+        """Return the (N, 6) pose errors at unknowns ``x`` and the converged mask."""
         positions, rotations, converged = self.base_poses(self.unknowns.model_part(x))
         positions, rotations = pose_error.to_tracker(positions, rotations,
                                                      self.unknowns.frame_values(x))

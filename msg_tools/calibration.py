@@ -49,7 +49,7 @@ class Pairing:
 
     @property
     def matched(self) -> int:
-        """Number of wrenches paired with a usable pose."""
+        """Count the wrenches paired with a usable pose."""
         return len(self.stamps_ns)
 
     @property

@@ -19,7 +19,7 @@ from typing import Any, Dict, List, Optional
 from cdr_translator.fit_parameters import check_fit_names
 from cdr_translator.params import translator_values, TranslatorParams
 from cdr_translator.pose_error import check_frame, FRAME_NAMES
-from cdr_translator.pose_fit import (fit_summary, FitResult, fit_poses, rms_angle_deg,
+from cdr_translator.pose_fit import (fit_poses, fit_summary, FitResult, rms_angle_deg,
                                      rms_position, UnidentifiableError)
 from msg_tools.calibration import fitted_params_text, Pairing, read_pairs
 from msg_tools.calibration_plot import plot_calibration

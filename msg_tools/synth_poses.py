@@ -53,7 +53,7 @@ class PoseNoise(NamedTuple):
     angle_deg: float
 
     def covariance(self) -> np.ndarray:
-        """Return the 6 x 6 covariance (m^2, rad^2) in ROS order."""
+        """Return the 6 x 6 matrix (m^2, rad^2), in ROS order."""
         return np.diag([self.position_m ** 2] * 3 + [math.radians(self.angle_deg) ** 2] * 3)
 
 
@@ -86,7 +86,7 @@ def measure(samples: Sequence['Sample'], noise: PoseNoise, true_params: Optional
     frame_id is the base frame when ``frame`` is zero, else TRACKER_FRAME. ValueError names
     a bad frame or jitter, and ParameterError a bad params file.
     """
-    frame = check_frame(frame)
+    tracker = check_frame(frame)
     if not (math.isfinite(jitter_s) and jitter_s >= 0.0):
         raise ValueError(f'the pose stamp jitter must be a finite number >= 0, got {jitter_s!r}')
     values = translator_values(true_params)
@@ -102,7 +102,7 @@ def measure(samples: Sequence['Sample'], noise: PoseNoise, true_params: Optional
         solved = batch.converged.astype(bool)
         rows, positions = rows[solved], batch.end_disk_position[solved]
         rotations = Rotation.from_quat(batch.end_disk_quaternion_xyzw[solved]).as_matrix()
-        positions, rotations = to_tracker(positions, rotations.reshape(-1, 3, 3), frame)
+        positions, rotations = to_tracker(positions, rotations.reshape(-1, 3, 3), tracker)
         generator = np.random.default_rng([seed, 1])
         positions = positions + generator.normal(0.0, noise.position_m, positions.shape)
         turns = Rotation.from_rotvec(generator.normal(
@@ -114,7 +114,7 @@ def measure(samples: Sequence['Sample'], noise: PoseNoise, true_params: Optional
         for row, position, quaternion, offset in zip(rows, positions, quaternions, offsets):
             poses[row] = MeasuredPose(samples[row].stamp_ns + int(round(offset * 1e9)),
                                       position, quaternion, covariance)
-    return poses, values['base_frame'] if not frame.any() else TRACKER_FRAME
+    return poses, values['base_frame'] if not tracker.any() else TRACKER_FRAME
 
 
 def pose_messages(pose: MeasuredPose, frame_id: str, stamp: dict) -> Tuple[dict, dict]:

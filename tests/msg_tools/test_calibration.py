@@ -57,13 +57,13 @@ def _calibrate(*args):
 
 @pytest.fixture(scope='module')
 def folder(tmp_path_factory):
-    """A folder for this module's recordings and outputs."""
+    """Make a folder for this module's recordings and outputs."""
     return tmp_path_factory.mktemp('calibration')
 
 
 @pytest.fixture(scope='module')
 def true_params(folder):
-    """A partial params file of the hidden prototype."""
+    """Write a partial params file of the hidden prototype."""
     path = folder / 'true.yaml'
     path.write_text('translator_node:\n  ros__parameters:\n'
                     f'    youngs_modulus: {yaml_number(TRUE_MODULUS)}\n'
