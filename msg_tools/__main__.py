@@ -31,7 +31,8 @@ from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
 quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
 
 from msg_tools import synth  # noqa: E402
-from msg_tools.calibration_command import add_parser, run_calibrate  # noqa: E402
+from msg_tools.calibration_command import (  # noqa: E402
+    add_frame_option, add_parser, run_calibrate)
 from msg_tools.errors import ReplayError  # noqa: E402
 from msg_tools.info import describe  # noqa: E402
 from msg_tools.plots import check_plot_path, plot_replay  # noqa: E402
@@ -74,9 +75,7 @@ def _parser() -> argparse.ArgumentParser:
                        help='also write noisy measured end-disk poses (seeded by --seed)')
     synth.add_argument('--true-params', metavar='FILE',
                        help='params file (over the defaults) the measured poses are solved with')
-    synth.add_argument('--frame-offset', type=float, nargs=6, metavar='N',
-                       help='tracker frame of the poses in the base frame: X Y Z (m) '
-                            'RX RY RZ (rotation vector, rad); default all 0')
+    add_frame_option(synth, '--frame-offset', 'tracker frame of the poses')
     synth.add_argument('--pose-stamp-jitter', type=float, default=0.0, metavar='S',
                        help='pose stamps = wrench stamps + uniform [-S, S] s; default 0')
 

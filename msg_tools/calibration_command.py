@@ -29,6 +29,13 @@ from msg_tools.plots import check_plot_path
 EXIT_OK, EXIT_DAMAGED_INPUT, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_UNIDENTIFIABLE = 0, 1, 2, 3, 4
 
 
+def add_frame_option(parser: argparse.ArgumentParser, flag: str, what: str) -> None:
+    """Add ``flag`` taking a tracker frame's 6 numbers (cdr_translator.pose_error)."""
+    parser.add_argument(flag, type=float, nargs=6, metavar='N',
+                        help=f'{what}, in the base frame: X Y Z (m) RX RY RZ (rotation '
+                             'vector, rad); default all 0')
+
+
 def add_parser(commands: Any) -> None:
     """Add the ``calibrate`` subcommand to the subparsers ``commands``."""
     calibrate = commands.add_parser(
@@ -38,9 +45,7 @@ def add_parser(commands: Any) -> None:
                            help='translator_node keys to fit, e.g. youngs_modulus tube_length')
     calibrate.add_argument('--fit-frame', action='store_true',
                            help='also fit the tracker frame (6 numbers: x y z, rotation vector)')
-    calibrate.add_argument('--frame', type=float, nargs=6, metavar='N',
-                           help='tracker frame in the base frame when not fitted: X Y Z (m) '
-                                'RX RY RZ (rotation vector, rad); default all 0')
+    add_frame_option(calibrate, '--frame', 'tracker frame when not fitted')
     calibrate.add_argument('--params', help='params file of the starting values (default: '
                                             'config/translator.yaml)')
     calibrate.add_argument('--out', help='write the fitted keys as a partial params file')
