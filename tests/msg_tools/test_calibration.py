@@ -237,7 +237,9 @@ def test_frame_fit_recovers_the_tracker_frame(folder):
         assert abs(entry['value'] - value) <= WITHIN_ERRORS * entry['standard_error'], name
     assert report['cross_validated_rms_position_error_m'] is None   # --folds 0
     # the frame left out: the modulus alone cannot explain a tracker 30 cm away
-    code, report, err = _calibrate(path, '--fit', 'youngs_modulus', '--folds', 0,
+    short = _synth(folder / 'tracker_short.mcap', '--force', 10, 10, 5,
+                   '--measured-pose-noise', *NOISE, '--frame-offset', *offset, count=10)
+    code, report, err = _calibrate(short, '--fit', 'youngs_modulus', '--folds', 0,
                                    '--out', folder / 'never.yaml')
     assert code == 3 and not report['converged'] and 'not converged' in err
     assert 'youngs_modulus ran to the end' in report['message']
@@ -251,3 +253,13 @@ def test_figure_is_readable(recording):
     subset = pairing.samples.subset(np.arange(20))
     result = fit_poses(subset, TranslatorParams.from_yaml(), ['youngs_modulus'], folds=2)
     assert_readable(calibration_figure(result))
+
+
+def test_damaged_input_is_used_and_reported(folder):
+    """A file cut inside its summary: the pairs are salvaged, fitted, and the exit code is 1."""
+    path = _synth(folder / 'cut.mcap', '--force', 10, 0, 0, '--measured-pose-noise', *NOISE,
+                  count=20, profile='ramp')
+    path.write_bytes(path.read_bytes()[:-40])
+    code, report, err = _calibrate(path, '--fit', 'youngs_modulus', '--folds', 0)
+    assert code == 1 and report['converged'] and report['matched'] == 20
+    assert 'salvaged' in err and 'salvaged' in report['inputs'][0]
