@@ -92,7 +92,8 @@ def table(rows: List[Dict[str, Any]], truth: Dict[str, float]) -> List[str]:
             error = entry['value'] - truth[name]
             lines.append(f"| {row['scenario']} | {name} | {truth[name]:.6g} | "
                          f"{entry['initial']:.6g} | {entry['value']:.6g} | {error:.3g} | "
-                         f"{entry['standard_error']:.3g} | {error / entry['standard_error']:+.2f} |")
+                         f"{entry['standard_error']:.3g} | "
+                         f"{error / entry['standard_error']:+.2f} |")
     return lines
 
 
@@ -106,7 +107,7 @@ def main_bench() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     truth = dict(HIDDEN, **dict(zip(FRAME_NAMES, OFFSET)))
-    rows = []
+    rows: List[Dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as folder_name:
         folder = Path(folder_name)
         (folder / 'hidden.yaml').write_text('translator_node:\n  ros__parameters:\n' + ''.join(
@@ -142,8 +143,7 @@ def main_bench() -> None:
         'cross-validation | model passes | one pass | whole command |',
         '|---|---|---|---|---|---|---|---|---|']
     for row in rows:
-        report = row['report']
-        timing = report['timing']
+        report, timing = row['report'], row['report']['timing']
         lines.append(
             f"| {row['scenario']} | {report['rms_position_error_m'] * 1e3:.3f} mm | "
             f"{report['rms_angle_error_deg']:.3f} deg | "

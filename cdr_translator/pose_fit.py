@@ -104,8 +104,9 @@ class FitResult:
 
     ``values``, ``initial`` and ``standard_errors`` are keyed by the fitted names (model keys
     in SI units, then the frame's six numbers, pose_error.FRAME_NAMES). Standard errors are
-    those of the linearized model at the optimum, scaled by the reduced chi-square. Errors are predicted - measured in the tracker frame: position
-    (m) and rotation (rad), (N, 6), at the initial and at the fitted values.
+    those of the linearized model at the optimum, scaled by the reduced chi-square. Errors
+    are predicted - measured in the tracker frame: position (m) and rotation (rad), (N, 6),
+    at the initial and at the fitted values.
     """
 
     names: Tuple[str, ...]
@@ -149,7 +150,6 @@ class FitResult:
                          f'({self.max_discretization_error_m:.2g} m) is not small against '
                          'the residuals: raise steps_per_segment')
         return texts
-
 
 
 def rms_position(errors: np.ndarray) -> float:
