@@ -45,16 +45,16 @@ def calibration_figure(result: FitResult) -> Figure:
     scatter.legend(fontsize='small')
     index = np.arange(result.samples)
     marker = sample_marker(result.samples)
-    series = [('start', result.errors_initial, 'tab:gray'),
-              ('fitted', result.errors, 'tab:blue')]
-    if result.cross_validation_folds:
+    series = [('start', result.errors_initial, 'tab:gray', '-')]
+    if result.cross_validation_folds:   # under the fitted line, which it nearly equals
         series.append((f'held out ({result.cross_validation_folds}-fold)',
-                       result.cross_validated_errors, 'tab:orange'))
-    for label, errors, colour in series:
+                       result.cross_validated_errors, 'tab:orange', '-'))
+    series.append(('fitted', result.errors, 'tab:blue', ':'))
+    for label, errors, colour, style in series:
         positions.plot(index, 1e3 * np.linalg.norm(errors[:, :3], axis=1), color=colour,
-                       marker=marker, linewidth=0.8, label=label)
+                       marker=marker, linewidth=1.0, linestyle=style, label=label)
         angles.plot(index, np.degrees(np.linalg.norm(errors[:, 3:], axis=1)), color=colour,
-                    marker=marker, linewidth=0.8, label=label)
+                    marker=marker, linewidth=1.0, linestyle=style, label=label)
     positions.set(xlabel='sample (count)', ylabel='|predicted - measured| (mm)',
                   title='Position error', yscale='log')
     angles.set(xlabel='sample (count)', ylabel='rotation error (deg)',
