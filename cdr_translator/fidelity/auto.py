@@ -1,0 +1,384 @@
+"""
+The 'auto' fidelity: per wrench, the cheapest level that meets the error budget, checked.
+
+The candidates, tried in this order:
+
+* 'linear': the first-order expansion about the last full solution that made one
+  (fidelity.linear). Its first-order term is exact, so its error grows as the square of the
+  offset s = box_scale(w - w0) from that solution; it is estimated as kappa s^2, with a
+  curvature kappa (position and angle) learned from checks and started, before any, from
+  the validated errors of the level (config/fidelity_validation.yaml). An answer inside the
+  trust region -- offsets up to CHECK_GROWTH times the farthest one checked on this
+  expansion -- whose estimate uses at most LINEAR_TARGET of the budget is taken as it is.
+  Farther out, the answer is checked before it is taken: one shot of the full model at the
+  predicted unknowns gives their residual, the equations' own measure of how far the
+  prediction is from a solution, and its norm times a gain is the linear answer's error
+  (``check_prediction``). The gain (error per unit residual, position and angle) is
+  measured exactly at every full solve made while an expansion is at hand (the prediction
+  against the solution, the residual at the prediction); the largest of the last
+  GAIN_MEMORY is used, none before the first. A check passes if its error, grown as the
+  square of the offset to the edge of the trust region it opens (CHECK_GROWTH times the
+  offset), stays inside LINEAR_TARGET of the budget; else the wrench escalates.
+* 'cc', 'rod': where their validated errors meet the budget, cheapest first by the cost
+  measured as the solver runs. With an expansion at hand the reduced answer is compared with
+  its prediction: a distance beyond the budget plus the prediction's estimated error proves
+  the reduced answer outside the budget (triangle inequality), and the next level is tried.
+* 'full', otherwise. A new expansion is made about its solution when the reuse it promises
+  at the wrench's pace pays for it: the measured cost of a full solve and an expansion
+  against that of the level that would answer instead.
+
+Costs are the medians of each level's last COST_MEMORY measured times (robust to the odd
+slow answer of a busy machine).
+
+Reduced levels and the expansion are used only inside the largest validated wrench box.
+"""
+
+import math
+import statistics
+import time
+from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
+
+import numpy as np
+
+from . import batch_rows
+from .validation import box_scale, box_scales, frame_errors
+from .._linalg import norm
+from ..batch import BatchResult
+from ..result import FRAME_NAMES, SolveResult
+
+if TYPE_CHECKING:
+    from .solver import FidelitySolver
+
+#: Reduced levels, cheapest first (the order the validated choice tries them).
+LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
+
+#: Share of the budget a linear answer's estimated (or checked) error may use.
+LINEAR_TARGET = 0.7
+
+#: Unchecked linear answers may lie this many times farther out than the farthest check.
+CHECK_GROWTH = 1.25
+
+#: A new expansion trusts, unchecked, this fraction of the radius its curvature predicts.
+FIRST_CHECK = 0.5
+
+#: The trust radius may exceed the one the validated worst case gives by this factor at most.
+MAX_RADIUS_GROWTH = 4.0
+
+#: Gains of the check measured at this many full solves count (the largest is used).
+GAIN_MEMORY = 4
+
+#: Measured times per level whose median is its cost.
+COST_MEMORY = 9
+
+#: An expansion must promise this many times its own cost in savings ...
+EXPANSION_MARGIN = 2.0
+
+#: ... and at least this many answers at the wrench's current pace.
+MIN_EXPANSION_REUSE = 4.0
+
+#: First guesses of the costs (s), replaced by measurements as the solver runs.
+INITIAL_COSTS = {'full': 1e-3, 'expansion': 3e-3, 'cc': 1e-4, 'rod': 2e-4, 'check': 1e-4}
+
+TRUSTED = 'inside the trust region of the expansion about the last full solution'
+OUTSIDE = 'wrench outside the validated range'
+
+
+def validated_curvature(validation) -> np.ndarray:
+    """Largest validated error of 'linear' per squared offset scale: (m, deg); inf: none."""
+    bound = None if validation is None else validation.levels.get('linear')
+    if bound is None:
+        return np.full(2, math.inf)
+    return np.array([max(error / scale ** 2 for error, scale in
+                         zip(errors, bound.scales))
+                     for errors in (bound.max_position_error_m, bound.max_angle_error_deg)])
+
+
+class AutoFidelity:
+    """The choices, checks, trust region and measured costs of one FidelitySolver's 'auto'."""
+
+    def __init__(self, solver: 'FidelitySolver') -> None:
+        """Bind ``solver`` (its budget, validation, levels and expansion)."""
+        self.solver = solver
+        self._times = {level: [cost] for level, cost in INITIAL_COSTS.items()}
+        #: each level's measured cost (s): the median of its last COST_MEMORY times
+        self.costs = dict(INITIAL_COSTS)
+        #: how often each event happened: checks made and failed, reduced answers refuted,
+        #: expansions made
+        self.counts = dict.fromkeys(('checks', 'failed_checks', 'refuted', 'expansions'), 0)
+        self._reaches_for: Optional[tuple] = None
+        self._reach_by_level: Dict[str, float] = {}
+        self._gains: List[np.ndarray] = []
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the trust region (the solver forgot its expansion)."""
+        self.curvature = validated_curvature(self.solver.validation)
+        self.trusted = 0.0
+        self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
+
+    @property
+    def budget(self) -> np.ndarray:
+        """The error budget (m, deg)."""
+        return np.array([self.solver.max_position_error, self.solver.max_angle_error_deg])
+
+    # the validated choice ---------------------------------------------------------------------
+    def validated_choice(self, wrench: np.ndarray) -> Tuple[str, str]:
+        """
+        Return (level, reason): the cheapest level whose validated error meets the budget.
+
+        For 'linear' the offset from the expansion's wrench must lie in a validated offset
+        box; ``solve`` widens that by checks.
+        """
+        solver = self.solver
+        if solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0:
+            return 'full', 'no error budget'
+        if solver.validation is None:
+            return 'full', 'no validation data for these parameters'
+        reaches = self._reaches()
+        scale = box_scale(wrench)
+        for level in LEVEL_COST_ORDER:
+            if level == 'linear' and not solver.tangent.ready:
+                continue
+            reach = reaches.get(level, -math.inf)
+            origin = solver.tangent.origin
+            if math.isnan(reach):  # bounds that do not grow: the box-by-box rule
+                admitted = solver.validation.admissible(
+                    level, wrench, solver.max_position_error, solver.max_angle_error_deg,
+                    origin=origin)
+            elif level == 'linear':
+                admitted = (origin is not None and box_scale(origin) <= 1.0
+                            and box_scale(wrench - origin) <= reach)
+            else:
+                admitted = scale <= reach
+            if admitted:
+                return level, 'the cheapest level whose validated error meets the budget'
+        if scale > 1.0:
+            return 'full', OUTSIDE
+        return 'full', 'no reduced level meets the budget here'
+
+    def _reaches(self) -> Dict[str, float]:
+        """Each level's validated reach under the budget (LevelBound.reach), made once."""
+        solver = self.solver
+        assert solver.validation is not None
+        key = (solver.max_position_error, solver.max_angle_error_deg, id(solver.validation))
+        if self._reaches_for != key:
+            self._reach_by_level = {
+                level: bound.reach(solver.max_position_error, solver.max_angle_error_deg)
+                for level, bound in solver.validation.levels.items()}
+            self._reaches_for = key
+        return self._reach_by_level
+
+    # the trust region of 'linear' -------------------------------------------------------------
+    def radius(self, curvature: np.ndarray) -> float:
+        """Offset scale at which ``curvature`` puts the linear error at LINEAR_TARGET."""
+        with np.errstate(divide='ignore'):
+            return float(np.sqrt(LINEAR_TARGET * self.budget / curvature).min())
+
+    def linear_verdict(self, wrench: np.ndarray) -> Optional[str]:
+        """'take' (inside the trust region), 'check', or None: 'linear' is not a candidate."""
+        tangent = self.solver.tangent
+        if not tangent.ready or box_scale(wrench) > 1.0 or box_scale(tangent.origin) > 1.0:
+            return None
+        scale = box_scale(wrench - tangent.origin)
+        if (self.curvature * scale ** 2 > LINEAR_TARGET * self.budget).any():
+            return None
+        return 'take' if scale <= self.trusted else 'check'
+
+    def trusted_rows(self, wrenches: np.ndarray) -> int:
+        """How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are."""
+        tangent = self.solver.tangent
+        if not tangent.ready or box_scale(tangent.origin) > 1.0:
+            return 0
+        scales = box_scales(wrenches - tangent.origin)
+        estimates = self.curvature * scales[:, None] ** 2
+        taken = ((box_scales(wrenches) <= 1.0) & (scales <= self.trusted)
+                 & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
+        return len(taken) if taken.all() else int(np.argmin(taken))
+
+    @property
+    def gain(self) -> np.ndarray:
+        """Linear error (m, deg) per unit residual norm at the prediction; inf: not measured."""
+        if not self._gains:
+            return np.full(2, math.inf)
+        return np.max(self._gains, axis=0)
+
+    def prediction_residual(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
+        """Norm of the full model's nondimensional residual at predicted SI ``unknowns``."""
+        problem = self.solver.full.problem
+        return norm(problem.residual(unknowns / problem.x_scale, wrench))
+
+    def check_prediction(self, wrench: np.ndarray, unknowns: np.ndarray) -> np.ndarray:
+        """Estimated errors (m, deg) of the linear answer with SI ``unknowns`` at ``wrench``."""
+        with np.errstate(invalid='ignore'):
+            errors = self.gain * self.prediction_residual(wrench, unknowns)
+        return np.where(np.isnan(errors), math.inf, errors)
+
+    def _learn(self, scale: float, errors: np.ndarray) -> None:
+        """Fold errors measured at offset ``scale`` into the expansion's curvature."""
+        if scale <= 0.0 or not np.isfinite(errors).all():
+            return
+        measured = errors / scale ** 2
+        self._measured = (measured if self._measured is None
+                          else np.maximum(self._measured, measured))
+        self.curvature = self._measured
+
+    def _new_expansion(self) -> None:
+        """Start the trust region of a new expansion from the last one's curvature."""
+        floor = validated_curvature(self.solver.validation) / MAX_RADIUS_GROWTH ** 2
+        if self._measured is not None:
+            self.curvature = np.maximum(self._measured, floor)
+        self._measured = None
+        self.trusted = FIRST_CHECK * self.radius(self.curvature)
+        self.counts['expansions'] += 1
+
+    # solving ----------------------------------------------------------------------------------
+    def solve(self, wrench: np.ndarray, compliance: bool, options: dict) -> SolveResult:
+        """Answer ``wrench`` at the cheapest level that meets the budget (module docstring)."""
+        solver = self.solver
+        level, reason = self.validated_choice(wrench)
+        if reason in ('no error budget', 'no validation data for these parameters'):
+            return solver._solve_at(level, reason, wrench, compliance, options)
+        verdict = self.linear_verdict(wrench)
+        if verdict == 'take':
+            return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
+        if verdict == 'check':
+            scale = box_scale(wrench - solver.tangent.origin)
+            started = time.perf_counter()
+            errors = self.check_prediction(wrench, solver.tangent.predict(wrench)[0])
+            self._note_cost('check', time.perf_counter() - started)
+            self.counts['checks'] += 1
+            self._learn(scale, errors)
+            if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
+                self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+                return solver._solve_at(
+                    'linear', f'checked by the full model\'s residual: error about '
+                    f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
+                    options)
+            self.counts['failed_checks'] += 1
+        levels = self._reduced_candidates(wrench)
+        if self._expansion_pays(wrench, self.costs[levels[0]] if levels else None):
+            return self._full(wrench, True, compliance, options, 'an expansion about it pays')
+        for level in levels:
+            result = solver._solve_at(level, 'validated error inside the budget here', wrench,
+                                      compliance, options)
+            self._note_cost(level, result.solve_time_s)
+            if result.converged and not self._refuted(wrench, result):
+                return result
+        reason = OUTSIDE if box_scale(wrench) > 1.0 else 'no cheaper level meets the budget'
+        return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
+                          reason)
+
+    def solve_many(self, wrenches: np.ndarray, batch: BatchResult, compliance: bool) -> None:
+        """
+        Solve the rows of ``wrenches`` into ``batch`` as consecutive ``solve`` calls would.
+
+        Rows inside the trust region go to the expansion's compiled poses in one call each
+        run; every other row is one ``solve``.
+        """
+        row = 0
+        while row < len(wrenches):
+            end = row + self.trusted_rows(wrenches[row:])
+            if end > row:
+                batch_rows.solve_run(self.solver, 'linear', TRUSTED, wrenches, range(row, end),
+                                     batch, compliance)
+                row = end
+                continue
+            batch.run(row, self._row, wrenches[row], compliance)
+            row += 1
+
+    def _row(self, batch: BatchResult, row: int, wrench: np.ndarray, compliance: bool) -> float:
+        """One row by ``solve``."""
+        result = self.solve(wrench, compliance, {})
+        batch.record(row, result)
+        return result.solve_time_s
+
+    def _reduced_candidates(self, wrench: np.ndarray) -> List[str]:
+        """'cc' and 'rod' where their validated errors meet the budget, cheapest first."""
+        if box_scale(wrench) > 1.0:
+            return []
+        reaches = self._reaches()
+        scale = box_scale(wrench)
+        solver = self.solver
+        admitted = []
+        for level in ('cc', 'rod'):
+            reach = reaches.get(level, -math.inf)
+            if (scale <= reach if not math.isnan(reach) else solver.validation.admissible(
+                    level, wrench, solver.max_position_error, solver.max_angle_error_deg)):
+                admitted.append(level)
+        return sorted(admitted, key=self.costs.__getitem__)
+
+    def _refuted(self, wrench: np.ndarray, result: SolveResult) -> bool:
+        """Whether the expansion's prediction proves ``result`` outside the budget."""
+        tangent = self.solver.tangent
+        if not tangent.ready:
+            return False
+        scale = box_scale(wrench - tangent.origin)
+        frames = tangent.predict(wrench)[2]
+        position, angle = frame_errors(np.stack([result.frames[name] for name in FRAME_NAMES]),
+                                       frames)
+        distance = np.array([position, math.degrees(angle)])
+        refuted = bool((distance > self.budget + self.curvature * scale ** 2).any())
+        self.counts['refuted'] += refuted
+        return refuted
+
+    def _expansion_pays(self, wrench: np.ndarray, alternative: Optional[float]) -> bool:
+        """
+        Whether to expand about a full solution at ``wrench``.
+
+        Its reuse is the trust radius a new expansion would start with over the last wrench
+        step (the answers it may serve at this pace); it pays when that many answers at the
+        ``alternative`` level's cost (None: the full model's) exceed EXPANSION_MARGIN times
+        the measured cost of a full solve and an expansion, and they are at least
+        MIN_EXPANSION_REUSE.
+        """
+        last = self.solver._last_wrench
+        if last is None or box_scale(wrench) > 1.0:
+            return False
+        curvature = self.curvature if self._measured is None else self._measured
+        floor = validated_curvature(self.solver.validation) / MAX_RADIUS_GROWTH ** 2
+        reach = self.radius(np.maximum(curvature, floor))
+        step = box_scale(wrench - last)
+        if not 0.0 < reach < math.inf or step > reach:
+            return False
+        reuse = reach / max(step, 1e-12)
+        cost = self.costs['full'] if alternative is None else alternative
+        return reuse >= MIN_EXPANSION_REUSE and reuse * cost > EXPANSION_MARGIN * (
+            self.costs['full'] + self.costs['expansion'])
+
+    def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
+              reason: str) -> SolveResult:
+        """The full model at ``wrench``, expanded about when ``expand``; its costs noted."""
+        solver = self.solver
+        if not expand:
+            result = solver._solve_at('full', reason, wrench, compliance, options)
+            self._note_cost('full', result.solve_time_s)
+            return result
+        tangent = solver.tangent
+        previous = None
+        if tangent.ready:  # the old expansion's error here, measured
+            unknowns, _, frames = tangent.predict(wrench)
+            previous = (box_scale(wrench - tangent.origin), frames,
+                        self.prediction_residual(wrench, unknowns))
+            # its prediction is a nearer start than the last full solution
+            solver.full.start_at(unknowns / solver.full.problem.x_scale, wrench,
+                                 (tangent.factorization, tangent.pose_jacobian,
+                                  tangent.origin))
+        result = solver.cache_full_solution(wrench, compliance, **options)
+        result.message += f' [full: {reason}]'
+        solver._last_wrench, solver._last_level = wrench, 'full'
+        self._note_cost('full', result.solve_time_s - tangent.build_time_s)
+        self._note_cost('expansion', tangent.build_time_s)
+        if previous is not None and result.converged:
+            frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+            position, angle = frame_errors(previous[1], frames)
+            errors = np.array([position, math.degrees(angle)])
+            self._learn(previous[0], errors)
+            if previous[2] > 0.0:
+                self._gains = (self._gains + [errors / previous[2]])[-GAIN_MEMORY:]
+        self._new_expansion()
+        return result
+
+    def _note_cost(self, level: str, elapsed: float) -> None:
+        """Add one measured time of ``level`` to its cost."""
+        times = self._times[level] = (self._times[level] + [elapsed])[-COST_MEMORY:]
+        self.costs[level] = statistics.median(times)
