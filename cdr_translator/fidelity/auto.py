@@ -27,20 +27,23 @@ The candidates, tried in this order:
   at the wrench's pace pays for it: the measured cost of a full solve and an expansion
   against that of the level that would answer instead.
 
-Costs are the medians of each level's last COST_MEMORY measured times (robust to the odd
-slow answer of a busy machine).
+Costs are measured once per process and parameter set, when the first 'auto' solver with a
+budget is made (``measure_costs``: the median of CALIBRATION_REPEATS timings of each
+level's step of CALIBRATION_STEP box scales, the step an expansion is made at), and kept:
+the choices then depend on the wrenches alone, so that a batch takes the levels its single
+solves take.
 
 Reduced levels and the expansion are used only inside the largest validated wrench box.
 """
 
 import math
 import statistics
-import time
 from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
 from . import batch_rows
+from .validation import box_half_widths as validation_half_widths
 from .validation import box_scale, box_scales, frame_errors
 from .._linalg import norm
 from ..batch import BatchResult
@@ -67,8 +70,16 @@ MAX_RADIUS_GROWTH = 4.0
 #: Gains of the check measured at this many full solves count (the largest is used).
 GAIN_MEMORY = 4
 
-#: Measured times per level whose median is its cost.
-COST_MEMORY = 9
+#: Timings per level whose median is its cost, and the wrench step they time (box scales).
+CALIBRATION_REPEATS = 3
+CALIBRATION_STEP = 0.1
+
+#: Where the costs are timed: a load of this box scale along CALIBRATION_DIRECTION.
+CALIBRATION_SCALE = 0.2
+CALIBRATION_DIRECTION = np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
+
+#: Costs measured so far, per parameter set (``measure_costs``).
+_MEASURED_COSTS: Dict[str, Dict[str, float]] = {}
 
 #: An expansion must promise this many times its own cost in savings ...
 EXPANSION_MARGIN = 2.0
@@ -76,8 +87,6 @@ EXPANSION_MARGIN = 2.0
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
 
-#: First guesses of the costs (s), replaced by measurements as the solver runs.
-INITIAL_COSTS = {'full': 1e-3, 'expansion': 3e-3, 'cc': 1e-4, 'rod': 2e-4, 'check': 1e-4}
 
 TRUSTED = 'inside the trust region of the expansion about the last full solution'
 OUTSIDE = 'wrench outside the validated range'
@@ -99,9 +108,9 @@ class AutoFidelity:
     def __init__(self, solver: 'FidelitySolver') -> None:
         """Bind ``solver`` (its budget, validation, levels and expansion)."""
         self.solver = solver
-        self._times = {level: [cost] for level, cost in INITIAL_COSTS.items()}
-        #: each level's measured cost (s): the median of its last COST_MEMORY times
-        self.costs = dict(INITIAL_COSTS)
+        #: each level's measured cost (s), and the expansion's ('expansion'); none until
+        #: ``measure_costs``
+        self.costs: Dict[str, float] = {}
         #: how often each event happened: checks made and failed, reduced answers refuted,
         #: expansions made
         self.counts = dict.fromkeys(('checks', 'failed_checks', 'refuted', 'expansions'), 0)
@@ -109,6 +118,13 @@ class AutoFidelity:
         self._reach_by_level: Dict[str, float] = {}
         self._gains: List[np.ndarray] = []
         self.reset()
+
+    def measure_costs(self) -> None:
+        """Measure the levels' costs (``measure_costs``) if the choices need them."""
+        solver = self.solver
+        if (solver.fidelity == 'auto' and solver.validation is not None
+                and solver.max_position_error > 0.0 and solver.max_angle_error_deg > 0.0):
+            self.costs = measure_costs(solver)
 
     def reset(self) -> None:
         """Forget the trust region (the solver forgot its expansion)."""
@@ -243,9 +259,7 @@ class AutoFidelity:
             return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
         if verdict == 'check':
             scale = box_scale(wrench - solver.tangent.origin)
-            started = time.perf_counter()
             errors = self.check_prediction(wrench, solver.tangent.predict(wrench)[0])
-            self._note_cost('check', time.perf_counter() - started)
             self.counts['checks'] += 1
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
@@ -261,7 +275,6 @@ class AutoFidelity:
         for level in levels:
             result = solver._solve_at(level, 'validated error inside the budget here', wrench,
                                       compliance, options)
-            self._note_cost(level, result.solve_time_s)
             if result.converged and not self._refuted(wrench, result):
                 return result
         reason = OUTSIDE if box_scale(wrench) > 1.0 else 'no cheaper level meets the budget'
@@ -350,9 +363,7 @@ class AutoFidelity:
         """The full model at ``wrench``, expanded about when ``expand``; its costs noted."""
         solver = self.solver
         if not expand:
-            result = solver._solve_at('full', reason, wrench, compliance, options)
-            self._note_cost('full', result.solve_time_s)
-            return result
+            return solver._solve_at('full', reason, wrench, compliance, options)
         tangent = solver.tangent
         previous = None
         if tangent.ready:  # the old expansion's error here, measured
@@ -366,8 +377,6 @@ class AutoFidelity:
         result = solver.cache_full_solution(wrench, compliance, **options)
         result.message += f' [full: {reason}]'
         solver._last_wrench, solver._last_level = wrench, 'full'
-        self._note_cost('full', result.solve_time_s - tangent.build_time_s)
-        self._note_cost('expansion', tangent.build_time_s)
         if previous is not None and result.converged:
             frames = np.stack([result.frames[name] for name in FRAME_NAMES])
             position, angle = frame_errors(previous[1], frames)
@@ -378,7 +387,29 @@ class AutoFidelity:
         self._new_expansion()
         return result
 
-    def _note_cost(self, level: str, elapsed: float) -> None:
-        """Add one measured time of ``level`` to its cost."""
-        times = self._times[level] = (self._times[level] + [elapsed])[-COST_MEMORY:]
-        self.costs[level] = statistics.median(times)
+
+def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
+    """
+    Time each level of ``solver`` (s per answer; 'expansion': one expansion), once per process.
+
+    Each level answers a step of CALIBRATION_STEP box scales from a solution at
+    CALIBRATION_SCALE, CALIBRATION_REPEATS times (median). The solver is reset afterwards.
+    """
+    key = f'{solver.params!r} {solver.rod_steps} {solver.full.tolerance!r}'
+    if key not in _MEASURED_COSTS:
+        start = CALIBRATION_SCALE * CALIBRATION_DIRECTION * validation_half_widths()
+        end = start + CALIBRATION_STEP * CALIBRATION_DIRECTION * validation_half_widths()
+        times: Dict[str, List[float]] = {level: [] for level in ('full', 'expansion', 'cc',
+                                                                 'rod')}
+        for _ in range(CALIBRATION_REPEATS):
+            solver.reset()
+            for level in ('full', 'cc', 'rod'):
+                solver._solve_at(level, '', start, False, {})
+                times[level].append(solver._solve_at(level, '', end, False, {}).solve_time_s)
+            result = solver.full.solve(end[:3], end[3:])
+            solver.tangent.build(result.unknowns / solver.full.problem.x_scale, end)
+            times['expansion'].append(solver.tangent.build_time_s)
+        _MEASURED_COSTS[key] = {level: statistics.median(values)
+                                for level, values in times.items()}
+        solver.reset()
+    return dict(_MEASURED_COSTS[key])

@@ -95,6 +95,7 @@ class FidelitySolver:
         self._last_level: Optional[str] = None
         #: the choices, checks and measured costs of 'auto'
         self.auto = AutoFidelity(self)
+        self.auto.measure_costs()
 
     @property
     def time_limit_s(self) -> float:
