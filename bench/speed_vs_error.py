@@ -12,7 +12,8 @@ solves), and a 1000-sample wrench sequence (warm-started). Times are also given 
 to the paper's numerics (``method='paper'``) measured in the same run on the paper's two
 cases. The 'auto' rows also answer RANDOM_COUNT seeded random wrenches of every size in the
 validated box, one at a time and in one batch. Also measured: the compliance's cost, and
-translator_node's sustained wrench rate over DDS. Writes speed_vs_error.md (tables), speed_vs_error.png (time against error) and
+translator_node's sustained wrench rate over DDS.
+Writes speed_vs_error.md (tables), speed_vs_error.png (time against error) and
 speed_vs_error.json (every number) into bench/results/, and the validated ranges of the
 reduced levels into config/fidelity_validation.yaml (what FidelitySolver's error budget
 reads; ``--skip-validation`` keeps the file as it is). ``--redraw`` measures nothing: it
@@ -199,13 +200,12 @@ def answer_series(row: Row, sequence: np.ndarray, expected: list) -> dict:
         used[result.fidelity] = used.get(result.fidelity, 0) + 1
     batch_s, deviation = batch_per_answer(row, sequence, solver_answers)
     return {'median_time_s': statistics.median(times),
-                    'batch_per_answer_s': batch_s, 'batch_deviation_m': deviation,
-                    'p95_time_s': float(np.percentile(times, 95)),
-                    'mean_time_s': float(np.mean(times)),
-                    'max_position_m': max(positions), 'median_position_m': float(
-                        np.median(positions)),
-                    'max_angle_deg': max(angles), 'median_angle_deg': float(np.median(angles)),
-                    'levels': used, 'auto_counts': dict(solver.auto.counts)}
+            'batch_per_answer_s': batch_s, 'batch_deviation_m': deviation,
+            'p95_time_s': float(np.percentile(times, 95)),
+            'mean_time_s': float(np.mean(times)),
+            'max_position_m': max(positions), 'median_position_m': float(np.median(positions)),
+            'max_angle_deg': max(angles), 'median_angle_deg': float(np.median(angles)),
+            'levels': used, 'auto_counts': dict(solver.auto.counts)}
 
 
 def batch_per_answer(row: Row, sequence: np.ndarray, answers: list,
@@ -291,7 +291,7 @@ def targets(report: dict, table_rows: List[Row]) -> list:
     auto = next(row for row in table_rows if row.setting == 'budget 1 mm, 0.5 deg')
     result.append((
         "'auto' at 1 mm / 0.5° along the sequence >= 10× faster than full",
-        ', '.join(f"{name} {default.sequence[key] / auto.sequence[key]:.2g}×"
+        ', '.join(f'{name} {default.sequence[key] / auto.sequence[key]:.2g}×'
                   for name, key in (('median', 'median_time_s'), ('mean', 'mean_time_s'),
                                     ('batch', 'batch_per_answer_s')))))
     if report['paper_mean_s']:

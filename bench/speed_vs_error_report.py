@@ -50,7 +50,7 @@ def _levels(series: dict) -> str:
 
 
 def _budget_row(name: str, series: dict, full: dict, budget: Tuple[float, float]) -> str:
-    """One line of a budget table: times, against the full model's, errors, levels."""
+    """Return one line of a budget table: times, against the full model's, errors, levels."""
     inside = series['max_position_m'] <= budget[0] and series['max_angle_deg'] <= budget[1]
     counts = series.get('auto_counts', {})
     checks = (f"; checks {counts['checks']} ({counts['failed_checks']} failed), "

@@ -24,14 +24,16 @@ The candidates, tried in this order:
   its prediction: a distance beyond the budget plus the prediction's estimated error proves
   the reduced answer outside the budget (triangle inequality), and the next level is tried.
 * 'full', otherwise. A new expansion is made about its solution when the reuse it promises
-  at the wrench's pace pays for it: the measured cost of a full solve and an expansion
-  against that of the level that would answer instead.
+  pays for it: the answers it may serve (the offsets the last expansions served, over the
+  last wrench step) times the measured cost of the level that would answer instead against
+  the cost of a full solve after such a step and an expansion. The first expansion, with no
+  served offsets to go by, is made whenever it may serve MIN_EXPANSION_REUSE answers
+  inside the validated offset box: it is how the reach is learned.
 
 Costs are measured once per process and parameter set, when the first 'auto' solver with a
-budget is made (``measure_costs``: the median of CALIBRATION_REPEATS timings of each
-level's step of CALIBRATION_STEP box scales, the step an expansion is made at), and kept:
-the choices then depend on the wrenches alone, so that a batch takes the levels its single
-solves take.
+budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
+busy machine), and kept: the choices then depend on the wrenches alone, so that a batch
+takes the levels its single solves take.
 
 Reduced levels and the expansion are used only inside the largest validated wrench box.
 """
@@ -59,7 +61,7 @@ LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
 LINEAR_TARGET = 0.7
 
 #: Unchecked linear answers may lie this many times farther out than the farthest check.
-CHECK_GROWTH = 1.25
+CHECK_GROWTH = 1.15
 
 #: A new expansion trusts, unchecked, this fraction of the radius its curvature predicts.
 FIRST_CHECK = 0.5
@@ -70,9 +72,14 @@ MAX_RADIUS_GROWTH = 4.0
 #: Gains of the check measured at this many full solves count (the largest is used).
 GAIN_MEMORY = 4
 
-#: Timings per level whose median is its cost, and the wrench step they time (box scales).
-CALIBRATION_REPEATS = 3
+#: Timings per level whose fastest is its cost; the wrench step an expansion is timed at,
+#: and the small step a warm full solve is timed at (box scales).
+CALIBRATION_REPEATS = 5
 CALIBRATION_STEP = 0.1
+CALIBRATION_SMALL_STEP = 0.005
+
+#: Offsets served by this many past expansions make the reach a new one is expected to have.
+REACH_MEMORY = 3
 
 #: Where the costs are timed: a load of this box scale along CALIBRATION_DIRECTION.
 CALIBRATION_SCALE = 0.2
@@ -82,7 +89,7 @@ CALIBRATION_DIRECTION = np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
 _MEASURED_COSTS: Dict[str, Dict[str, float]] = {}
 
 #: An expansion must promise this many times its own cost in savings ...
-EXPANSION_MARGIN = 2.0
+EXPANSION_MARGIN = 1.5
 
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
@@ -117,6 +124,7 @@ class AutoFidelity:
         self._reaches_for: Optional[tuple] = None
         self._reach_by_level: Dict[str, float] = {}
         self._gains: List[np.ndarray] = []
+        self._reaches_served: List[float] = []  # farthest offset each past expansion served
         self.reset()
 
     def measure_costs(self) -> None:
@@ -131,10 +139,11 @@ class AutoFidelity:
         self.curvature = validated_curvature(self.solver.validation)
         self.trusted = 0.0
         self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
+        self._served = 0.0  # farthest offset a linear answer took on the expansion
 
     @property
     def budget(self) -> np.ndarray:
-        """The error budget (m, deg)."""
+        """Return the largest position (m) and angle (deg) errors allowed."""
         return np.array([self.solver.max_position_error, self.solver.max_angle_error_deg])
 
     # the validated choice ---------------------------------------------------------------------
@@ -192,20 +201,20 @@ class AutoFidelity:
 
     def linear_verdict(self, wrench: np.ndarray) -> Optional[str]:
         """'take' (inside the trust region), 'check', or None: 'linear' is not a candidate."""
-        tangent = self.solver.tangent
-        if not tangent.ready or box_scale(wrench) > 1.0 or box_scale(tangent.origin) > 1.0:
+        origin = self.solver.tangent.origin
+        if origin is None or box_scale(wrench) > 1.0 or box_scale(origin) > 1.0:
             return None
-        scale = box_scale(wrench - tangent.origin)
+        scale = box_scale(wrench - origin)
         if (self.curvature * scale ** 2 > LINEAR_TARGET * self.budget).any():
             return None
         return 'take' if scale <= self.trusted else 'check'
 
     def trusted_rows(self, wrenches: np.ndarray) -> int:
         """How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are."""
-        tangent = self.solver.tangent
-        if not tangent.ready or box_scale(tangent.origin) > 1.0:
+        origin = self.solver.tangent.origin
+        if origin is None or box_scale(origin) > 1.0:
             return 0
-        scales = box_scales(wrenches - tangent.origin)
+        scales = box_scales(wrenches - origin)
         estimates = self.curvature * scales[:, None] ** 2
         taken = ((box_scales(wrenches) <= 1.0) & (scales <= self.trusted)
                  & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
@@ -244,6 +253,9 @@ class AutoFidelity:
         if self._measured is not None:
             self.curvature = np.maximum(self._measured, floor)
         self._measured = None
+        if self._served > 0.0:
+            self._reaches_served = (self._reaches_served + [self._served])[-REACH_MEMORY:]
+        self._served = 0.0
         self.trusted = FIRST_CHECK * self.radius(self.curvature)
         self.counts['expansions'] += 1
 
@@ -256,6 +268,7 @@ class AutoFidelity:
             return solver._solve_at(level, reason, wrench, compliance, options)
         verdict = self.linear_verdict(wrench)
         if verdict == 'take':
+            self._served = max(self._served, box_scale(wrench - solver.tangent.origin))
             return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
         if verdict == 'check':
             scale = box_scale(wrench - solver.tangent.origin)
@@ -264,8 +277,9 @@ class AutoFidelity:
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
                 self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+                self._served = max(self._served, scale)
                 return solver._solve_at(
-                    'linear', f'checked by the full model\'s residual: error about '
+                    'linear', "checked by the full model's residual: error about "
                     f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
                     options)
             self.counts['failed_checks'] += 1
@@ -292,6 +306,9 @@ class AutoFidelity:
         while row < len(wrenches):
             end = row + self.trusted_rows(wrenches[row:])
             if end > row:
+                origin = self.solver.tangent.origin
+                self._served = max(self._served,
+                                   float(box_scales(wrenches[row:end] - origin).max()))
                 batch_rows.solve_run(self.solver, 'linear', TRUSTED, wrenches, range(row, end),
                                      batch, compliance)
                 row = end
@@ -312,6 +329,7 @@ class AutoFidelity:
         reaches = self._reaches()
         scale = box_scale(wrench)
         solver = self.solver
+        assert solver.validation is not None  # a budget without data answers 'full'
         admitted = []
         for level in ('cc', 'rod'):
             reach = reaches.get(level, -math.inf)
@@ -336,37 +354,32 @@ class AutoFidelity:
 
     def _expansion_pays(self, wrench: np.ndarray, alternative: Optional[float]) -> bool:
         """
-        Whether to expand about a full solution at ``wrench``.
+        Whether to expand about a full solution at ``wrench`` (module docstring).
 
-        Its reuse is the trust radius a new expansion would start with over the last wrench
-        step (the answers it may serve at this pace); it pays when that many answers at the
-        ``alternative`` level's cost (None: the full model's) exceed EXPANSION_MARGIN times
-        the measured cost of a full solve and an expansion, and they are at least
-        MIN_EXPANSION_REUSE.
+        ``alternative``: the cost of the level that would answer instead (None: a warm full
+        solve's).
         """
         last = self.solver._last_wrench
         if last is None or box_scale(wrench) > 1.0:
             return False
-        curvature = self.curvature if self._measured is None else self._measured
-        floor = validated_curvature(self.solver.validation) / MAX_RADIUS_GROWTH ** 2
-        reach = self.radius(np.maximum(curvature, floor))
-        step = box_scale(wrench - last)
-        if not 0.0 < reach < math.inf or step > reach:
-            return False
-        reuse = reach / max(step, 1e-12)
-        cost = self.costs['full'] if alternative is None else alternative
+        step = max(box_scale(wrench - last), 1e-12)
+        if not self._reaches_served:  # the first expansion: learn what one serves
+            reuse = self.radius(validated_curvature(self.solver.validation)) / step
+            return reuse >= MIN_EXPANSION_REUSE
+        reuse = statistics.mean(self._reaches_served) / step
+        cost = self.costs['full step'] if alternative is None else alternative
         return reuse >= MIN_EXPANSION_REUSE and reuse * cost > EXPANSION_MARGIN * (
             self.costs['full'] + self.costs['expansion'])
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
               reason: str) -> SolveResult:
-        """The full model at ``wrench``, expanded about when ``expand``; its costs noted."""
+        """Solve the full model at ``wrench``; expand about its solution when ``expand``."""
         solver = self.solver
         if not expand:
             return solver._solve_at('full', reason, wrench, compliance, options)
         tangent = solver.tangent
         previous = None
-        if tangent.ready:  # the old expansion's error here, measured
+        if tangent.origin is not None:  # the old expansion's error here, measured
             unknowns, _, frames = tangent.predict(wrench)
             previous = (box_scale(wrench - tangent.origin), frames,
                         self.prediction_residual(wrench, unknowns))
@@ -392,24 +405,28 @@ def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
     """
     Time each level of ``solver`` (s per answer; 'expansion': one expansion), once per process.
 
-    Each level answers a step of CALIBRATION_STEP box scales from a solution at
-    CALIBRATION_SCALE, CALIBRATION_REPEATS times (median). The solver is reset afterwards.
+    'full', 'cc' and 'rod' answer a step of CALIBRATION_STEP box scales from a solution at
+    CALIBRATION_SCALE; 'full step' a further step of CALIBRATION_SMALL_STEP (a warm solve
+    along a slow sequence); 'expansion' expands about the full solution. The fastest of
+    CALIBRATION_REPEATS; the solver is reset afterwards.
     """
     key = f'{solver.params!r} {solver.rod_steps} {solver.full.tolerance!r}'
     if key not in _MEASURED_COSTS:
-        start = CALIBRATION_SCALE * CALIBRATION_DIRECTION * validation_half_widths()
-        end = start + CALIBRATION_STEP * CALIBRATION_DIRECTION * validation_half_widths()
-        times: Dict[str, List[float]] = {level: [] for level in ('full', 'expansion', 'cc',
-                                                                 'rod')}
+        direction = CALIBRATION_DIRECTION * validation_half_widths()
+        start = CALIBRATION_SCALE * direction
+        end = start + CALIBRATION_STEP * direction
+        times: Dict[str, List[float]] = {level: [] for level in (
+            'full', 'full step', 'expansion', 'cc', 'rod')}
         for _ in range(CALIBRATION_REPEATS):
             solver.reset()
             for level in ('full', 'cc', 'rod'):
                 solver._solve_at(level, '', start, False, {})
                 times[level].append(solver._solve_at(level, '', end, False, {}).solve_time_s)
-            result = solver.full.solve(end[:3], end[3:])
-            solver.tangent.build(result.unknowns / solver.full.problem.x_scale, end)
+            further = end + CALIBRATION_SMALL_STEP * direction
+            result = solver._solve_at('full', '', further, False, {})
+            times['full step'].append(result.solve_time_s)
+            solver.tangent.build(result.unknowns / solver.full.problem.x_scale, further)
             times['expansion'].append(solver.tangent.build_time_s)
-        _MEASURED_COSTS[key] = {level: statistics.median(values)
-                                for level, values in times.items()}
+        _MEASURED_COSTS[key] = {level: min(values) for level, values in times.items()}
         solver.reset()
     return dict(_MEASURED_COSTS[key])

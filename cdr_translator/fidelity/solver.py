@@ -226,7 +226,7 @@ class FidelitySolver:
 
     def _solve_full(self, wrench: np.ndarray, compliance: bool,
                     compliance_options: dict) -> SolveResult:
-        """The full model (its expansion, if 'auto' wants one, is made by ``fidelity.auto``)."""
+        """Solve the full model (an expansion about it, if 'auto' wants one: fidelity.auto)."""
         return self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
                                **compliance_options)
 

@@ -10,7 +10,7 @@ import json
 import math
 
 from bench.speed_vs_error import PAPER_SCENES, RESULTS, SEQUENCE_LENGTH
-from bench.speed_vs_error_figure import measurements, Measurement, non_dominated
+from bench.speed_vs_error_figure import Measurement, measurements, non_dominated
 from bench.speed_vs_error_figure import speed_error_figure
 from cdr_translator.plotting import colour_scale, load_text
 from cdr_translator.robot.atlas_figures import AtlasBlock, stiffness_figure, workspace_figure
