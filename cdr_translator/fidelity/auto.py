@@ -14,11 +14,12 @@ The candidates, tried in this order:
   predicted unknowns gives their residual, the equations' own measure of how far the
   prediction is from a solution, and its norm times a gain is the linear answer's error
   (``check_prediction``). The gain (error per unit residual, position and angle) is
-  measured exactly at every full solve made while an expansion is at hand (the prediction
-  against the solution, the residual at the prediction); the largest of the last
-  GAIN_MEMORY is used, none before the first. A check passes if its error, grown as the
-  square of the offset to the edge of the trust region it opens (CHECK_GROWTH times the
-  offset), stays inside LINEAR_TARGET of the budget; else the wrench escalates.
+  measured on each expansion at its first check, which is a full solve instead: the
+  prediction against the solution, the residual at the prediction. It varies along an
+  expansion by tens of per cent (more between expansions), so GAIN_MARGIN times it is used.
+  A check passes if its error, grown as the square of the offset to the edge of the trust
+  region it opens (CHECK_GROWTH times the offset), stays inside LINEAR_TARGET of the
+  budget; else the wrench escalates.
 * 'cc', 'rod': where their validated errors meet the budget, cheapest first by the cost
   measured as the solver runs. With an expansion at hand the reduced answer is compared with
   its prediction: a distance beyond the budget plus the prediction's estimated error proves
@@ -69,8 +70,8 @@ FIRST_CHECK = 0.5
 #: The trust radius may exceed the one the validated worst case gives by this factor at most.
 MAX_RADIUS_GROWTH = 4.0
 
-#: Gains of the check measured at this many full solves count (the largest is used).
-GAIN_MEMORY = 4
+#: The check's error estimate is its measured gain times this.
+GAIN_MARGIN = 1.25
 
 #: Timings per level whose fastest is its cost; the wrench step an expansion is timed at,
 #: and the small step a warm full solve is timed at (box scales).
@@ -123,7 +124,6 @@ class AutoFidelity:
         self.counts = dict.fromkeys(('checks', 'failed_checks', 'refuted', 'expansions'), 0)
         self._reaches_for: Optional[tuple] = None
         self._reach_by_level: Dict[str, float] = {}
-        self._gains: List[np.ndarray] = []
         self._reaches_served: List[float] = []  # farthest offset each past expansion served
         self.reset()
 
@@ -140,6 +140,7 @@ class AutoFidelity:
         self.trusted = 0.0
         self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
         self._served = 0.0  # farthest offset a linear answer took on the expansion
+        self._gain: Optional[np.ndarray] = None  # the check's gain on this expansion
 
     @property
     def budget(self) -> np.ndarray:
@@ -223,9 +224,9 @@ class AutoFidelity:
     @property
     def gain(self) -> np.ndarray:
         """Linear error (m, deg) per unit residual norm at the prediction; inf: not measured."""
-        if not self._gains:
+        if self._gain is None:
             return np.full(2, math.inf)
-        return np.max(self._gains, axis=0)
+        return GAIN_MARGIN * self._gain
 
     def prediction_residual(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
         """Norm of the full model's nondimensional residual at predicted SI ``unknowns``."""
@@ -256,6 +257,7 @@ class AutoFidelity:
         if self._served > 0.0:
             self._reaches_served = (self._reaches_served + [self._served])[-REACH_MEMORY:]
         self._served = 0.0
+        self._gain = None
         self.trusted = FIRST_CHECK * self.radius(self.curvature)
         self.counts['expansions'] += 1
 
@@ -270,6 +272,8 @@ class AutoFidelity:
         if verdict == 'take':
             self._served = max(self._served, box_scale(wrench - solver.tangent.origin))
             return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
+        if verdict == 'check' and self._gain is None:
+            return self._first_check(wrench, compliance, options)
         if verdict == 'check':
             scale = box_scale(wrench - solver.tangent.origin)
             errors = self.check_prediction(wrench, solver.tangent.predict(wrench)[0])
@@ -294,6 +298,45 @@ class AutoFidelity:
         reason = OUTSIDE if box_scale(wrench) > 1.0 else 'no cheaper level meets the budget'
         return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
                           reason)
+
+    def _first_check(self, wrench: np.ndarray, compliance: bool,
+                     options: dict) -> SolveResult:
+        """The first check of an expansion: a full solve, which measures the check's gain."""
+        solver = self.solver
+        origin = solver.tangent.origin
+        assert origin is not None
+        scale = box_scale(wrench - origin)
+        unknowns, _, frames = solver.tangent.predict(wrench)
+        residual = self._start_full_at(wrench, unknowns)
+        result = solver._solve_at('full', 'the first check of the expansion', wrench,
+                                  compliance, options)
+        self.counts['checks'] += 1
+        if not result.converged or residual <= 0.0:
+            self.counts['failed_checks'] += 1
+            return result
+        position, angle = frame_errors(frames, np.stack([result.frames[name]
+                                                         for name in FRAME_NAMES]))
+        errors = np.array([position, math.degrees(angle)])
+        self._gain = errors / residual
+        self._learn(scale, errors)
+        if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
+            self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+        else:
+            self.counts['failed_checks'] += 1
+        return result
+
+    def _start_full_at(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
+        """
+        Start the full model's next solve at the predicted SI ``unknowns``; their residual.
+
+        The prediction is a nearer start than the last full solution, and the expansion's
+        factorization serves its first chord steps.
+        """
+        solver, tangent = self.solver, self.solver.tangent
+        assert tangent.origin is not None
+        solver.full.start_at(unknowns / solver.full.problem.x_scale, wrench,
+                             (tangent.factorization, tangent.pose_jacobian, tangent.origin))
+        return self.prediction_residual(wrench, unknowns)
 
     def solve_many(self, wrenches: np.ndarray, batch: BatchResult, compliance: bool) -> None:
         """
@@ -381,22 +424,15 @@ class AutoFidelity:
         previous = None
         if tangent.origin is not None:  # the old expansion's error here, measured
             unknowns, _, frames = tangent.predict(wrench)
-            previous = (box_scale(wrench - tangent.origin), frames,
-                        self.prediction_residual(wrench, unknowns))
-            # its prediction is a nearer start than the last full solution
-            solver.full.start_at(unknowns / solver.full.problem.x_scale, wrench,
-                                 (tangent.factorization, tangent.pose_jacobian,
-                                  tangent.origin))
+            self._start_full_at(wrench, unknowns)
+            previous = (box_scale(wrench - tangent.origin), frames)
         result = solver.cache_full_solution(wrench, compliance, **options)
         result.message += f' [full: {reason}]'
         solver._last_wrench, solver._last_level = wrench, 'full'
         if previous is not None and result.converged:
             frames = np.stack([result.frames[name] for name in FRAME_NAMES])
             position, angle = frame_errors(previous[1], frames)
-            errors = np.array([position, math.degrees(angle)])
-            self._learn(previous[0], errors)
-            if previous[2] > 0.0:
-                self._gains = (self._gains + [errors / previous[2]])[-GAIN_MEMORY:]
+            self._learn(previous[0], np.array([position, math.degrees(angle)]))
         self._new_expansion()
         return result
 
