@@ -70,6 +70,9 @@ FIRST_CHECK = 0.5
 #: The trust radius may exceed the one the validated worst case gives by this factor at most.
 MAX_RADIUS_GROWTH = 4.0
 
+#: Rows a batch looks ahead at first for a run inside the trust region.
+TRUSTED_WINDOW = 16
+
 #: The check's error estimate is its measured gain times this.
 GAIN_MARGIN = 1.25
 
@@ -211,15 +214,26 @@ class AutoFidelity:
         return 'take' if scale <= self.trusted else 'check'
 
     def trusted_rows(self, wrenches: np.ndarray) -> int:
-        """How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are."""
+        """
+        How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are.
+
+        Looked at in windows that double from TRUSTED_WINDOW rows, so that a batch whose runs
+        are short does not measure every later row at every run.
+        """
         origin = self.solver.tangent.origin
         if origin is None or box_scale(origin) > 1.0:
             return 0
-        scales = box_scales(wrenches - origin)
-        estimates = self.curvature * scales[:, None] ** 2
-        taken = ((box_scales(wrenches) <= 1.0) & (scales <= self.trusted)
-                 & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
-        return len(taken) if taken.all() else int(np.argmin(taken))
+        count, window = 0, TRUSTED_WINDOW
+        while count < len(wrenches):
+            part = wrenches[count:count + window]
+            scales = box_scales(part - origin)
+            estimates = self.curvature * scales[:, None] ** 2
+            taken = ((box_scales(part) <= 1.0) & (scales <= self.trusted)
+                     & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
+            if not taken.all():
+                return count + int(np.argmin(taken))
+            count, window = count + len(part), 2 * window
+        return count
 
     @property
     def gain(self) -> np.ndarray:
