@@ -68,7 +68,7 @@ def _budget_row(name: str, series: dict, full: dict, budget: Tuple[float, float]
 def budget_tables(table_rows: List[dict], budgets: Sequence[Tuple[float, float]],
                   sequence_length: int, random_count: int) -> List[str]:
     """
-    The 'auto' rows per budget, along the sequence and on random wrenches.
+    Return the tables of the 'auto' rows per budget: along the sequence, on random wrenches.
 
     Times per answer with their speed-up over the full model (8 steps) in the same run:
     median and mean of one ``solve`` at a time, and ``solve_many`` (batch).

@@ -315,7 +315,7 @@ class AutoFidelity:
 
     def _first_check(self, wrench: np.ndarray, compliance: bool,
                      options: dict) -> SolveResult:
-        """The first check of an expansion: a full solve, which measures the check's gain."""
+        """Check an expansion the first time: a full solve, which measures the check's gain."""
         solver = self.solver
         origin = solver.tangent.origin
         assert origin is not None

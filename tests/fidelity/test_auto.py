@@ -15,7 +15,7 @@ BUDGET = (1e-3, 0.5)
 
 @pytest.fixture(scope='module')
 def full(params):
-    """The full model, the errors' reference (its own error is far below the budget)."""
+    """Return the full model, the errors' reference (its own error far below the budget)."""
     return TranslatorSolver(params)
 
 
