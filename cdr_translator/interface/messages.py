@@ -177,7 +177,11 @@ def compliance_message(result: SolveResult) -> dict:
     (i, j) is ``data[6 * i + j]``: the twist component i per unit wrench component j,
     wrench [f; m] in the base frame at the end-disk centre, twist [v; w].
     """
-    matrix = np.asarray(_compliance(result).matrix, dtype=float)
+    return matrix_message(np.asarray(_compliance(result).matrix, dtype=float))
+
+
+def matrix_message(matrix: np.ndarray) -> dict:
+    """Return the Float64MultiArray of a matrix, row-major, layout dims 'rows' and 'cols'."""
     rows, cols = matrix.shape
     return {'layout': {'dim': [{'label': 'rows', 'size': rows, 'stride': rows * cols},
                                {'label': 'cols', 'size': cols, 'stride': cols}],
