@@ -3,14 +3,36 @@ Which wrench topics of an MCAP a replay takes, and where their outputs go.
 
 Without a choice every WrenchStamped channel is replayed; each output lands in the
 namespace of its input topic, as the node started in that namespace would publish it, so
-two inputs in one namespace are refused (their outputs would be mixed).
+two inputs in one namespace are refused (their outputs would be mixed). Measured end-disk
+poses (``POSE_INPUTS``: a topic of that name and type, in any namespace) are replayed
+beside them, as translator_node estimates the wrench from them.
 """
 
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from cdr_translator.interface import messages
+from cdr_translator.interface import messages, pose_estimation
 from msg_tools.errors import ReplayError
 from msg_tools.reader import McapSource
+
+
+#: The measured-pose inputs a replay takes beside the wrenches: topic name -> type.
+POSE_INPUTS = {name: pose_estimation.ESTIMATION_TOPIC_TYPES[name]
+               for name in (pose_estimation.MEASURED_POSE_TOPIC,
+                            pose_estimation.MEASURED_POSE_COV_TOPIC)}
+
+
+def is_pose_input(topic: str, type_name: str) -> bool:
+    """Tell whether ``topic`` of type ``type_name`` is a measured pose translator_node takes."""
+    return POSE_INPUTS.get(topic.rsplit('/', 1)[-1]) == type_name
+
+
+def select_pose_topics(source: McapSource, requested: Optional[Sequence[str]]) -> List[str]:
+    """Return the measured-pose topics to replay: all of them, or those ``requested``."""
+    channels, schemas, _, _ = source.channel_overview()
+    found = sorted({channel.topic for channel in channels.values()
+                    if channel.schema_id in schemas
+                    and is_pose_input(channel.topic, schemas[channel.schema_id].name)})
+    return [topic for topic in found if not requested or topic in requested]
 
 
 def output_topic(input_topic: str, name: str) -> str:
@@ -47,6 +69,8 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
         for topic in requested:
             if topic not in types:
                 warnings.append(f'topic {topic!r} is not in {source.path}')
+            elif is_pose_input(topic, types[topic]):
+                continue  # select_pose_topics takes it
             elif types[topic] != messages.WRENCH_TYPE:
                 warnings.append(f'topic {topic!r} has schema {types[topic]!r}, not '
                                 f'{messages.WRENCH_TYPE!r}: skipped')

@@ -99,11 +99,10 @@ class NodeProcess:
 
 class TranslatorClient:
     """
-    A second node in its own rclpy context: publishes wrenches (and measured poses), records
-    the node's outputs.
+    A second node in its own rclpy context: sends inputs, records the node's outputs.
 
-    ``received[topic]`` lists (message, receive time in ns) in arrival order; an executor
-    thread spins the node until ``close()``.
+    It publishes wrenches and measured poses; ``received[topic]`` lists (message, receive
+    time in ns) in arrival order; an executor thread spins the node until ``close()``.
     """
 
     def __init__(self, topics: Sequence[str] = DEFAULT_TOPICS, name: str = 'translator_client',
@@ -198,14 +197,14 @@ class TranslatorClient:
         ``measured_end_disk_pose``.
         """
         stamp = messages.stamp_from_ns(time.time_ns() if stamp_ns is None else stamp_ns)
-        pose = {'position': dict(zip('xyz', map(float, position))),
-                'orientation': dict(zip('xyzw', map(float, quaternion_xyzw)))}
+        pose: Dict[str, Any] = {'position': dict(zip('xyz', map(float, position))),
+                                'orientation': dict(zip('xyzw', map(float, quaternion_xyzw)))}
         topic = pose_estimation.MEASURED_POSE_TOPIC
         if covariance is not None:
             topic = pose_estimation.MEASURED_POSE_COV_TOPIC
             pose = {'pose': pose, 'covariance': [float(value) for value in covariance]}
         publisher = self.pose_publishers[topic]
-        publisher.publish(fill_message(publisher.msg_type(), {
+        publisher.publish(fill_message(TRANSLATOR_ESTIMATE_INPUTS[topic](), {
             'header': messages.header(stamp, frame_id), 'pose': pose}))
         return stamp
 

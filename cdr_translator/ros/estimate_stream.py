@@ -28,11 +28,12 @@ from ..interface import messages, pose_estimation
 Built = List[Tuple[str, str, dict]]
 
 #: translator_node's measured-pose inputs and estimate outputs, and their message classes.
-TRANSLATOR_ESTIMATE_INPUTS = {pose_estimation.MEASURED_POSE_TOPIC: PoseStamped,
-                              pose_estimation.MEASURED_POSE_COV_TOPIC: PoseWithCovarianceStamped}
-TRANSLATOR_ESTIMATE_OUTPUTS = {pose_estimation.ESTIMATED_WRENCH_TOPIC: WrenchStamped,
-                               pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC:
-                               Float64MultiArray}
+TRANSLATOR_ESTIMATE_INPUTS: Dict[str, type] = {
+    pose_estimation.MEASURED_POSE_TOPIC: PoseStamped,
+    pose_estimation.MEASURED_POSE_COV_TOPIC: PoseWithCovarianceStamped}
+TRANSLATOR_ESTIMATE_OUTPUTS: Dict[str, type] = {
+    pose_estimation.ESTIMATED_WRENCH_TOPIC: WrenchStamped,
+    pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC: Float64MultiArray}
 
 
 class Outcome(Protocol):
