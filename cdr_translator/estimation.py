@@ -29,12 +29,13 @@ stiffness); observability and the conditioning flag: cdr_translator/wrench_estim
 Never an exception for a pose the model cannot match: beyond the translator's reach, a
 pose no wrench reaches (the trust radius collapses, or the iterations or the time run
 out), an equilibrium past buckling (unstable) or one close to a bifurcation (another
-wrench may match the same pose) give a result flagged by ``converged`` or ``accuracy_met``
-and its message. Bad input (non-finite, wrong shape, a non-unit quaternion, a covariance
+wrench may match the same pose), or a second match found (a moment from a position:
+``estimate_along``) give a result flagged by ``converged`` or ``accuracy_met`` and its
+message. Bad input (non-finite, wrong shape, a non-unit quaternion, a covariance
 that is not symmetric positive semidefinite) raises InputError, a ValueError.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import time
 from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
@@ -48,18 +49,23 @@ from .branch import RECHECK_MARGIN
 from .checks import check_covariance, check_unit_quaternion, check_vector
 from .compliance import ComplianceAnalysis, frame_twist
 from .errors import InputError
-from .wrench_estimate import observability, TRANSLATOR_WRENCH_LABELS, WrenchEstimate
+from .geometry import quaternion_xyzw
+from .stability import load_scale
+from .wrench_estimate import (CONDITION_LIMIT, observability, TRANSLATOR_WRENCH_LABELS,
+                              WrenchEstimate)
 
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
 
-__all__ = ['estimate_wrench', 'Evaluation', 'measured_target', 'search', 'Target']
+__all__ = ['estimate', 'estimate_along', 'estimate_wrench', 'Evaluation', 'LOAD_LIMIT',
+           'measured_target', 'search', 'Target']
 
 #: Newton iterations (forward solves) of one estimate at most.
 MAX_ITERATIONS = 40
 
-#: First trust radius and its ceiling, in the scaled wrench norm (N).
-TRUST_RADIUS_N = 20.0
+#: Trust radius after an estimate's first (damped) step, at least, and at most: scaled
+#: wrench norm (N).
+TRUST_RADIUS_N = 1.0
 MAX_TRUST_RADIUS_N = 400.0
 
 #: The model's pose matches the measured one when the scaled residual (position, and the
@@ -71,6 +77,10 @@ MATCH_M = 1e-11
 #: iteration: the pose is matched to the rounding of the forward solve.
 STEP_TOLERANCE = 1e-10
 
+#: Two matches further apart than this (relative, scaled wrench norm, at least 1 N) are
+#: different wrenches: the forward solves converge to 1e-10, the matches to about 1e-9.
+MATCH_DISTANCE = 1e-6
+
 #: A rejected step from a residual below this (m, scaled) ends the iteration as converged:
 #: the forward solve's rounding, not the wrench, sets the residual there.
 ROUNDING_M = 1e-9
@@ -78,6 +88,11 @@ ROUNDING_M = 1e-9
 #: Below this stability margin another equilibrium branch is close (branch.RECHECK_MARGIN):
 #: a second wrench may match the pose, and the estimate is flagged.
 AMBIGUOUS_MARGIN = RECHECK_MARGIN
+
+#: Wrenches beyond this many times the translator's load scale w* (stability.load_scale:
+#: 31.4 N for the shipped one, the axial buckling load 29.3 N) are not tried: a pose that
+#: only such a load could match is reported as unmatched, not solved at kilonewtons.
+LOAD_LIMIT = 20.0
 
 #: No equilibrium puts the end-disk centre further from the base than this many stack
 #: heights (the backbones would have to stretch by a percent: kilonewtons).
@@ -110,6 +125,7 @@ class Target:
     covariance: Optional[np.ndarray]  # of the measured components
     length: float  # the scaling length H
     labels: Tuple[str, ...]  # names of the six wrench components
+    load_limit: float = math.inf  # largest scaled wrench norm tried (N)
 
     def error(self, evaluation: Evaluation) -> np.ndarray:
         """Model pose minus measured pose, the measured components (m, rad)."""
@@ -132,13 +148,16 @@ class Search:
     message: str
     iterations: int = 0
     solves: int = 0
+    #: another matching wrench, found by the second search (see estimate_along)
+    alternative: Optional[np.ndarray] = None
 
 
 def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     covariance: Optional[ArrayLike], moment: Optional[ArrayLike],
                     force: Optional[ArrayLike], length: float,
                     labels: Tuple[str, ...] = TRANSLATOR_WRENCH_LABELS,
-                    names: Tuple[str, str] = ('position', 'quaternion_xyzw')) -> Target:
+                    names: Tuple[str, str, str] = ('position', 'quaternion_xyzw',
+                                                   'pose_covariance')) -> Target:
     """
     Check a measured pose and the given wrench components; return the Target (InputError).
 
@@ -170,14 +189,15 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     checked = None
     if covariance is not None:
         size = 3 if len(rows) == 3 and np.shape(covariance) == (3, 3) else 6
-        checked = check_covariance('pose_covariance', covariance, size)[:len(rows), :len(rows)]
+        checked = check_covariance(names[2], covariance, size)[:len(rows), :len(rows)]
     return Target(frame, rows, free, given, checked, float(length), labels)
 
 
 def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
-           start: Optional[Evaluation], target: Target, deadline: float) -> Search:
+           start: Optional[Evaluation], target: Target, deadline: float,
+           begin: Optional[np.ndarray] = None) -> Search:
     """
-    Newton on the estimated components from ``start`` (None: the given wrench, else zero).
+    Newton on the estimated components from ``start`` (None: from ``begin``, else zero).
 
     ``evaluate`` solves the forward model at a wrench (None when that solve fails).
     """
@@ -185,14 +205,15 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     fixed = [index for index in range(6) if index not in target.free]
     if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
         wrench = target.given.copy()
-        if start is not None:
-            wrench[list(target.free)] = start.wrench[list(target.free)]
+        origin = start.wrench if start is not None else begin
+        if origin is not None:
+            wrench[list(target.free)] = origin[list(target.free)]
         start = evaluate(wrench)
         found.solves += 1
         if start is None:
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
-    current, radius = start, TRUST_RADIUS_N
+    current, radius = start, None
     found.best = current
     scale = np.repeat([1.0, target.length], 3)
     rows, free = list(target.rows), list(target.free)
@@ -204,6 +225,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             return found
         block = scale[rows, None] * current.compliance[np.ix_(rows, free)] * scale[None, free]
         step, newton = _trust_region_step(block, error, radius)
+        size = float(np.linalg.norm(step))
+        radius = max(2.0 * size, TRUST_RADIUS_N) if radius is None else radius
         floor = STEP_TOLERANCE * max(float(np.linalg.norm(current.wrench / scale)), 1.0)
         if newton <= floor:
             found.converged, found.message = True, 'converged'
@@ -219,11 +242,11 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         found.iterations += 1
         wrench = current.wrench.copy()
         wrench[free] += scale[free] * step
-        trial = evaluate(wrench)
-        found.solves += 1
+        beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
+        trial = None if beyond else evaluate(wrench)
+        found.solves += 0 if beyond else 1
         predicted = merit ** 2 - float(np.linalg.norm(error + block @ step)) ** 2
         trial_error = None if trial is None else scale[rows] * target.error(trial)
-        size = float(np.linalg.norm(step))
         if trial is not None and trial_error is not None and np.linalg.norm(trial_error) < merit:
             gain = (merit ** 2 - float(np.linalg.norm(trial_error)) ** 2) / predicted
             if gain > 0.75 and size >= 0.99 * radius:
@@ -240,12 +263,14 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         radius = 0.25 * size
         if radius <= floor:
             found.message = 'no nearby wrench lowers the pose residual: no equilibrium ' \
-                'matches the measured pose'
+                'matches the measured pose' + (
+                    f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
+                    else '')
             return found
 
 
 def _trust_region_step(block: np.ndarray, error: np.ndarray,
-                       radius: float) -> Tuple[np.ndarray, float]:
+                       radius: Optional[float]) -> Tuple[np.ndarray, float]:
     """
     Return (step, Newton step's size): the Levenberg-Marquardt step of size at most ``radius``.
 
@@ -253,12 +278,19 @@ def _trust_region_step(block: np.ndarray, error: np.ndarray,
     lambda >= 0 that keeps the step within the radius (Newton's step when it fits), picked
     on a logarithmic grid from the SVD of the block: the step bends from Newton's towards
     the compliant directions, where the linearization at the iterate can be trusted.
+    Without a radius (an estimate's first step) lambda is (sigma_max / CONDITION_LIMIT)^2:
+    the poorly observable directions (the axial force) barely move until the others fit,
+    since there the pose error is mostly the others' second-order effect (the end disk
+    drops as it swings sideways) that a first-order model reads as axial load.
     """
     left, values, right = np.linalg.svd(block)
     weights = values * (left.T @ error)
     with np.errstate(divide='ignore', invalid='ignore'):
         newton = -right.T @ (weights / values ** 2)
     size = float(np.linalg.norm(newton))
+    if radius is None:  # the first step: damp the directions the pose hardly observes
+        damped = -right.T @ (weights / (values ** 2 + (values[0] / CONDITION_LIMIT) ** 2))
+        return damped, size
     if size <= radius or not math.isfinite(size):
         return newton, size
     top = float(np.linalg.norm(weights)) / radius  # |step| <= |J^T e| / lambda
@@ -299,12 +331,15 @@ def estimate(found: Search, target: Target, started: float) -> WrenchEstimate:
                         'wrench may match this pose')
     if not best.accuracy_met:
         messages.append('the forward solve misses its accuracy target')
+    if found.alternative is not None:
+        messages.append('ambiguous: the moment ' + ', '.join(
+            f'{value:.4g}' for value in found.alternative[3:]) + ' N m matches too')
     if directions:
         messages.append('poorly observable: ' + ', '.join(
             f"{direction['label']} ({direction['ratio']:.3g} x)" for direction in directions))
     accuracy_met = (found.converged and best.accuracy_met and best.stable is True
-                    and not best.margin < AMBIGUOUS_MARGIN)
-    rotation = Rotation.from_matrix(best.frame[:3, :3]).as_quat()
+                    and not best.margin < AMBIGUOUS_MARGIN and found.alternative is None)
+    rotation = quaternion_xyzw(best.frame[:3, :3])
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
         converged=found.converged, stable=best.stable, accuracy_met=accuracy_met,
@@ -314,6 +349,7 @@ def estimate(found: Search, target: Target, started: float) -> WrenchEstimate:
         conditioning=directions, message='; '.join(messages), estimated=_estimated(target),
         condition_number=condition, ill_conditioned=bool(directions),
         stability_margin=best.margin, iterations=found.iterations, solves=found.solves,
+        alternative=found.alternative,
         estimate_time_s=time.perf_counter() - started, position=best.frame[:3, 3].copy(),
         quaternion_xyzw=rotation, sensitivity=sensitivity, solution=best.solution)
 
@@ -324,19 +360,33 @@ def _estimated(target: Target) -> str:
 
 
 # the translator ------------------------------------------------------------------------------
-#: Each solver's last accepted iterate: the next estimate's first linearization.
+#: Each solver's (or robot's) last converged iterate: the next estimate's first linearization.
 _STARTS: 'WeakKeyDictionary[Any, Evaluation]' = WeakKeyDictionary()
 
 
-def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray
-                           ) -> Optional[Evaluation]:
-    """Solve the translator at ``wrench`` with its compliance (None if it fails)."""
-    result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray,
+                           deadline: float) -> Optional[Evaluation]:
+    """Solve the translator at ``wrench`` with its compliance by ``deadline`` (None: failed)."""
+    limit = solver.time_limit_s
+    solver.time_limit_s = max(deadline - time.perf_counter(), 0.0)
+    try:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+    finally:
+        solver.time_limit_s = limit
     if not result.converged or result.compliance is None:
         return None
-    return Evaluation(wrench.copy(), result.frames['de'], result.compliance.matrix,
-                      result.stable, result.stability_margin, bool(result.accuracy_met),
-                      result.message, result.compliance, result)
+    # the margin from the exact compliance here: the solve's may come from a factorization
+    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
+    compliance = result.compliance.matrix
+    scale = np.repeat([1.0, solver.params.stack_height], 3)
+    try:
+        stiffness = np.linalg.inv(scale[:, None] * compliance * scale[None, :])
+        margin = float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0]
+                       / solver._origin().smallest_stiffness)
+    except np.linalg.LinAlgError:
+        margin = -math.inf
+    return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable, margin,
+                      bool(result.accuracy_met), result.message, result.compliance, result)
 
 
 def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
@@ -347,16 +397,72 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
     """Return the end-disk wrench matching a measured pose (TranslatorSolver's method)."""
     started = time.perf_counter()
     length = solver.params.stack_height
-    target = measured_target(position, quaternion_xyzw, pose_covariance, moment, force, length)
+    target = replace(measured_target(position, quaternion_xyzw, pose_covariance, moment, force,
+                                     length),
+                     load_limit=LOAD_LIMIT * load_scale(solver._origin()))
     reach = float(np.linalg.norm(target.frame[:3, 3]))
     if reach > REACH * length:
         return estimate(Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m '
                                f'from the base (stack height {length:.4g} m)'),
                         target, started)
-    # a reset solver starts cold: from the given components and no load
-    start = _STARTS.get(solver) if solver._previous is not None else None
-    found = search(lambda wrench: _translator_evaluation(solver, wrench), start, target,
-                   started + solver.time_limit_s)
-    if found.best is not None:
-        _STARTS[solver] = found.best
+    deadline = started + solver.time_limit_s
+    return estimate_along(solver, lambda wrench: _translator_evaluation(solver, wrench, deadline),
+                          target, started, deadline, solver._previous is not None,
+                          solver.reset)
+
+
+def _other_match(evaluate: Callable[[np.ndarray], Optional[Evaluation]], found: Search,
+                 target: Target, deadline: float) -> Optional[np.ndarray]:
+    """Search from the other starts of a moment (estimate_along); return a second match."""
+    assert found.best is not None and found.best.compliance is not None
+    scale = np.repeat([1.0, target.length], 3)
+    rows, free = list(target.rows), list(target.free)
+    block = scale[rows, None] * found.best.compliance[np.ix_(rows, free)] * scale[None, free]
+    least = np.zeros(6)
+    least[free] = np.linalg.svd(block)[2][-1] * scale[free]
+    reach = 0.1 * target.load_limit / LOAD_LIMIT  # a tenth of w* (scaled N)
+    match = found.best.wrench
+    for begin in (target.given, match + reach * least, match - reach * least):
+        if time.perf_counter() > deadline:
+            break
+        other = search(evaluate, None, target, deadline, begin)
+        found.iterations += other.iterations
+        found.solves += other.solves
+        if other.converged and other.best is not None and np.linalg.norm(
+                (other.best.wrench - match) / scale) > MATCH_DISTANCE * max(
+                float(np.linalg.norm(match / scale)), 1.0):
+            return other.best.wrench.copy()
+    return None
+
+
+def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluation]],
+                   target: Target, started: float, deadline: float, warm: bool,
+                   reset: Callable[[], None]) -> WrenchEstimate:
+    """
+    Search from ``owner``'s last estimate when ``warm`` (else cold), and build the estimate.
+
+    A warm search that fails is repeated from no load after ``reset`` (the previous
+    estimate may sit past buckling or far away), within ``deadline``; a converged one is
+    the next warm start. A moment from a position is searched again from no moment and
+    from the match moved either way along its least observable direction (by a tenth of
+    the load scale w*): a position sees the moment only through the couplings of the
+    compliance, and several moments put the end disk at the same point (each of five
+    random moments within 0.5 N m tried had another match within 0.6 N m); a second match
+    found is ``alternative``.
+    """
+    start = _STARTS.get(owner) if warm else None
+    found = search(evaluate, start, target, deadline)
+    if not found.converged and start is not None and time.perf_counter() < deadline:
+        reset()
+        restart = search(evaluate, None, target, deadline)
+        restart.iterations += found.iterations
+        restart.solves += found.solves
+        restart.message += ' (after a restart from no load)'
+        found = restart
+    if found.converged and found.best is not None and _estimated(target) == 'moment':
+        found.alternative = _other_match(evaluate, found, target, deadline)
+    if found.converged and found.best is not None:
+        _STARTS[owner] = found.best
+    else:
+        _STARTS.pop(owner, None)
     return estimate(found, target, started)

@@ -21,7 +21,8 @@ import numpy as np
 
 from .compliance import analyse, ComplianceAnalysis
 
-__all__ = ['CONDITION_LIMIT', 'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
+__all__ = ['CONDITION_LIMIT', 'json_safe', 'observability', 'TRANSLATOR_WRENCH_LABELS',
+           'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
@@ -33,14 +34,14 @@ TRANSLATOR_WRENCH_LABELS = ('lateral force x', 'lateral force y', 'axial force',
                             'bending moment x', 'bending moment y', 'torsion')
 
 
-def _json(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """JSON-safe form: arrays as nested lists, NaN and infinities as None."""
     if isinstance(value, np.ndarray):
-        return [_json(item) for item in value.tolist()]
+        return [json_safe(item) for item in value.tolist()]
     if isinstance(value, (list, tuple)):
-        return [_json(item) for item in value]
+        return [json_safe(item) for item in value]
     if isinstance(value, dict):
-        return {key: _json(item) for key, item in value.items()}
+        return {key: json_safe(item) for key, item in value.items()}
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (float, np.floating)):
@@ -67,9 +68,11 @@ class WrenchEstimate:
     orientation was not measured). ``stable`` is the forward solve's verdict at the
     estimate and ``stability_margin`` its margin (docs/stability.md). ``accuracy_met``:
     converged, the forward solve's discretization error within its target, the equilibrium
-    stable and not so close to a bifurcation that another wrench could match the pose
-    (``message`` says which failed). ``conditioning`` lists the poorly observable wrench
-    directions (module docstring), each a dict: 'label' (the wrench component it mostly
+    stable and not so close to a bifurcation that another wrench could match the pose, and
+    no other match found (``alternative``: a moment from a position is searched from
+    several starts, cdr_translator/estimation.py); ``message`` says which failed.
+    ``conditioning`` lists the poorly observable wrench directions (module docstring),
+    each a dict: 'label' (the wrench component it mostly
     is), 'direction' (unit in the scaled units, SI components), 'singular_value' (m/N,
     scaled), 'ratio' (largest singular value over it), 'twist' and 'role' (the
     primary-mobility analysis' label and role of the eigen-twist it moves the pose along),
@@ -98,6 +101,8 @@ class WrenchEstimate:
     position: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     quaternion_xyzw: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
     sensitivity: Optional[np.ndarray] = field(default=None, repr=False)
+    #: another wrench that matches the pose as well (then ``accuracy_met`` is False)
+    alternative: Optional[np.ndarray] = None
     #: the forward solve at the estimate (a SolveResult, or a DeltaResult for the robot)
     solution: Any = field(default=None, repr=False)
 
@@ -111,8 +116,9 @@ class WrenchEstimate:
         keys = ('force', 'moment', 'covariance', 'converged', 'stable', 'accuracy_met',
                 'residual_m', 'residual_deg', 'conditioning', 'message', 'estimated',
                 'condition_number', 'ill_conditioned', 'stability_margin', 'iterations',
-                'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity')
-        return {key: _json(getattr(self, key)) for key in keys}
+                'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity',
+                'alternative')
+        return {key: json_safe(getattr(self, key)) for key in keys}
 
 
 def _scale(length: float) -> np.ndarray:
