@@ -10,6 +10,7 @@ only) and a diagnostic. The pose must be in the base frame (or have an empty fra
 there is no tf here. Replay uses this to write exactly what the live node would have.
 """
 
+import abc
 from dataclasses import dataclass
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
@@ -76,11 +77,11 @@ def pose_from_message(message: Any) -> MeasuredPose:
                         {'sec': int(get(stamp, 'sec')), 'nanosec': int(get(stamp, 'nanosec'))})
 
 
-def check_pose(measured: MeasuredPose, base_frame: str, length: float) -> None:
+def check_pose(measured: MeasuredPose, frame: str, length: float) -> None:
     """Raise ValueError naming what is wrong: the frame, a non-finite value, the quaternion."""
-    if measured.frame_id not in ('', base_frame):
+    if measured.frame_id not in ('', frame):
         raise ValueError(f'unknown frame_id {measured.frame_id!r}: a measured pose must be in '
-                         f'{base_frame!r} (or have an empty frame_id); no tf here')
+                         f'{frame!r} (or have an empty frame_id); no tf here')
     measured_target(measured.position, measured.quaternion_xyzw, measured.covariance, None,
                     None, length)
 
@@ -166,20 +167,18 @@ class EstimateOutcome:
     outputs: List[Tuple[str, str, dict]]
 
 
-class PoseProcessor:
+class MeasuredPoseProcessor(abc.ABC):
     """
-    The node's handling of a stream of measured poses, warm-starting one solver along it.
+    A node's handling of a stream of measured poses: check, estimate, messages.
 
-    Counts received, rejected, solved (a matching wrench found) and not converged poses
-    and reports them in every diagnostic; ``skipped`` is the caller's (0 offline).
+    Counts received, rejected, solved (a matching load found) and not converged poses and
+    reports them in every diagnostic; ``skipped`` is the caller's (0 offline).
     """
 
     diagnostic_name = ESTIMATE_DIAGNOSTIC_NAME
 
-    def __init__(self, params: TranslatorParams, settings: TranslatorSettings) -> None:
-        """Build the estimation solver for ``params``."""
-        self.settings = settings
-        self.solver = estimation_solver(params, settings)
+    def __init__(self) -> None:
+        """Start the counts at zero."""
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
                                        'not_converged': 0, 'skipped': 0}
 
@@ -191,7 +190,7 @@ class PoseProcessor:
 
     def process(self, message: Any, count_received: bool = True) -> EstimateOutcome:
         """
-        Check one pose message (dict or decoded), estimate its wrench, build the outputs.
+        Check one pose message (dict or decoded), estimate the load, build the outputs.
 
         ``count_received`` False: the caller counted the pose when it arrived (the node).
         """
@@ -201,13 +200,47 @@ class PoseProcessor:
         except ValueError as error:  # a covariance of another size than 36
             return self.reject({'sec': 0, 'nanosec': 0}, f'malformed message: {error}')
         try:
-            check_pose(measured, self.settings.base_frame, self.solver.params.stack_height)
+            self.check(measured)
         except ValueError as error:
             return self.reject(measured.stamp, str(error))
-        estimate = self.solver.estimate_wrench(measured.position, measured.quaternion_xyzw,
-                                               pose_covariance=measured.covariance)
+        estimate = self.estimate(measured)
         self.counts['solved' if estimate.converged else 'not_converged'] += 1
-        outputs = estimate_messages(estimate, measured.stamp, self.settings.base_frame,
-                                    dict(self.counts))
         return EstimateOutcome(estimate, '' if estimate.converged else estimate.message,
-                               outputs)
+                               self.outputs(estimate, measured.stamp, dict(self.counts)))
+
+    @abc.abstractmethod
+    def check(self, measured: MeasuredPose) -> None:
+        """Raise ValueError naming what is wrong with a measured pose."""
+
+    @abc.abstractmethod
+    def estimate(self, measured: MeasuredPose) -> WrenchEstimate:
+        """Estimate the load of a checked pose."""
+
+    @abc.abstractmethod
+    def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
+                counts: Mapping[str, int]) -> List[Tuple[str, str, dict]]:
+        """Return the (topic, type, message) published for an estimate."""
+
+
+class PoseProcessor(MeasuredPoseProcessor):
+    """translator_node's measured end-disk poses: the wrench, warm along the stream."""
+
+    def __init__(self, params: TranslatorParams, settings: TranslatorSettings) -> None:
+        """Build the estimation solver for ``params``."""
+        super().__init__()
+        self.settings = settings
+        self.solver = estimation_solver(params, settings)
+
+    def check(self, measured: MeasuredPose) -> None:
+        """Raise ValueError for another frame, a non-finite value, a bad quaternion."""
+        check_pose(measured, self.settings.base_frame, self.solver.params.stack_height)
+
+    def estimate(self, measured: MeasuredPose) -> WrenchEstimate:
+        """Estimate the end-disk wrench (warm-started from the last estimate)."""
+        return self.solver.estimate_wrench(measured.position, measured.quaternion_xyzw,
+                                           pose_covariance=measured.covariance)
+
+    def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
+                counts: Mapping[str, int]) -> List[Tuple[str, str, dict]]:
+        """Return the estimated wrench, its covariance and the diagnostic."""
+        return estimate_messages(estimate, stamp, self.settings.base_frame, counts)

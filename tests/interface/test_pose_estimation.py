@@ -1,11 +1,14 @@
-"""translator_node's wrench estimate without ROS: pose messages in, estimate messages out."""
+"""The nodes' load estimates without ROS: pose messages in, estimate messages out."""
 
 import math
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.interface import messages, pose_estimation
+from cdr_translator.interface import messages, payload_estimation, pose_estimation
+from cdr_translator.interface import robot_messages
+from cdr_translator.interface.payload_estimation import PayloadProcessor
 from cdr_translator.interface.pose_estimation import pose_from_message, PoseProcessor
-from cdr_translator.interface.settings import TranslatorSettings
+from cdr_translator.interface.settings import CdrSettings, TranslatorSettings
+from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
 import pytest
 
@@ -123,3 +126,26 @@ def test_unreachable_pose_is_an_error_without_a_wrench(settings):
     status = outcome.outputs[0][2]['status'][0]
     assert status['level'] == messages.ERROR and 'unreachable' in status['message']
     assert processor.counts['not_converged'] == 1
+
+
+def test_payload_round_trip_at_the_latest_sliders():
+    """cdr_node's processor: platform pose at some sliders -> the payload back, in {w}."""
+    settings = CdrSettings.from_params_file()
+    sliders, force = np.array([0.01, -0.005, 0.002]), (1.0, 0.5, -9.81)
+    solved = DeltaRobot(settings.params, settings.geometry).solve(sliders, force)
+    processor = PayloadProcessor(settings, lambda: sliders)
+    outcome = processor.process(robot_messages.platform_pose_message(
+        solved, STAMP, settings.world_frame))
+    found = _by_topic(outcome.outputs)
+    assert set(found) == {payload_estimation.ESTIMATED_PAYLOAD_TOPIC, messages.DIAGNOSTICS_TOPIC}
+    payload = found[payload_estimation.ESTIMATED_PAYLOAD_TOPIC][0][1]
+    assert payload['header'] == messages.header(STAMP, settings.world_frame)
+    estimated_force, estimated_moment, _, _ = messages.wrench_from_message(payload)
+    np.testing.assert_allclose(estimated_force, force, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(estimated_moment, 0.0, rtol=0, atol=1e-5)
+    status = found[messages.DIAGNOSTICS_TOPIC][0][1]['status'][0]
+    assert status['name'] == payload_estimation.PAYLOAD_DIAGNOSTIC_NAME
+    assert status['level'] == messages.OK, status['message']
+    rejected = processor.process(robot_messages.platform_pose_message(solved, STAMP, 'tool'))
+    assert rejected.estimate is None
+    assert "unknown frame_id 'tool'" in rejected.outputs[0][2]['status'][0]['message']
