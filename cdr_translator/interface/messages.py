@@ -29,6 +29,7 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Message types ('package/msg/Name') of the topics above.
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 POSE_TYPE = 'geometry_msgs/msg/PoseStamped'
+POSE_COV_TYPE = 'geometry_msgs/msg/PoseWithCovarianceStamped'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 FLOAT64_MULTI_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'

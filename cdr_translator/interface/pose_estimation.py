@@ -29,15 +29,11 @@ MEASURED_POSE_COV_TOPIC = 'measured_end_disk_pose_cov'
 #: Outputs: the estimated end-disk wrench and its covariance.
 ESTIMATED_WRENCH_TOPIC = 'estimated_wrench'
 ESTIMATED_WRENCH_COVARIANCE_TOPIC = 'estimated_wrench_covariance'
-POSE_COV_TYPE = 'geometry_msgs/msg/PoseWithCovarianceStamped'
-
 #: Type of each input and output topic of the estimation.
 ESTIMATION_TOPIC_TYPES: Mapping[str, str] = {
-    MEASURED_POSE_TOPIC: messages.POSE_TYPE,
-    MEASURED_POSE_COV_TOPIC: POSE_COV_TYPE,
+    MEASURED_POSE_TOPIC: messages.POSE_TYPE, MEASURED_POSE_COV_TOPIC: messages.POSE_COV_TYPE,
     ESTIMATED_WRENCH_TOPIC: messages.WRENCH_TYPE,
-    ESTIMATED_WRENCH_COVARIANCE_TOPIC: messages.FLOAT64_MULTI_ARRAY_TYPE,
-}
+    ESTIMATED_WRENCH_COVARIANCE_TOPIC: messages.FLOAT64_MULTI_ARRAY_TYPE}
 
 #: DiagnosticStatus name of the translator's wrench estimates.
 ESTIMATE_DIAGNOSTIC_NAME = 'translator_node: wrench estimate'

@@ -32,7 +32,7 @@ def _recording(path):
                  if_exists='overwrite') as log:
         for topic, type_name in (('/wrench', messages.WRENCH_TYPE),
                                  (POSE_TOPIC, messages.POSE_TYPE),
-                                 (POSE_COV_TOPIC, pose_estimation.POSE_COV_TYPE)):
+                                 (POSE_COV_TOPIC, messages.POSE_COV_TYPE)):
             log.register(topic, type_name, qos='sensor_data')
         for index, (force, moment) in enumerate(WRENCHES):
             time_ns = 1_000_000_000 + 10_000_000 * index
@@ -42,7 +42,7 @@ def _recording(path):
             result = solver.solve(force, moment)
             log.write(POSE_TOPIC, messages.POSE_TYPE, _pose(result, stamp),
                       log_time_ns=time_ns + 1)
-            log.write(POSE_COV_TOPIC, pose_estimation.POSE_COV_TYPE,
+            log.write(POSE_COV_TOPIC, messages.POSE_COV_TYPE,
                       _pose(result, stamp, POSE_COVARIANCE), log_time_ns=time_ns + 2)
         # a pose in an unknown frame: rejected, logged, no estimate
         log.write(POSE_TOPIC, messages.POSE_TYPE, _pose(result, {'sec': 9, 'nanosec': 0},

@@ -121,6 +121,6 @@ def test_round_trip_bad_input_and_log(tmp_path, ros_env):
     for item in read_ros2_messages(str(run.mcap)):
         logged.setdefault(item.channel.topic, item.schema.name)
     assert logged['/' + pose_estimation.MEASURED_POSE_TOPIC] == messages.POSE_TYPE
-    assert logged['/' + pose_estimation.MEASURED_POSE_COV_TOPIC] == pose_estimation.POSE_COV_TYPE
+    assert logged['/' + pose_estimation.MEASURED_POSE_COV_TOPIC] == messages.POSE_COV_TYPE
     assert logged['/' + ESTIMATE] == messages.WRENCH_TYPE
     assert logged['/' + COVARIANCE] == messages.FLOAT64_MULTI_ARRAY_TYPE
