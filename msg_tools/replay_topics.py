@@ -1,7 +1,8 @@
 """
 Which wrench topics of an MCAP a replay takes, and where their outputs go.
 
-Without a choice every WrenchStamped channel is replayed; each output lands in the
+Without a choice every WrenchStamped channel is replayed but the nodes' estimates
+(``ESTIMATE_OUTPUTS``, which a node's own log holds); each output lands in the
 namespace of its input topic, as the node started in that namespace would publish it, so
 two inputs in one namespace are refused (their outputs would be mixed). Measured end-disk
 poses (``POSE_INPUTS``: a topic of that name and type, in any namespace) are replayed
@@ -10,7 +11,7 @@ beside them, as translator_node estimates the wrench from them.
 
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from cdr_translator.interface import messages, pose_estimation
+from cdr_translator.interface import messages, payload_estimation, pose_estimation
 from msg_tools.errors import ReplayError
 from msg_tools.reader import McapSource
 
@@ -19,6 +20,11 @@ from msg_tools.reader import McapSource
 POSE_INPUTS = {name: pose_estimation.ESTIMATION_TOPIC_TYPES[name]
                for name in (pose_estimation.MEASURED_POSE_TOPIC,
                             pose_estimation.MEASURED_POSE_COV_TOPIC)}
+
+
+#: WrenchStamped topics the nodes publish (estimates), never taken as wrench inputs unasked.
+ESTIMATE_OUTPUTS = frozenset((pose_estimation.ESTIMATED_WRENCH_TOPIC,
+                              payload_estimation.ESTIMATED_PAYLOAD_TOPIC))
 
 
 def is_pose_input(topic: str, type_name: str) -> bool:
@@ -53,9 +59,9 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
     """
     Return (topics to replay, warnings, number of their messages if known).
 
-    Without ``requested``: every channel whose schema is WrenchStamped. A requested topic
-    that is missing or has another schema is a warning; none usable is a ReplayError that
-    lists what the file holds.
+    Without ``requested``: every channel whose schema is WrenchStamped, estimates aside. A
+    requested topic that is missing or has another schema is a warning; none usable is a
+    ReplayError that lists what the file holds.
     """
     channels, schemas, counts, _ = source.channel_overview()
     types: Dict[str, str] = {}
@@ -78,7 +84,8 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
                 chosen.append(topic)
     else:
         chosen = sorted(topic for topic, type_name in types.items()
-                        if type_name == messages.WRENCH_TYPE)
+                        if type_name == messages.WRENCH_TYPE
+                        and topic.rsplit('/', 1)[-1] not in ESTIMATE_OUTPUTS)
     if not chosen:
         damage = ('' if source.report.complete
                   else f'; the file is damaged: {source.report.describe()}')
