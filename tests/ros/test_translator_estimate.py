@@ -12,10 +12,12 @@ import time
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.ros.client import diagnostic_values
+from geometry_msgs.msg import PoseStamped
 from mcap_ros2.reader import read_ros2_messages
 from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, Running
 import numpy as np
 import pytest
+from rclpy.serialization import serialize_message
 
 ESTIMATE = pose_estimation.ESTIMATED_WRENCH_TOPIC
 COVARIANCE = pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC
@@ -124,3 +126,36 @@ def test_round_trip_bad_input_and_log(tmp_path, ros_env):
     assert logged['/' + pose_estimation.MEASURED_POSE_COV_TOPIC] == messages.POSE_COV_TYPE
     assert logged['/' + ESTIMATE] == messages.WRENCH_TYPE
     assert logged['/' + COVARIANCE] == messages.FLOAT64_MULTI_ARRAY_TYPE
+
+
+def test_a_burst_of_poses_is_accounted_for(node):
+    """
+    Poses faster than the estimates: the newest answered, the rest counted as skipped.
+
+    The in-process node's pose callback gets 30 poses and a malformed message back to back;
+    once idle, every received pose is estimated, rejected or skipped, and the last (the
+    malformed one, newest in the mailbox) is rejected.
+    """
+    forward = TranslatorSolver(TranslatorParams.from_yaml())
+    receive = node._estimates.subscriptions[0].callback
+    for index in range(30):
+        solved = forward.solve((2.0 + 0.1 * index, 1.0, 0.0))
+        message = PoseStamped()
+        message.header.stamp.sec = index + 1
+        message.pose.position.x, message.pose.position.y, message.pose.position.z = (
+            solved.end_disk_position.tolist())
+        orientation = message.pose.orientation
+        orientation.x, orientation.y, orientation.z, orientation.w = (
+            solved.end_disk_quaternion_xyzw.tolist())
+        receive(serialize_message(message))
+    receive(b'\x00\x01\x00\x00\x07')
+    counts = node.estimator.counts
+    deadline = time.monotonic() + ANSWER_TIMEOUT_S
+    while (counts['solved'] + counts['rejected'] + counts['not_converged']
+           + node._estimates._mailbox.skipped < 31 and time.monotonic() < deadline):
+        time.sleep(0.01)
+    skipped = node._estimates._mailbox.skipped
+    assert counts['received'] == 31
+    assert counts['solved'] + counts['rejected'] + counts['not_converged'] + skipped == 31
+    assert counts['rejected'] == 1 and counts['not_converged'] == 0
+    assert skipped > 0 and counts['solved'] >= 1
