@@ -8,6 +8,8 @@ gives ``estimated_wrench`` (WrenchStamped, in the base frame, stamped like the p
 ``estimated_wrench_covariance`` (Float64MultiArray, 6x6 row-major, with a pose covariance
 only) and a diagnostic. The pose must be in the base frame (or have an empty frame_id):
 there is no tf here. Replay uses this to write exactly what the live node would have.
+MeasuredPoseProcessor is the check-estimate-messages template of both nodes' estimates
+(cdr_node's: interface/payload_estimation.py).
 """
 
 import abc

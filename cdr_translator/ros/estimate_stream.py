@@ -15,7 +15,7 @@ mailbox are counted as ``skipped``.
 
 import threading
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Sequence, Tuple
+from typing import Callable, Dict, List, Mapping, Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, WrenchStamped
 from rclpy.node import Node
@@ -24,6 +24,10 @@ from std_msgs.msg import Float64MultiArray
 from . import serialization
 from .runtime import LatestMailbox, NodeLog, sensor_qos, SHUTDOWN_JOIN_S, type_name
 from ..interface import messages, pose_estimation
+from ..interface.pose_estimation import MeasuredPoseProcessor
+
+__all__ = ['count_line', 'EstimateStream', 'TRANSLATOR_ESTIMATE_INPUTS',
+           'TRANSLATOR_ESTIMATE_OUTPUTS']
 
 Built = List[Tuple[str, str, dict]]
 
@@ -36,29 +40,11 @@ TRANSLATOR_ESTIMATE_OUTPUTS: Dict[str, type] = {
     pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC: Float64MultiArray}
 
 
-class Outcome(Protocol):
-    """What a processor returns for one input: the (topic, type, dict) to publish."""
-
-    outputs: Built
-
-
-class PoseProcessor(Protocol):
-    """The ROS-free handling of a stream of poses (interface.pose_estimation's, say)."""
-
-    counts: Dict[str, int]
-    diagnostic_name: str
-
-    def process(self, message: Any, count_received: bool = True) -> Outcome:
-        """Check and estimate one decoded message; return its outputs."""
-
-    def reject(self, stamp: Mapping[str, int], reason: str) -> Outcome:
-        """Count an input that was not used; return its ERROR diagnostic."""
-
-
 class EstimateStream:
     """The subscriptions of ``inputs`` (topic -> message class) on ``node`` and their worker."""
 
-    def __init__(self, node: Node, inputs: Mapping[str, type], processor: PoseProcessor,
+    def __init__(self, node: Node, inputs: Mapping[str, type],
+                 processor: MeasuredPoseProcessor,
                  publish: Callable[[Built], None], log: Optional[NodeLog], queue_depth: int,
                  capacity: int = 1) -> None:
         """
@@ -141,7 +127,3 @@ def count_line(what: str, counts: Mapping[str, int]) -> str:
     return (f'{what}: {counts["received"]} received, {counts["solved"]} estimated, '
             f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
             f'{counts["skipped"]} skipped')
-
-
-__all__: Sequence[str] = ['count_line', 'EstimateStream', 'PoseProcessor',
-                          'TRANSLATOR_ESTIMATE_INPUTS', 'TRANSLATOR_ESTIMATE_OUTPUTS']
