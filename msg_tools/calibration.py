@@ -16,17 +16,17 @@ import math
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
-from cdr_translator.interface import messages
+from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.pose_error import FRAME_NAMES, rotations_from_quaternions
 from cdr_translator.pose_fit import PoseSamples
 from msg_tools.reader import Decoders, McapSource, ReadReport
-from msg_tools.synth_poses import POSE_COV_TYPE
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 #: Last name of the topics read (any namespace).
 WRENCH_NAME, POSE_NAME, POSE_COV_NAME = (
-    'wrench', 'measured_end_disk_pose', 'measured_end_disk_pose_cov')
+    messages.WRENCH_TOPIC, pose_estimation.MEASURED_POSE_TOPIC,
+    pose_estimation.MEASURED_POSE_COV_TOPIC)
 #: Default largest stamp difference of a wrench and its pose (s).
 DEFAULT_TOLERANCE_S = 0.002
 #: Default assumed standard deviations of poses without covariance: m, deg.
@@ -71,7 +71,7 @@ def _topic_name(topic: str) -> str:
 def _read_file(path: Union[str, Path], pairing: Pairing) -> Tuple[list, list, list]:
     """Return the decoded wrenches, plain poses and covariance poses of one file."""
     wanted = {WRENCH_NAME: messages.WRENCH_TYPE, POSE_NAME: messages.POSE_TYPE,
-              POSE_COV_NAME: POSE_COV_TYPE}
+              POSE_COV_NAME: messages.POSE_COV_TYPE}
     found: Dict[str, list] = {name: [] for name in wanted}
     source = McapSource(path)
     decoders = Decoders()

@@ -19,6 +19,7 @@ together); its log time equals its stamp.
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple, TYPE_CHECKING
 
+from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.params import (Accuracy, DEFAULT_PARAMS_PATH, translator_values,
                                    TranslatorParams)
 from cdr_translator.pose_error import check_frame, to_tracker
@@ -30,9 +31,9 @@ if TYPE_CHECKING:
     from msg_tools.synth import Sample
 
 #: Topics and types of the measurements (translator_node's names, absolute).
-MEASURED_POSE_TOPIC = '/measured_end_disk_pose'
-MEASURED_POSE_COV_TOPIC = '/measured_end_disk_pose_cov'
-POSE_COV_TYPE = 'geometry_msgs/msg/PoseWithCovarianceStamped'
+MEASURED_POSE_TOPIC = '/' + pose_estimation.MEASURED_POSE_TOPIC
+MEASURED_POSE_COV_TOPIC = '/' + pose_estimation.MEASURED_POSE_COV_TOPIC
+POSE_COV_TYPE = messages.POSE_COV_TYPE
 #: header.frame_id of measured poses in a tracker frame offset from the base.
 TRACKER_FRAME = 'tracker'
 
