@@ -24,6 +24,7 @@ from typing import Collection, IO, Optional, Sequence, Tuple, Union
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import WrenchProcessor
+from msg_tools.cdr_codecs import encoder
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
@@ -187,8 +188,9 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                         continue
                     outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
                     for name, type_name, message in outcome.outputs:
-                        log.write(output_topic(raw.topic, name), type_name, message,
-                                  raw.log_time_ns, raw.log_time_ns)
+                        log.write_serialized(output_topic(raw.topic, name), type_name,
+                                             encoder(type_name)(message), raw.log_time_ns,
+                                             raw.log_time_ns)
                     stamp_ns = messages.stamp_to_ns(stamp)
                     result = outcome.result
                     if result is None:
