@@ -156,7 +156,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
         try:
             csv_file = open(csv_path, 'w', newline='') if csv_path else None
             log = McapLog(output_path, flush_every_messages=flush_every_messages,
-                          flush_every_s=flush_every_s, if_exists='overwrite')
+                          flush_every_s=flush_every_s, if_exists='overwrite',
+                          encoder_for=encoder)
         except OSError as error:
             raise OutputError(f'cannot write {error.filename or output_path}: '
                               f'{error}') from None
@@ -188,9 +189,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                         continue
                     outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
                     for name, type_name, message in outcome.outputs:
-                        log.write_serialized(output_topic(raw.topic, name), type_name,
-                                             encoder(type_name)(message), raw.log_time_ns,
-                                             raw.log_time_ns)
+                        log.write(output_topic(raw.topic, name), type_name, message,
+                                  raw.log_time_ns, raw.log_time_ns)
                     stamp_ns = messages.stamp_to_ns(stamp)
                     result = outcome.result
                     if result is None:

@@ -111,10 +111,12 @@ class PartMerger:
                 count = int(value['value']) + offsets.get(value['key'], 0)
                 value['value'] = str(count)
                 counts[value['key']] = count
-        data = (encoder(messages.DIAGNOSTIC_ARRAY_TYPE)(message) if any(offsets.values())
-                else raw.data)
-        self.log.write_serialized(raw.topic, raw.schema_name, data, raw.log_time_ns,
-                                  raw.publish_time_ns)
+        if any(offsets.values()):
+            self.log.write(raw.topic, raw.schema_name, message, raw.log_time_ns,
+                           raw.publish_time_ns)
+        else:
+            self.log.write_serialized(raw.topic, raw.schema_name, raw.data, raw.log_time_ns,
+                                      raw.publish_time_ns)
 
 
 def _check_outputs(input_path: Union[str, Path],
@@ -198,7 +200,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
     """Merge the windows' parts into the outputs in window order, as they complete."""
     try:
         table = open(csv_path, 'w', newline='') if csv_path else None
-        log = McapLog(output_path, if_exists='overwrite')
+        log = McapLog(output_path, if_exists='overwrite', encoder_for=encoder)
     except OSError as error:
         raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
     bar = Progress(progress, total) if progress is not None else None
