@@ -24,13 +24,13 @@ from typing import Collection, IO, Optional, Sequence, Tuple, Union
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import WrenchProcessor
-from msg_tools.cdr_codecs import encoder
+from msg_tools.cdr_codecs import encoder, ShippedDecoders
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
-from msg_tools.reader import Decoders, McapSource
+from msg_tools.reader import McapSource
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
 import numpy as np
@@ -146,7 +146,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                                          backbones=backbones) for topic in chosen}
     summary = ReplaySummary(source.report, chosen, warnings, total=total)
     summary.series.keep = frozenset(plot_samples)
-    decoders = Decoders()
+    decoders = ShippedDecoders()
     bar = Progress(progress, total) if progress is not None else None
     started = time.perf_counter()
     first_stamp_ns = None
