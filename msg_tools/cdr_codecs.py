@@ -22,8 +22,8 @@ from msg_tools.reader import Decoders, RawMessage
 def _descriptions(type_name: str) -> Dict[str, Mapping[str, Any]]:
     """Return the individual descriptions of ``type_name`` and its nested types, by name."""
     described = type_description(type_name)
-    return {item['type_name']: item for item in (described['type_description'],
-                                                  *described['referenced_type_descriptions'])}
+    items = [described['type_description'], *described['referenced_type_descriptions']]
+    return {item['type_name']: item for item in items}
 
 
 @lru_cache(maxsize=None)
@@ -34,7 +34,7 @@ def encoder(type_name: str) -> Callable[[Mapping[str, Any]], bytes]:
 
 @lru_cache(maxsize=None)
 def decoder(type_name: str) -> Callable[[bytes], Dict[str, Any]]:
-    """Return the CDR decoder (to nested dicts) of the shipped type ``type_name``."""
+    """Return the function that reads a shipped type's CDR bytes as nested dicts."""
     return plan_decoder(description_plan(type_name, _descriptions(type_name)))
 
 

@@ -83,7 +83,7 @@ class _Pose:
 
 
 def test_shipped_decoders_read_as_the_files_own(tmp_path):
-    """ShippedDecoders give the wrenches the file's decoder gives; damage fails alike."""
+    """The shipped decoders give the wrenches the file's decoder gives; damage fails alike."""
     bag = tmp_path / 'ramp.mcap'
     synth.write_wrenches(bag, synth.generate('ramp', count=5, force=(3.0, -1.0, 2.0)))
     fast, reference = ShippedDecoders(), Decoders()
