@@ -13,7 +13,9 @@ about 2 us and a WrenchStamped decodes in about 3 us, where walking the layout f
 field took 5-9 and 10-19 us, and rclpy's ``deserialize_message`` 0.15-0.3 ms. Fields
 missing from a dict take their default (the .msg file's), as ``fill_message`` leaves them.
 Only padding bytes can differ from rclpy's output (rclpy leaves them uninitialized and may
-add a few at the end): decoded, the messages are equal.
+add a few at the end): decoded, the messages are equal. Without ROS, ``description_plan``
+reads the layout from REP-2011 type descriptions instead (msg_tools builds them from the
+shipped .msg texts), and ``plan_encoder``/``plan_decoder`` give that plan's writer and reader.
 """
 
 import abc
