@@ -34,7 +34,7 @@ from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.reader import McapSource, RawMessage
 from msg_tools.replay_estimates import pose_processors, register_poses, replay_pose
 from msg_tools.replay_summary import ReplaySummary
-from msg_tools.replay_topics import output_topic, select_pose_topics, select_topics
+from msg_tools.replay_topics import output_topic, select_topics
 import numpy as np
 
 #: CSV columns, one row per input message (SI units, radians).
@@ -136,14 +136,13 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     if negative:
         raise ValueError(f'plot samples are message indices >= 0, got {negative}')
     source = McapSource(input_path)
-    chosen, warnings, total = select_topics(source, topics)
+    chosen, warnings, total, poses = select_topics(source, topics)
     if total is not None and any(index >= total for index in plot_samples):
         beyond = sorted(index for index in plot_samples if index >= total)
         raise ValueError(f"plot samples {beyond} are beyond the input's {total} messages "
                          f'(indices 0..{total - 1})')
     settings = TranslatorSettings.from_params_file(params_path)
     params = settings.params
-    poses = select_pose_topics(source, topics)
     source = McapSource(input_path, topics=chosen + poses, check_data_crc=True)
     estimators = pose_processors(poses, settings)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,

@@ -32,15 +32,6 @@ def is_pose_input(topic: str, type_name: str) -> bool:
     return POSE_INPUTS.get(topic.rsplit('/', 1)[-1]) == type_name
 
 
-def select_pose_topics(source: McapSource, requested: Optional[Sequence[str]]) -> List[str]:
-    """Return the measured-pose topics to replay: all of them, or those ``requested``."""
-    channels, schemas, _, _ = source.channel_overview()
-    found = sorted({channel.topic for channel in channels.values()
-                    if channel.schema_id in schemas
-                    and is_pose_input(channel.topic, schemas[channel.schema_id].name)})
-    return [topic for topic in found if not requested or topic in requested]
-
-
 def output_topic(input_topic: str, name: str) -> str:
     """
     Return the node's output topic ``name`` in the namespace of ``input_topic``.
@@ -55,19 +46,22 @@ def output_topic(input_topic: str, name: str) -> str:
 
 
 def select_topics(source: McapSource, requested: Optional[Sequence[str]]
-                  ) -> Tuple[List[str], List[str], Optional[int]]:
+                  ) -> Tuple[List[str], List[str], Optional[int], List[str]]:
     """
-    Return (topics to replay, warnings, number of their messages if known).
+    Return (wrench topics, warnings, number of their messages if known, pose topics).
 
     Without ``requested``: every channel whose schema is WrenchStamped, estimates aside. A
     requested topic that is missing or has another schema is a warning; none usable is a
-    ReplayError that lists what the file holds.
+    ReplayError that lists what the file holds. The measured-pose topics are all those of
+    the file, or those requested. One overview serves both: a damaged file is read once.
     """
     channels, schemas, counts, _ = source.channel_overview()
     types: Dict[str, str] = {}
     for channel in channels.values():
         schema = schemas.get(channel.schema_id)
         types[channel.topic] = schema.name if schema is not None else '(no schema)'
+    poses = sorted(topic for topic, type_name in types.items()
+                   if is_pose_input(topic, type_name) and (not requested or topic in requested))
     available = ', '.join(f'{topic} [{type_name}]' for topic, type_name in sorted(types.items()))
     warnings = []
     if requested:
@@ -76,7 +70,7 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
             if topic not in types:
                 warnings.append(f'topic {topic!r} is not in {source.path}')
             elif is_pose_input(topic, types[topic]):
-                continue  # select_pose_topics takes it
+                continue  # a measured pose: in ``poses``
             elif types[topic] != messages.WRENCH_TYPE:
                 warnings.append(f'topic {topic!r} has schema {types[topic]!r}, not '
                                 f'{messages.WRENCH_TYPE!r}: skipped')
@@ -101,7 +95,7 @@ def select_topics(source: McapSource, requested: Optional[Sequence[str]]
     if counts is not None:
         total = sum(count for channel_id, count in counts.items()
                     if channel_id in channels and channels[channel_id].topic in chosen)
-    return chosen, warnings, total
+    return chosen, warnings, total, poses
 
 
 def _sharing_a_namespace(topics: Sequence[str]) -> List[str]:

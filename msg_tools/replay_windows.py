@@ -154,7 +154,7 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     _check_outputs(input_path, [('output MCAP', output_path), ('CSV', csv_path),
                                 *other_outputs])
     source = McapSource(input_path)
-    chosen, warnings, total = select_topics(source, topics)
+    chosen, warnings, total, _ = select_topics(source, topics)
     span = source.channel_overview()[3]
     if total is not None and any(not 0 <= index < total for index in plot_samples):
         raise ValueError(f'plot samples are message indices 0..{total - 1}, '
