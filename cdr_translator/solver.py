@@ -16,7 +16,6 @@ carried between solves), correctors.py, branch.py (stability verdict, stable bra
 refinement.py (error estimate, accuracy target).
 """
 
-from functools import partial
 import math
 import time
 from typing import Optional, Tuple
@@ -293,15 +292,15 @@ class TranslatorSolver:
         Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
         The rows equal N consecutive ``solve`` calls (warm-started along the sequence): a
-        usual warm row is the compiled warm step, its verdict and estimate, read into the
-        columns without a SolveResult; other rows (refinement, continuation, failures) go
-        through the whole solve. A row that fails is flagged (``converged`` False,
-        ``message``), never raised; InputError (a ValueError) names a bad input row.
+        run of usual warm rows is one compiled loop (warm step, kept verdict, estimate,
+        pose columns: lean_rows.solve_rows) without a SolveResult; other rows
+        (refinement, continuation, failures) go through the whole solve. A row that fails
+        is flagged (``converged`` False, ``message``), never raised; InputError (a
+        ValueError) names a bad input row.
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
-        for row in range(len(wrenches)):
-            batch.run(row, partial(lean_rows.solve_row, self), wrenches[row], compliance)
+        lean_rows.solve_rows(self, batch, wrenches, range(len(wrenches)), compliance)
         return batch
 
     def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
