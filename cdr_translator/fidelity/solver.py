@@ -220,7 +220,8 @@ class FidelitySolver:
         while row < len(wrenches):
             level, reason = self.choose(wrenches[row])
             end = row + 1
-            if level in self.reduced or (level == 'linear' and self.tangent.ready):
+            if (level in self.reduced or (level == 'linear' and self.tangent.ready)
+                    or self.fidelity == 'full'):
                 # these levels leave the choice alone: a run of them is chosen up front
                 if self.fidelity != 'auto':  # a fixed level: every row
                     end = len(wrenches)
