@@ -241,8 +241,9 @@ def warm_step(problem: Problem, state: PathState, max_iterations: int, settings:
         outcome.shape = (xs, *problem.recorded_shape(step.slot))
         return outcome, 0
     if step.status == chord.REFACTOR and time.perf_counter() <= deadline:
-        outcome = newton(xs, wrench, deadline, None, max_iterations - step.iterations, pose,
-                         known=(rs, step.slot))
+        with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
+            outcome = newton(xs, wrench, deadline, None, max_iterations - step.iterations,
+                             pose, known=(rs, step.slot))
         if outcome.converged:
             state.lu, state.pose = outcome.lu, outcome.pose
             outcome.iterations += step.iterations
