@@ -13,7 +13,7 @@ gives.
 
 from functools import partial
 import time
-from typing import Callable, Optional, TYPE_CHECKING
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,13 +32,12 @@ if TYPE_CHECKING:
 
 
 def solve_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndarray,
-               rows: range, compliance: bool,
-               on_row: Optional[Callable[[int], None]] = None) -> None:
+               rows: range, compliance: bool) -> None:
     """
     Solve ``rows`` of ``wrenches`` as consecutive ``solver.solve`` calls would.
 
     Runs of usual warm rows (without compliance) go to one compiled call, the other rows
-    one by one (``solve_row``); ``on_row(row)`` follows each row solved one by one.
+    one by one (``solve_row``), each going on from the warm step that stopped the run.
     """
     row = rows.start
     solve_one = partial(solve_row, solver)
@@ -46,9 +45,10 @@ def solve_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
         if not compliance:
             row += usual_rows(solver, batch, wrenches, range(row, rows.stop))
         if row < rows.stop:
-            batch.run(row, solve_one, wrenches[row], compliance)
-            if on_row is not None:
-                on_row(row)
+            try:
+                batch.run(row, solve_one, wrenches[row], compliance)
+            finally:
+                solver._state.handed_over = None  # only ever for this row's solve
             row += 1
 
 
@@ -57,7 +57,7 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
     """
     Solve the usual warm rows at the head of ``rows`` in one compiled call; return how many.
 
-    None when the solver's state is not that of a usual warm row: a fast, judged solver on
+    None (0) when the solver's state is not that of a usual warm row: a fast, judged solver on
     the default path, not at kept refined steps, with a stored factorization whose stable
     verdict (margin at least branch.RECHECK_MARGIN) the next solve would keep.
     """
@@ -78,6 +78,8 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
     run = warm_rows(problem, previous, (state.path_xs, state.path_wrenches, count),
                     wrenches[rows.start:rows.stop], state.lu, pose[0],
                     warm_settings(state, solver.tolerance, solver.max_iterations, True), checks)
+    if run.stopped_at is not None:  # the solve of the row that stopped it goes on from there
+        state.handed_over = (wrenches[rows.start + run.rows], *run.stopped_at)
     if run.rows == 0:
         return 0
     state.previous = run.previous

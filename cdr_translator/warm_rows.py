@@ -9,13 +9,13 @@ other in one compiled loop, extending the path of warm solves as the solver woul
 (continuation.extend_path), and stops before the first row that is not usual: the warm
 step did not converge, the wrench moved too far from the factorization for its verdict,
 the estimate misses the target, the previous wrench is zero (a cold solve), or the
-end-disk rotation is too far from one for the compiled quaternion. That row is left
-untouched, its Broyden updates discarded, so that the solver's own solve gives it
-from the state the rows before it left.
+end-disk rotation is too far from one for the compiled quaternion. The warm step taken
+at that row is handed back, so that the solver's own solve goes on from it (as from its
+own warm step) and gives that row from the state the rows before it left.
 """
 
 import math
-from typing import NamedTuple, Tuple
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -23,8 +23,8 @@ from ._jit import jit, jit_releasing_gil
 from .chord import CONVERGED, PATH_LENGTH
 from .geometry import _bending_between_frames, _quaternion_of_rotation
 from .problem import Problem
-from .warm_step import _ANGLE, _MAX_ITERATIONS, _OTHER_STEPS, _POSITION, _REPORT_SIZE
-from .warm_step import _warm_step
+from .warm_step import _ANGLE, _OTHER_STEPS, _POSITION, _REPORT_SIZE, _warm_step
+from .warm_step import described, WarmStep
 
 #: Layout of a row of ``warm_rows``' output: end-disk position and quaternion (x, y, z, w),
 #: PJ and DJ bending (angle, direction; rad), error estimate (m, deg, rad).
@@ -38,8 +38,13 @@ _CHECKS_SIZE = 11
 
 #: Layout of ``warm_rows``' counts array: the path of warm solves' count (chained on the
 #: previous solution, else 0), the Broyden updates on the factorization, the comparison
-#: steps of the last row's estimate.
+#: steps of the last row's estimate; then what the last warm step returned (status,
+#: iterations, shape slot, Broyden updates), NO_STEP when none was taken.
 _PATH_COUNT, _SECANT_COUNT, _OTHER = 0, 1, 2
+_STEP_STATUS, _STEP_ITERATIONS, _STEP_SLOT, _STEP_SECANT_COUNT, _COUNTS_SIZE = 3, 4, 5, 6, 7
+
+#: No warm step was taken at the row that stopped the run (its previous wrench is zero).
+NO_STEP = -100
 
 
 class Checks(NamedTuple):
@@ -67,40 +72,27 @@ def _wrench_size(fx, fy, fz, mx, my, mz, length):
 @jit_releasing_gil
 def _warm_rows(wrenches, previous, path_xs, path_wrenches, counts, scales, wrench_factors,
                kind, model_args, lu, pivots, updates, taken, settings, pose, points, frames,
-               checks, out):
+               checks, out, state, report):
     """
     Solve rows of ``wrenches`` from ``previous`` until one is unusual; return how many.
 
     ``previous`` holds the unknowns of the last solution (row 0) and its wrench (row 1,
     first six entries); on return, like the path and ``counts``, those of the last row
-    solved. Row i of ``out`` (ROW_SIZE) gets row i's answer. A row whose end-disk rotation
-    is too far from one for the compiled quaternion is not usual either.
+    solved. Row i of ``out`` (ROW_SIZE) gets row i's answer. The row that is not usual
+    leaves its warm step, if it took one, in ``state`` (unknowns, residual), ``report`` and
+    ``counts`` (_STEP_STATUS on: status, iterations, shape slot, Broyden update count).
     """
-    size = previous.shape[1]
-    state = np.empty((2, size))
     pair = np.empty((2, 6))
-    report = np.empty(_REPORT_SIZE)
     rotation = np.empty((3, 3))
     quaternion = np.empty(4)
-    # a row's Broyden updates restart at the first row when the rows are full (chord.py):
-    # those it may overwrite (one per iteration) are saved, so that a row handed back
-    # finds the updates as the rows before it left them
-    kept = min(updates.shape[0], int(settings[_MAX_ITERATIONS]) + 1)
-    saved = np.empty((2, kept, size))
     for row in range(wrenches.shape[0]):
+        counts[_STEP_STATUS] = NO_STEP
         if not previous[1, :6].any():
             return row  # not a warm solve: the previous wrench is zero
-        restart = counts[_SECANT_COUNT] + kept > updates.shape[0]
-        if restart:
-            saved[0] = updates[:kept]
-            saved[1] = taken[:kept]
         if not _usual_row(wrenches[row], previous, path_xs, path_wrenches, counts, scales,
                           wrench_factors, kind, model_args, lu, pivots, updates, taken,
                           settings, pose, points, frames, checks, out[row], state, pair,
                           report, rotation, quaternion):
-            if restart:
-                updates[:kept] = saved[0]
-                taken[:kept] = saved[1]
             return row
     return wrenches.shape[0]
 
@@ -112,17 +104,22 @@ def _usual_row(wrench, previous, path_xs, path_wrenches, counts, scales, wrench_
     """
     Solve one row of ``_warm_rows`` into ``out``; False (nothing kept) when it is not usual.
 
-    ``state``, ``pair``, ``report``, ``rotation`` and ``quaternion`` are scratch space.
+    ``pair``, ``rotation`` and ``quaternion`` are scratch space; ``state`` and ``report``
+    hold the row's warm step (``_warm_rows``).
     """
     state[0] = previous[0]
     pair[0] = wrench
     pair[1] = previous[1, :6]
-    status, _, slot, secant_count = _warm_step(
+    status, done, slot, secant_count = _warm_step(
         path_xs, path_wrenches, counts[_PATH_COUNT], pair, scales, wrench_factors, kind,
         model_args, lu, pivots, updates, taken, counts[_SECANT_COUNT], settings, pose,
         points, frames, state, report)
+    counts[_STEP_STATUS] = status
+    counts[_STEP_ITERATIONS] = done
+    counts[_STEP_SLOT] = slot
+    counts[_STEP_SECANT_COUNT] = secant_count
     if status != CONVERGED:
-        return False  # the solver's solve redoes it
+        return False
     length = checks[_LENGTH]
     load = max(_wrench_size(wrench[0], wrench[1], wrench[2], wrench[3], wrench[4],
                             wrench[5], length), checks[_LOAD_FLOOR])
@@ -180,6 +177,9 @@ class Run(NamedTuple):
     path_count: int
     #: the comparison steps of the last row's error estimate
     coarse_steps: int
+    #: the warm step taken at the row that stopped the run, as warm_step.warm_step returns
+    #: it (the step, the unknowns, the residual); None: none taken, or no row stopped it
+    stopped_at: Optional[Tuple[WarmStep, np.ndarray, np.ndarray]]
 
 
 def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
@@ -190,21 +190,35 @@ def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
 
     ``previous``, ``path`` (its count 0 unless the path ends at ``previous``), ``lu``,
     ``pose`` and ``settings`` as warm_step.warm_step takes them; the path arrays are
-    extended in place and the Broyden updates kept on ``lu``.
+    extended in place and the Broyden updates kept on ``lu``, also those of the step
+    taken at the row that stopped the run (``Run.stopped_at``).
     """
     last = np.zeros((2, problem.size))
     last[0] = previous[0]
     last[1, :6] = previous[1]
     out = np.empty((len(wrenches), ROW_SIZE))
-    counts = np.array([path[2], problem.secant_count(lu), 0], dtype=np.int64)
+    counts = np.zeros(_COUNTS_SIZE, dtype=np.int64)
+    counts[_PATH_COUNT] = path[2]
+    counts[_SECANT_COUNT] = problem.secant_count(lu)
+    counts[_STEP_STATUS] = NO_STEP
     values = np.empty(_CHECKS_SIZE)
     values[_LU_WRENCH:_LU_WRENCH + 6] = checks.lu_wrench
     values[_LENGTH:] = (checks.length, checks.load_floor, checks.drift_limit,
                         checks.position_m, checks.angle_deg)
-    done = _warm_rows(wrenches, last, path[0], path[1], counts, problem.scales,
-                      problem.wrench_factors, problem.residual_kind, problem.model_args,
-                      lu[0], lu[1], problem.secant_updates, problem.secant_steps, settings,
-                      pose, problem.shape_points, problem.shape_frames, values, out)
-    problem.keep_secant_count(lu, int(counts[_SECANT_COUNT]))
-    return Run(int(done), out[:done], (last[0], last[1, :6].copy()),
-               int(counts[_PATH_COUNT]), int(counts[_OTHER]))
+    state = np.empty((2, problem.size))
+    report = np.empty(_REPORT_SIZE)
+    done = int(_warm_rows(wrenches, last, path[0], path[1], counts, problem.scales,
+                          problem.wrench_factors, problem.residual_kind, problem.model_args,
+                          lu[0], lu[1], problem.secant_updates, problem.secant_steps,
+                          settings, pose, problem.shape_points, problem.shape_frames, values,
+                          out, state, report))
+    stopped_at = None
+    if done < len(wrenches) and counts[_STEP_STATUS] != NO_STEP:
+        problem.keep_secant_count(lu, int(counts[_STEP_SECANT_COUNT]))
+        step = described(problem, int(counts[_STEP_STATUS]), int(counts[_STEP_ITERATIONS]),
+                         int(counts[_STEP_SLOT]), report, settings)
+        stopped_at = (step, state[0], state[1])
+    else:
+        problem.keep_secant_count(lu, int(counts[_SECANT_COUNT]))
+    return Run(done, out[:done], (last[0], last[1, :6].copy()), int(counts[_PATH_COUNT]),
+               int(counts[_OTHER]), stopped_at)
