@@ -13,7 +13,7 @@ gives.
 
 from functools import partial
 import time
-from typing import TYPE_CHECKING
+from typing import Callable, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
@@ -41,25 +41,32 @@ def solve_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
     """
     row = rows.start
     solve_one = partial(solve_row, solver)
+    state = solver._state
     while row < rows.stop:
+        undo = None
         if not compliance:
-            row += usual_rows(solver, batch, wrenches, range(row, rows.stop))
+            done, undo = usual_rows(solver, batch, wrenches, range(row, rows.stop))
+            row += done
         if row < rows.stop:
             try:
                 batch.run(row, solve_one, wrenches[row], compliance)
             finally:
-                solver._state.handed_over = None  # only ever for this row's solve
+                if state.handed_over is not None and undo is not None:
+                    undo()  # the row's solve did not go on from the step: as if never taken
+                state.handed_over = None  # only ever for this row's solve
             row += 1
 
 
 def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndarray,
-               rows: range) -> int:
+               rows: range) -> Tuple[int, Optional[Callable[[], None]]]:
     """
-    Solve the usual warm rows at the head of ``rows`` in one compiled call; return how many.
+    Solve the usual warm rows at the head of ``rows`` in one compiled call.
 
-    None (0) when the solver's state is not that of a usual warm row: a fast, judged solver on
-    the default path, not at kept refined steps, with a stored factorization whose stable
-    verdict (margin at least branch.RECHECK_MARGIN) the next solve would keep.
+    Returns how many, and the ``warm_rows.Run.undo`` of the warm step handed to the next
+    row's solve (``PathState.handed_over``). None (0) when the solver's state is not that
+    of a usual warm row: a fast, judged solver on the default path, not at kept refined
+    steps, with a stored factorization whose stable verdict (margin at least
+    branch.RECHECK_MARGIN) the next solve would keep.
     """
     state, verdicts, problem = solver._state, solver._verdicts, solver.problem
     verdict, previous, pose = verdicts.verdict, state.previous, state.pose
@@ -68,7 +75,7 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
             or pose[0] is None or previous is None or verdicts.origin is None
             or not solver.judge or solver.method != 'fast' or solver.path != 'default'
             or solver._refinements.kept is not None):
-        return 0
+        return 0, None
     started = time.perf_counter()
     count = state.path_count if state.path_last is previous[0] else 0
     target = solver.accuracy
@@ -81,7 +88,7 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
     if run.stopped_at is not None:  # the solve of the row that stopped it goes on from there
         state.handed_over = (wrenches[rows.start + run.rows], *run.stopped_at)
     if run.rows == 0:
-        return 0
+        return 0, run.undo
     state.previous = run.previous
     state.path_count, state.path_last = run.path_count, run.previous[0]
     state.exact_at = None
@@ -95,7 +102,7 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
                        answers[:, [PJ, PJ + 1, DJ, DJ + 1]], 'full',
                        (time.perf_counter() - started) / run.rows, stable=True,
                        estimate=answers[:, [ERROR_M, ERROR_DEG]])
-    return run.rows
+    return run.rows, run.undo
 
 
 def solve_row(solver: 'TranslatorSolver', batch: BatchResult, row: int, wrench: np.ndarray,

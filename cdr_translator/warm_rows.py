@@ -15,7 +15,7 @@ own warm step) and gives that row from the state the rows before it left.
 """
 
 import math
-from typing import NamedTuple, Optional, Tuple
+from typing import Callable, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -23,7 +23,8 @@ from ._jit import jit, jit_releasing_gil
 from .chord import CONVERGED, PATH_LENGTH
 from .geometry import _bending_between_frames, _quaternion_of_rotation
 from .problem import Problem
-from .warm_step import _ANGLE, _OTHER_STEPS, _POSITION, _REPORT_SIZE, _warm_step
+from .warm_step import _ANGLE, _MAX_ITERATIONS, _OTHER_STEPS, _POSITION, _REPORT_SIZE
+from .warm_step import _warm_step
 from .warm_step import described, WarmStep
 
 #: Layout of a row of ``warm_rows``' output: end-disk position and quaternion (x, y, z, w),
@@ -72,7 +73,7 @@ def _wrench_size(fx, fy, fz, mx, my, mz, length):
 @jit_releasing_gil
 def _warm_rows(wrenches, previous, path_xs, path_wrenches, counts, scales, wrench_factors,
                kind, model_args, lu, pivots, updates, taken, settings, pose, points, frames,
-               checks, out, state, report):
+               checks, out, state, report, saved):
     """
     Solve rows of ``wrenches`` from ``previous`` until one is unusual; return how many.
 
@@ -80,7 +81,10 @@ def _warm_rows(wrenches, previous, path_xs, path_wrenches, counts, scales, wrenc
     first six entries); on return, like the path and ``counts``, those of the last row
     solved. Row i of ``out`` (ROW_SIZE) gets row i's answer. The row that is not usual
     leaves its warm step, if it took one, in ``state`` (unknowns, residual), ``report`` and
-    ``counts`` (_STEP_STATUS on: status, iterations, shape slot, Broyden update count).
+    ``counts`` (_STEP_STATUS on: status, iterations, shape slot, Broyden update count);
+    ``saved`` (2, k, size) then holds the first k Broyden updates as they were before it
+    when that step may have overwritten them (it began with fewer than k rows free: the
+    updates restart at the first row when full, chord.py), for ``Run.undo``.
     """
     pair = np.empty((2, 6))
     rotation = np.empty((3, 3))
@@ -89,6 +93,9 @@ def _warm_rows(wrenches, previous, path_xs, path_wrenches, counts, scales, wrenc
         counts[_STEP_STATUS] = NO_STEP
         if not previous[1, :6].any():
             return row  # not a warm solve: the previous wrench is zero
+        if counts[_SECANT_COUNT] + saved.shape[1] > updates.shape[0]:
+            saved[0] = updates[:saved.shape[1]]
+            saved[1] = taken[:saved.shape[1]]
         if not _usual_row(wrenches[row], previous, path_xs, path_wrenches, counts, scales,
                           wrench_factors, kind, model_args, lu, pivots, updates, taken,
                           settings, pose, points, frames, checks, out[row], state, pair,
@@ -180,6 +187,9 @@ class Run(NamedTuple):
     #: the warm step taken at the row that stopped the run, as warm_step.warm_step returns
     #: it (the step, the unknowns, the residual); None: none taken, or no row stopped it
     stopped_at: Optional[Tuple[WarmStep, np.ndarray, np.ndarray]]
+    #: puts the Broyden updates back as they were before that step, for a solve of the row
+    #: that does not go on from it (None with ``stopped_at``)
+    undo: Optional[Callable[[], None]]
 
 
 def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
@@ -207,18 +217,31 @@ def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
                         checks.position_m, checks.angle_deg)
     state = np.empty((2, problem.size))
     report = np.empty(_REPORT_SIZE)
+    updates, taken = problem.secant_updates, problem.secant_steps
+    # a warm step adds at most one Broyden update per iteration
+    saved = np.empty((2, min(len(updates), int(settings[_MAX_ITERATIONS]) + 1), problem.size))
     done = int(_warm_rows(wrenches, last, path[0], path[1], counts, problem.scales,
                           problem.wrench_factors, problem.residual_kind, problem.model_args,
-                          lu[0], lu[1], problem.secant_updates, problem.secant_steps,
-                          settings, pose, problem.shape_points, problem.shape_frames, values,
-                          out, state, report))
+                          lu[0], lu[1], updates, taken, settings, pose, problem.shape_points,
+                          problem.shape_frames, values, out, state, report, saved))
+    before = int(counts[_SECANT_COUNT])
     stopped_at = None
+    undo: Optional[Callable[[], None]] = None
     if done < len(wrenches) and counts[_STEP_STATUS] != NO_STEP:
         problem.keep_secant_count(lu, int(counts[_STEP_SECANT_COUNT]))
         step = described(problem, int(counts[_STEP_STATUS]), int(counts[_STEP_ITERATIONS]),
                          int(counts[_STEP_SLOT]), report, settings)
         stopped_at = (step, state[0], state[1])
+        overwritten = before + saved.shape[1] > len(updates)
+
+        def put_back() -> None:
+            """Put the Broyden updates back as they were before the step."""
+            if overwritten:
+                updates[:saved.shape[1]] = saved[0]
+                taken[:saved.shape[1]] = saved[1]
+            problem.keep_secant_count(lu, before)
+        undo = put_back
     else:
-        problem.keep_secant_count(lu, int(counts[_SECANT_COUNT]))
+        problem.keep_secant_count(lu, before)
     return Run(done, out[:done], (last[0], last[1, :6].copy()), int(counts[_PATH_COUNT]),
-               int(counts[_OTHER]), stopped_at)
+               int(counts[_OTHER]), stopped_at, undo)
