@@ -52,8 +52,10 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
     elif level == 'linear' and solver.tangent.ready:
         solve_row = partial(_linear_row, solver)
     elif level == 'full' and not solver._tangent_worth_building(wrenches[rows[0]]):
-        _full_rows(solver, reason, wrenches, rows, batch, compliance)  # one row in 'auto'
-        return
+        if len(rows) > 1:  # the fixed 'full' level: one run (in 'auto' a run is one row)
+            _full_rows(solver, reason, wrenches, rows, batch, compliance)
+            return
+        solve_row = partial(_full_row, solver)
     else:  # 'auto' at full expanding the tangent there, or 'linear' without one
         solve_row, whole = partial(_result_row, solver, level, reason), True
     for row in rows:
@@ -145,6 +147,14 @@ def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows
             solver._note_full_time(batch.solve_time_s[row])
         solver._last_wrench = wrenches[row]
         solver._last_level = 'full'
+
+
+def _full_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
+              compliance: bool) -> float:
+    """Row of the full level (TranslatorSolver's row; the running cost kept)."""
+    elapsed = lean_rows.solve_row(solver.full, batch, row, wrench, compliance)
+    solver._note_full_time(elapsed)
+    return elapsed
 
 
 def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
