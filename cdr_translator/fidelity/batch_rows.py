@@ -11,7 +11,6 @@ SolveResult, or a whole ``solve`` where the level choice needs one.
 """
 
 from functools import partial
-import math
 import time
 from typing import Optional, TYPE_CHECKING
 
@@ -51,12 +50,12 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
         solve_row = partial(_reduced_row, solver, level)
     elif level == 'linear' and solver.tangent.ready:
         solve_row = partial(_linear_row, solver)
-    elif level == 'full' and not solver._tangent_worth_building(wrenches[rows[0]]):
+    elif level == 'full':
         if len(rows) > 1:  # the fixed 'full' level: one run (in 'auto' a run is one row)
             _full_rows(solver, reason, wrenches, rows, batch, compliance)
             return
-        solve_row = partial(_full_row, solver)
-    else:  # 'auto' at full expanding the tangent there, or 'linear' without one
+        solve_row = partial(lean_rows.solve_row, solver.full)
+    else:  # 'linear' without an expansion: the row makes one
         solve_row, whole = partial(_result_row, solver, level, reason), True
     for row in rows:
         batch.fidelity[row] = level  # what a row that raises was tried at
@@ -138,23 +137,13 @@ def _result_row(solver: 'FidelitySolver', level: str, reason: str, batch: BatchR
 
 def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
                batch: BatchResult, compliance: bool) -> None:
-    """Rows of the full level: TranslatorSolver's (lean_rows.solve_rows), running cost kept."""
+    """Rows of the full level in one run (TranslatorSolver's lean_rows.solve_rows)."""
     lean_rows.solve_rows(solver.full, batch, wrenches, rows, compliance)
     for row in rows:
         if batch.message[row]:
             batch.message[row] += f' [full: {reason}]'
-        if not math.isnan(batch.solve_time_s[row]):  # NaN: the row raised
-            solver._note_full_time(batch.solve_time_s[row])
         solver._last_wrench = wrenches[row]
         solver._last_level = 'full'
-
-
-def _full_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
-              compliance: bool) -> float:
-    """Row of the full level (TranslatorSolver's row; the running cost kept)."""
-    elapsed = lean_rows.solve_row(solver.full, batch, row, wrench, compliance)
-    solver._note_full_time(elapsed)
-    return elapsed
 
 
 def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,

@@ -30,6 +30,11 @@ class TangentModel:
         """Bind the full model's ``problem`` (the one TranslatorSolver uses)."""
         self.problem = problem
         self.origin: Optional[np.ndarray] = None  # the cached wrench w0
+        #: LU factorization of the full model's Jacobian at the cached solution (what the
+        #: 'auto' fidelity's chord-step check of a prediction uses)
+        self.factorization: tuple = ()
+        #: and the end-disk frame's derivative there (Problem.pose_jacobian)
+        self.pose_jacobian: np.ndarray = np.empty(0)
         self.build_time_s = 0.0
         # the expansion, set by build(): unknowns, their derivative, C, frames, their twists
         # (derivatives), backbone points and theirs; all empty until then
@@ -74,6 +79,9 @@ class TangentModel:
         self._dxdw = dxdw * problem.x_scale[:, None]
         self._compliance = compliance
         self._frames, self._twists, self._points, self._dpdw = frames, twists, points, dpdw
+        self.factorization = lu
+        assert problem.pose_jacobian is not None  # the compliance's shot set it at xs0
+        self.pose_jacobian = problem.pose_jacobian.copy()
         self.origin = wrench0.copy()
         self.build_time_s = time.perf_counter() - started
 
