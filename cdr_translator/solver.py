@@ -17,7 +17,7 @@ refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at`
 estimation.py (the wrench from a measured pose).
 """
 
-from functools import partial
+from contextlib import nullcontext
 import math
 import time
 from typing import Optional, Tuple
@@ -291,15 +291,15 @@ class TranslatorSolver:
         Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
         The rows equal N consecutive ``solve`` calls (warm-started along the sequence): a
-        usual warm row is the compiled warm step, its verdict and estimate, read into the
-        columns without a SolveResult; other rows (refinement, continuation, failures) go
-        through the whole solve. A row that fails is flagged (``converged`` False,
-        ``message``), never raised; InputError (a ValueError) names a bad input row.
+        run of usual warm rows is one compiled loop (warm step, kept verdict, estimate,
+        pose columns: lean_rows.solve_rows) without a SolveResult; other rows
+        (refinement, continuation, failures) go through the whole solve. A row that fails
+        is flagged (``converged`` False, ``message``), never raised; InputError (a
+        ValueError) names a bad input row.
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
-        for row in range(len(wrenches)):
-            batch.run(row, partial(lean_rows.solve_row, self), wrenches[row], compliance)
+        lean_rows.solve_rows(self, batch, wrenches, range(len(wrenches)), compliance)
         return batch
 
     def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
@@ -310,10 +310,11 @@ class TranslatorSolver:
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and state.previous is not None and bool(state.previous[1].any())
         begin = state.previous[0] if warm and state.previous is not None else None
-        with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
-            usual, spent = (self._warm_step(wrench, deadline)
-                            if warm and self.method == 'fast' and self.path != 'tracking'
-                            else (None, 0))
+        usual, spent = (self._warm_step(wrench, deadline)  # compiled: nothing to silence
+                        if warm and self.method == 'fast' and self.path != 'tracking'
+                        else (None, 0))
+        # numpy's errstate costs 5 us: only the general path has rejected steps that overflow
+        with nullcontext() if usual is not None else np.errstate(over='ignore', invalid='ignore'):
             if usual is not None:
                 outcome = usual
             elif self.path == 'tracking' and self.method == 'fast':

@@ -4,8 +4,9 @@ Runs of rows of ``FidelitySolver.solve_many``: rows chosen at one level, in orde
 A run at 'cc' or 'rod' without compliance goes through the level's compiled sequence
 (``ReducedModel.continue_sequence``) and a run at 'linear' through the compiled poses of the
 expansion (``TangentModel.poses``): one call for many rows, each row what ``solve`` gives,
-and the solver left as those solves would leave it. Any other row is solved by a row
-function (``RowSolver``): the full level's lean row, a reduced or linear row without a
+and the solver left as those solves would leave it; a run at 'full' goes through the full
+model's rows (``lean_rows.solve_rows``: runs of usual warm rows in one compiled call). Any
+other row is solved by a row function (``RowSolver``): a reduced or linear row without a
 SolveResult, or a whole ``solve`` where the level choice needs one.
 """
 
@@ -50,6 +51,9 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
     elif level == 'linear' and solver.tangent.ready:
         solve_row = partial(_linear_row, solver)
     elif level == 'full':
+        if len(rows) > 1:  # the fixed 'full' level: one run (in 'auto' a run is one row)
+            _full_rows(solver, reason, wrenches, rows, batch, compliance)
+            return
         solve_row = partial(lean_rows.solve_row, solver.full)
     else:  # 'linear' without an expansion: the row makes one
         solve_row, whole = partial(_result_row, solver, level, reason), True
@@ -129,6 +133,17 @@ def _result_row(solver: 'FidelitySolver', level: str, reason: str, batch: BatchR
     result = solver._solve_at(level, reason, wrench, compliance, {})
     batch.record(row, result)
     return result.solve_time_s
+
+
+def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
+               batch: BatchResult, compliance: bool) -> None:
+    """Rows of the full level in one run (TranslatorSolver's lean_rows.solve_rows)."""
+    lean_rows.solve_rows(solver.full, batch, wrenches, rows, compliance)
+    for row in rows:
+        if batch.message[row]:
+            batch.message[row] += f' [full: {reason}]'
+        solver._last_wrench = wrenches[row]
+        solver._last_level = 'full'
 
 
 def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
