@@ -18,7 +18,8 @@ import math
 import numpy as np
 
 from .cc_derivatives import cc_residual, cc_system
-from .equivalent_rod import rod_system
+from .equivalent_rod import rod_residual
+from .equivalent_rod_jacobian import rod_system
 from .._jit import jit
 
 #: Model codes.
@@ -57,7 +58,7 @@ def residual(model, x, data, out):
     if model == CC:
         cc_residual(x, data, out)
     else:
-        rod_system(x, data, out, np.empty((0, 0)), False)
+        rod_residual(x, data, out)
 
 
 @jit
