@@ -8,9 +8,9 @@ wrench sequence, one run: the time per answer of ``solve()`` called once per wre
 and mean) and of one ``solve_many`` over the same wrenches (mean; each from a fresh
 solver), and the ratio of the means. The overhead of a single warm solve is its time minus
 the time spent inside the level's compiled kernel (the full model's warm step, the reduced
-models' Newton; for 'linear', whose kernel is the expansion's products,
-``TangentModel.predict``), the median over the sequence: the kernels are timed by wrapping
-them for the run.
+models' compiled continuation ``newton.continue_to``; for 'linear', whose kernel is the
+expansion's frames, ``TangentModel.frames``), the median over the sequence: the kernels
+are timed by wrapping them for the run.
 """
 
 import argparse
@@ -33,8 +33,8 @@ LEVELS: Dict[str, Dict[str, Any]] = {
     'auto': {'fidelity': 'auto', 'max_position_error': 1e-3, 'max_angle_error_deg': 0.5}}
 
 #: Where each level's kernel lives: (object, attribute) timed while the sequence runs.
-KERNELS = {'full': (warm_step, '_warm_step'), 'cc': (reduced.newton, 'newton'),
-           'rod': (reduced.newton, 'newton'), 'linear': (TangentModel, 'predict')}
+KERNELS = {'full': (warm_step, '_warm_step'), 'cc': (reduced.newton, 'continue_to'),
+           'rod': (reduced.newton, 'continue_to'), 'linear': (TangentModel, 'frames')}
 
 
 @contextmanager
