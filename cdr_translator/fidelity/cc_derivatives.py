@@ -3,13 +3,13 @@ Exact residual and Jacobian of the 'cc' model (fidelity.cc): virtual work in clo
 
 The residual is grad U(x) - Q(x), Q_c = f . dp/dx_c + m . omega_c the generalized force of
 the end-disk wrench (p the end-disk centre, omega_c = vee(dR/dx_c R^T) its rotation, both in
-{pe}). The residual alone (``cc_residual``, Newton's line search and chord steps) is plain
+{pe}). The residual alone (``cc_residual``: Newton's line search and chord steps) is plain
 scalar arithmetic on each joint's pose and twists. Writing m . vee(A R^T) = <A, [m] R> / 2
-(Frobenius product), the Jacobian needs the
-first and second partial derivatives of each joint's rotation and tip position; they are
-built from second-order jets (value, d/dbx, d/dby, d2/dbx2, d2/dbxdby, d2/dby2) of
-sin(theta)/theta and (1 - cos theta)/theta^2 as functions of theta^2 = bx^2 + by^2. The
-energy's Hessian is differentiated by hand from ``cc.energy_gradient``.
+(Frobenius product), the Jacobian needs the first and second partial derivatives of each
+joint's rotation and tip position; they are built from second-order jets (value, d/dbx,
+d/dby, d2/dbx2, d2/dbxdby, d2/dby2) of sin(theta)/theta and (1 - cos theta)/theta^2 as
+functions of theta^2 = bx^2 + by^2. The energy's Hessian is differentiated by hand from
+``cc.energy_gradient``.
 """
 
 import math

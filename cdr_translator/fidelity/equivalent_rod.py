@@ -80,7 +80,7 @@ def model_data(params, steps: int) -> np.ndarray:
 @jit_inline
 def _slope(p, rot, force, m0, tension, holes, constants):
     """
-    d/ds of the position, the rotation (row-major 9-tuple) and the four path lengths.
+    Return d/ds of the position, the rotation (row-major 9-tuple) and the path lengths.
 
     Scalars and tuples only (no arrays): the shot calls it 4 times per RK4 step.
     ``constants`` = (pitch radius, EI, 1 / 5GA, 1 / EA, twist stiffness without tension).
@@ -125,7 +125,7 @@ def _slope(p, rot, force, m0, tension, holes, constants):
 
 @jit_inline
 def _path_rate(vx, vy, vz, ux, uy, uz, hx, hy):
-    """|v + u x r| for r = (hx, hy, 0): how fast a secondary's path grows."""
+    """Return |v + u x r| for r = (hx, hy, 0): how fast a secondary's path grows."""
     tx = vx - uz * hy
     ty = vy + uz * hx
     tz = vz + ux * hy - uy * hx
@@ -134,13 +134,13 @@ def _path_rate(vx, vy, vz, ux, uy, uz, hx, hy):
 
 @jit_inline
 def _moved3(a, h, b):
-    """a + h b for 3-tuples."""
+    """Return a + h b for 3-tuples."""
     return (a[0] + h * b[0], a[1] + h * b[1], a[2] + h * b[2])
 
 
 @jit_inline
 def _moved9(a, h, b):
-    """a + h b for 9-tuples."""
+    """Return a + h b for 9-tuples."""
     return (a[0] + h * b[0], a[1] + h * b[1], a[2] + h * b[2], a[3] + h * b[3],
             a[4] + h * b[4], a[5] + h * b[5], a[6] + h * b[6], a[7] + h * b[7],
             a[8] + h * b[8])
@@ -148,7 +148,7 @@ def _moved9(a, h, b):
 
 @jit_inline
 def _rk4_3(a, weight, k1, k2, k3, k4):
-    """a + weight (k1 + 2 k2 + 2 k3 + k4) for 3-tuples."""
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 3-tuples."""
     return (a[0] + weight * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
             a[1] + weight * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
             a[2] + weight * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]))
@@ -156,7 +156,7 @@ def _rk4_3(a, weight, k1, k2, k3, k4):
 
 @jit_inline
 def _rk4_4(a, weight, k1, k2, k3, k4):
-    """a + weight (k1 + 2 k2 + 2 k3 + k4) for 4-tuples."""
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 4-tuples."""
     return (a[0] + weight * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
             a[1] + weight * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
             a[2] + weight * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
@@ -165,7 +165,7 @@ def _rk4_4(a, weight, k1, k2, k3, k4):
 
 @jit_inline
 def _rk4_9(a, weight, k1, k2, k3, k4):
-    """a + weight (k1 + 2 k2 + 2 k3 + k4) for 9-tuples."""
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 9-tuples."""
     first = _rk4_3((a[0], a[1], a[2]), weight, (k1[0], k1[1], k1[2]), (k2[0], k2[1], k2[2]),
                    (k3[0], k3[1], k3[2]), (k4[0], k4[1], k4[2]))
     second = _rk4_3((a[3], a[4], a[5]), weight, (k1[3], k1[4], k1[5]), (k2[3], k2[4], k2[5]),

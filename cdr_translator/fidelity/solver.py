@@ -307,7 +307,7 @@ class FidelitySolver:
 
     def _solve_linear(self, wrench: np.ndarray, compliance: bool,
                       compliance_options: dict) -> SolveResult:
-        """The expansion's frames; its unknowns, points and dictionaries made when read."""
+        """Return the expansion's frames; its unknowns, points and dictionaries when read."""
         started = time.perf_counter()
         frames = self.tangent.frames(wrench)
         elapsed = time.perf_counter() - started
