@@ -124,11 +124,15 @@ def _slope(p, rot, force, m0, tension, holes, constants):
 
 
 @jit_inline
+def offset_tangent(vx, vy, vz, ux, uy, uz, hx, hy):
+    """Return v + u x r for r = (hx, hy, 0): a secondary's tangent (d/ds of p + R r)."""
+    return vx - uz * hy, vy + uz * hx, vz + ux * hy - uy * hx
+
+
+@jit_inline
 def _path_rate(vx, vy, vz, ux, uy, uz, hx, hy):
     """Return |v + u x r| for r = (hx, hy, 0): how fast a secondary's path grows."""
-    tx = vx - uz * hy
-    ty = vy + uz * hx
-    tz = vz + ux * hy - uy * hx
+    tx, ty, tz = offset_tangent(vx, vy, vz, ux, uy, uz, hx, hy)
     return math.sqrt(tx * tx + ty * ty + tz * tz)
 
 

@@ -12,9 +12,9 @@ import numpy as np
 
 from .cc import hole
 from .equivalent_rod import (BENDING_STIFFNESS, CURVATURE_SWEEPS, INTERVALS, INVERSE_AXIAL,
-                             INVERSE_SHEAR, JOINT_LENGTH, PITCH_RADIUS, rod_residual,
-                             SECONDARY_LENGTH, SIZE, STEPS, TUBE_LENGTH, TWIST_STIFFNESS,
-                             WRENCH)
+                             INVERSE_SHEAR, JOINT_LENGTH, offset_tangent, PITCH_RADIUS,
+                             rod_residual, SECONDARY_LENGTH, SIZE, STEPS, TUBE_LENGTH,
+                             TWIST_STIFFNESS, WRENCH)
 from .._jit import jit, jit_inline
 
 
@@ -42,15 +42,8 @@ def _derivative(p, rot, tp, trot, tension, t_tension, m0, t_m0, data, holes, dp,
     nb0 = rot[0, 0] * force0 + rot[1, 0] * force1 + rot[2, 0] * force2
     nb1 = rot[0, 1] * force0 + rot[1, 1] * force1 + rot[2, 1] * force2
     nb2 = rot[0, 2] * force0 + rot[1, 2] * force1 + rot[2, 2] * force2
-    total = 0.0
-    rhs_x = mb0
-    rhs_y = mb1
-    for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        total += tension[k]
-        rhs_x -= tension[k] * hy  # r_k x e3 = (r_y, -r_x, 0)
-        rhs_y += tension[k] * hx
+    total, rhs_x, rhs_y = _tension_terms(tension[0], tension[1], tension[2], tension[3], holes,
+                                         mb0, mb1)
     ux = rhs_x / (5.0 * ei)
     uy = rhs_y / (5.0 * ei)
     sweep[0, 0] = ux
@@ -73,17 +66,26 @@ def _derivative(p, rot, tp, trot, tension, t_tension, m0, t_m0, data, holes, dp,
         drot[i, 1] = rot[i, 2] * ux - rot[i, 0] * uz
         drot[i, 2] = rot[i, 0] * uy - rot[i, 1] * ux
     for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        # v + u x r_k with r_k = (hx, hy, 0)
-        tx = vx - uz * hy
-        ty = vy + uz * hx
-        tz = vz + ux * hy - uy * hx
+        tx, ty, tz = offset_tangent(vx, vy, vz, ux, uy, uz, holes[k, 0], holes[k, 1])
         dlength[k] = math.sqrt(tx * tx + ty * ty + tz * tz)
     for d in range(tp.shape[1]):
         _derivative_column(d, rot, tp, trot, t_tension, t_m0, data, holes, moment0, moment1,
                            moment2, total, rhs_x, rhs_y, sweep, uz, twist_stiffness, vx, vy,
                            vz, dlength, t_dp, t_drot, t_dlength)
+
+
+@jit_inline
+def _tension_terms(t0, t1, t2, t3, holes, moment_x, moment_y):
+    """
+    Return the total of the tensions t_k and the bending right-hand sides (x, y).
+
+    Those are the body moment's x, y minus sum_k t_k (r_k x e3)_xy, r_k x e3 = (r_y, -r_x).
+    Linear in (t, moment): the tangents go through it too.
+    """
+    total = t0 + t1 + t2 + t3
+    rhs_x = moment_x - t0 * holes[0, 1] - t1 * holes[1, 1] - t2 * holes[2, 1] - t3 * holes[3, 1]
+    rhs_y = moment_y + t0 * holes[0, 0] + t1 * holes[1, 0] + t2 * holes[2, 0] + t3 * holes[3, 0]
+    return total, rhs_x, rhs_y
 
 
 @jit_inline
@@ -111,15 +113,9 @@ def _derivative_column(d, rot, tp, trot, t_tension, t_m0, data, holes, moment0, 
         d_nb0 += trot[i, 0, d] * force[i]
         d_nb1 += trot[i, 1, d] * force[i]
         d_nb2 += trot[i, 2, d] * force[i]
-    d_total = 0.0
-    d_rhs_x = d_mb0
-    d_rhs_y = d_mb1
-    for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        d_total += t_tension[k, d]
-        d_rhs_x -= t_tension[k, d] * hy
-        d_rhs_y += t_tension[k, d] * hx
+    d_total, d_rhs_x, d_rhs_y = _tension_terms(t_tension[0, d], t_tension[1, d],
+                                               t_tension[2, d], t_tension[3, d], holes, d_mb0,
+                                               d_mb1)
     d_ux = d_rhs_x / (5.0 * ei)
     d_uy = d_rhs_y / (5.0 * ei)
     for s in range(CURVATURE_SWEEPS):
@@ -148,9 +144,7 @@ def _derivative_column(d, rot, tp, trot, t_tension, t_m0, data, holes, moment0, 
     for k in range(4):
         hx = holes[k, 0]
         hy = holes[k, 1]
-        tx = vx - uz * hy
-        ty = vy + uz * hx
-        tz = vz + ux * hy - uy * hx
+        tx, ty, tz = offset_tangent(vx, vy, vz, ux, uy, uz, hx, hy)
         t_dlength[k, d] = (tx * (d_vx - d_uz * hy) + ty * (d_vy + d_uz * hx)
                            + tz * (d_vz + d_ux * hy - d_uy * hx)) / dlength[k]
 
