@@ -12,8 +12,9 @@ of one residual per column, stopping at the paper's tolerances. It is the baseli
 benchmarks divide by.
 
 The solver is the front of its parts: continuation.py (the load path, with the state
-carried between solves), correctors.py, branch.py (stability verdict, stable branch) and
-refinement.py (error estimate, accuracy target).
+carried between solves), correctors.py, branch.py (stability verdict, stable branch),
+refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at``) and
+estimation.py (the wrench from a measured pose).
 """
 
 from functools import partial
@@ -24,7 +25,7 @@ from typing import Optional, Tuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import branch, continuation, correctors, lean_rows, refinement
+from . import branch, continuation, correctors, estimation, given_unknowns, lean_rows, refinement
 from ._blas import one_blas_thread
 from ._jit import interpreted_kernels
 from ._linalg import residual_norm
@@ -38,6 +39,7 @@ from .problem import JACOBIANS, Problem
 from .result import SolveResult
 from .stability import Reference, Stability
 from .verify import verify as verify_result
+from .wrench_estimate import WrenchEstimate
 
 METHODS = ('fast', 'paper')
 
@@ -230,31 +232,8 @@ class TranslatorSolver:
         gives ``converged`` False and a message. The solver's warm start and stored
         factorization are unchanged.
         """
-        started = time.perf_counter()
-        wrench = check_wrench(wrench[:3], wrench[3:])
-        xs = np.array(xs, dtype=float)
-        state = self._state
-        saved = (state.lu, state.pose, state.exact_at)
-        rs = self.problem.residual_and_shape(xs, wrench)
-        largest = float(np.abs(rs).max())
-        converged = largest <= self.tolerance
-        lu, pose = (None, None) if factorization is None else (
-            factorization[0], (factorization[1], np.array(factorization[2], dtype=float)))
-        outcome = Outcome(xs, rs, 0, converged, 'converged' if converged else
-                          f'residual {largest:.2g} above the tolerance {self.tolerance:.2g} '
-                          'at the given unknowns', lu, pose)
-        outcome.shape = (xs, *self.problem.recorded_shape(0))
-        result = outcome.result(self.problem, wrench, self.method)
-        if converged:
-            try:
-                if self.method == 'fast':
-                    branch.apply_verdict(result, self._stability(outcome, wrench,
-                                                                 result.frames['de'][:3, :3]))
-                self._estimate_error(result, outcome, wrench)
-            finally:
-                state.lu, state.pose, state.exact_at = saved
-        result.solve_time_s = time.perf_counter() - started
-        return result
+        return given_unknowns.result_at(self, xs, check_wrench(wrench[:3], wrench[3:]),
+                                        factorization)
 
     @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
@@ -285,6 +264,25 @@ class TranslatorSolver:
         outcome = self._correct(wrench, warm_start, started)
         return self._judged(outcome, self._verdict(outcome, wrench), wrench, started,
                             compliance, verify, compliance_options)
+
+    @one_blas_thread
+    def estimate_wrench(self, position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None,
+                        *, pose_covariance: Optional[ArrayLike] = None,
+                        moment: Optional[ArrayLike] = None,
+                        force: Optional[ArrayLike] = None) -> WrenchEstimate:
+        """
+        Estimate the end-disk wrench (N, N m, in {pe}) from a measured end-disk pose.
+
+        ``position`` (m) and ``quaternion_xyzw`` in {pe}: all six components; a position
+        only: the force under ``moment`` (default none), or the moment under ``force``.
+        ``pose_covariance``: 6x6 (position, rotation about the base axes; 3x3 for a
+        position) propagated to ``covariance``. Newton on the wrench with the exact
+        compliance, warm-started from the previous estimate (cdr_translator/estimation.py);
+        an unmatched pose is a flagged result, bad input an InputError (a ValueError).
+        """
+        return estimation.estimate_wrench(self, position, quaternion_xyzw,
+                                          pose_covariance=pose_covariance, moment=moment,
+                                          force=force)
 
     @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,

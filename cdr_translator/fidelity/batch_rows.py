@@ -49,9 +49,9 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
         solve_row = partial(_reduced_row, solver, level)
     elif level == 'linear' and solver.tangent.ready:
         solve_row = partial(_linear_row, solver)
-    elif level == 'full' and not solver._tangent_worth_building(wrenches[rows[0]]):
-        solve_row = partial(_full_row, solver)  # a run of 'full' is one row in 'auto'
-    else:  # 'auto' at full expanding the tangent there, or 'linear' without one
+    elif level == 'full':
+        solve_row = partial(lean_rows.solve_row, solver.full)
+    else:  # 'linear' without an expansion: the row makes one
         solve_row, whole = partial(_result_row, solver, level, reason), True
     for row in rows:
         batch.fidelity[row] = level  # what a row that raises was tried at
@@ -129,14 +129,6 @@ def _result_row(solver: 'FidelitySolver', level: str, reason: str, batch: BatchR
     result = solver._solve_at(level, reason, wrench, compliance, {})
     batch.record(row, result)
     return result.solve_time_s
-
-
-def _full_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
-              compliance: bool) -> float:
-    """Row of the full level (TranslatorSolver's row; the running cost kept)."""
-    elapsed = lean_rows.solve_row(solver.full, batch, row, wrench, compliance)
-    solver._note_full_time(elapsed)
-    return elapsed
 
 
 def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,

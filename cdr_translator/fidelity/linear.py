@@ -31,6 +31,11 @@ class TangentModel:
         self.problem = problem
         self.origin: Optional[np.ndarray] = None  # the cached wrench w0
         self.origin_text = ''
+        #: LU factorization of the full model's Jacobian at the cached solution (what the
+        #: 'auto' fidelity's chord-step check of a prediction uses)
+        self.factorization: tuple = ()
+        #: and the end-disk frame's derivative there (Problem.pose_jacobian)
+        self.pose_jacobian: np.ndarray = np.empty(0)
         self.build_time_s = 0.0
         # the expansion, set by build(): unknowns, their derivative, C, frames, their twists
         # (derivatives), backbone points and theirs; all empty until then
@@ -75,6 +80,9 @@ class TangentModel:
         self._dxdw = dxdw * problem.x_scale[:, None]
         self._compliance = compliance
         self._frames, self._twists, self._points, self._dpdw = frames, twists, points, dpdw
+        self.factorization = lu
+        assert problem.pose_jacobian is not None  # the compliance's shot set it at xs0
+        self.pose_jacobian = problem.pose_jacobian.copy()
         self.origin = wrench0.copy()
         self.origin_text = str(np.round(wrench0, 6).tolist())  # said by every linear result
         self.build_time_s = time.perf_counter() - started
@@ -86,6 +94,12 @@ class TangentModel:
         frames = np.empty((4, 4, 4))
         linear_frames(self._frames, self._twists, wrench - self.origin, frames)
         return frames
+
+    def unknowns(self, wrench: np.ndarray) -> np.ndarray:
+        """Return the SI unknowns predicted to first order at ``wrench``."""
+        if self.origin is None:
+            raise RuntimeError('the linear level has no cached full solution yet')
+        return self._unknowns + self._dxdw @ (wrench - self.origin)
 
     def unknowns_and_points(self, wrench: np.ndarray
                             ) -> Tuple[Callable[[], np.ndarray], Callable[[], np.ndarray]]:
