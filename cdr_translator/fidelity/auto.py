@@ -290,7 +290,7 @@ class AutoFidelity:
             return self._first_check(wrench, compliance, options)
         if verdict == 'check':
             scale = box_scale(wrench - solver.tangent.origin)
-            errors = self.check_prediction(wrench, solver.tangent.predict(wrench)[0])
+            errors = self.check_prediction(wrench, solver.tangent.unknowns(wrench))
             self.counts['checks'] += 1
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
@@ -320,7 +320,7 @@ class AutoFidelity:
         origin = solver.tangent.origin
         assert origin is not None
         scale = box_scale(wrench - origin)
-        unknowns, _, frames = solver.tangent.predict(wrench)
+        unknowns, frames = solver.tangent.unknowns(wrench), solver.tangent.frames(wrench)
         residual = self._start_full_at(wrench, unknowns)
         result = solver._solve_at('full', 'the first check of the expansion', wrench,
                                   compliance, options)
@@ -401,7 +401,7 @@ class AutoFidelity:
         if not tangent.ready:
             return False
         scale = box_scale(wrench - tangent.origin)
-        frames = tangent.predict(wrench)[2]
+        frames = tangent.frames(wrench)
         position, angle = frame_errors(np.stack([result.frames[name] for name in FRAME_NAMES]),
                                        frames)
         distance = np.array([position, math.degrees(angle)])
@@ -437,7 +437,7 @@ class AutoFidelity:
         tangent = solver.tangent
         previous = None
         if tangent.origin is not None:  # the old expansion's error here, measured
-            unknowns, _, frames = tangent.predict(wrench)
+            unknowns, frames = tangent.unknowns(wrench), tangent.frames(wrench)
             self._start_full_at(wrench, unknowns)
             previous = (box_scale(wrench - tangent.origin), frames)
         result = solver.cache_full_solution(wrench, compliance, **options)

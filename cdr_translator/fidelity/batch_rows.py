@@ -150,7 +150,7 @@ def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: 
                 compliance: bool) -> float:
     """Row of the 'linear' level: the expansion's frames."""
     started = time.perf_counter()
-    frames = solver.tangent.predict(wrench)[2]
+    frames = solver.tangent.frames(wrench)
     elapsed = time.perf_counter() - started
     analysis = solver.tangent.compliance() if compliance else None
     batch.record_pose(row, frames, None if analysis is None else analysis.stable, None,

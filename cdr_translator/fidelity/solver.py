@@ -232,17 +232,21 @@ class FidelitySolver:
 
     def _solve_linear(self, wrench: np.ndarray, compliance: bool,
                       compliance_options: dict) -> SolveResult:
+        """Return the expansion's frames; its unknowns, points and dictionaries when read."""
         started = time.perf_counter()
-        unknowns, points, frames = self.tangent.predict(wrench)
+        frames = self.tangent.frames(wrench)
         elapsed = time.perf_counter() - started
-        origin = self.tangent.origin
-        assert origin is not None  # predict() has raised otherwise
-        offset = np.abs(wrench - origin).max()
+        unknowns, points = self.tangent.unknowns_and_points(wrench)
+        offset = max(map(abs, (wrench - self.tangent.origin).tolist()))
         # the level solves no equations: its residual is zero by construction
-        result = _result(True, f'first-order expansion about the full solution at '
-                         f'{np.round(origin, 6).tolist()} (largest offset '
-                         f'{offset:.3g})', 0, np.zeros(1), dict.fromkeys(RESIDUAL_KINDS, 0.0),
-                         wrench, frames, points, elapsed, unknowns, 'linear')
+        result = SolveResult.deferred(
+            {'frames': lambda: dict(zip(FRAME_NAMES, frames)), 'backbones': points,
+             'unknowns': unknowns,
+             'residual_by_type': lambda: dict.fromkeys(RESIDUAL_KINDS, 0.0)},
+            converged=True, message=f'first-order expansion about the full solution at '
+            f'{self.tangent.origin_text} (largest offset {offset:.3g})', iterations=0,
+            residual_norm=0.0, force=wrench[:3].copy(), moment=wrench[3:].copy(),
+            solve_time_s=elapsed, method='fast', fidelity='linear')
         if compliance:
             result.compliance = self.tangent.compliance(**compliance_options)
         return result
@@ -301,19 +305,6 @@ class FidelitySolver:
             analysis, failure = None, f'; no compliance: {error}'
         self._previous[level] = (outcome.x, wrench)  # the differences moved the model
         return analysis, failure
-
-
-def _result(converged: bool, message: str, iterations: int, rs: np.ndarray,
-            residual_by_type: dict, wrench: np.ndarray, frames: np.ndarray,
-            points: np.ndarray, elapsed: float, unknowns: np.ndarray,
-            fidelity: str) -> SolveResult:
-    return SolveResult(
-        converged=converged, message=message, iterations=iterations,
-        residual_norm=float(np.sqrt(rs @ rs)), residual_by_type=residual_by_type,
-        force=wrench[:3].copy(), moment=wrench[3:].copy(),
-        frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
-        backbones=points, solve_time_s=elapsed, method='fast', unknowns=unknowns,
-        fidelity=fidelity)
 
 
 def _reduced_compliance(model: ReducedModel, x: np.ndarray, wrench: np.ndarray,

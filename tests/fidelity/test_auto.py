@@ -46,7 +46,7 @@ def test_check_measures_the_linear_error(params, full):
     origin = solver.tangent.origin
     for size in (0.02, 0.06, 0.12):
         wrench = origin + size * box_half_widths() * np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
-        estimate = solver.auto.check_prediction(wrench, solver.tangent.predict(wrench)[0])
+        estimate = solver.auto.check_prediction(wrench, solver.tangent.unknowns(wrench))
         linear = solver._solve_linear(wrench, False, {})
         position, angle = errors(linear, full, wrench)
         assert 0.5 < estimate[0] / position < 2.0, (size, estimate, position)
