@@ -61,6 +61,8 @@ def errors(robots: Dict[str, DeltaRobot]) -> Dict[str, Dict[str, float]]:
                     result.platform_position - full.platform_position)))
                 record['angle'].append(math.degrees(float(np.linalg.norm(
                     result.platform_rotation_vector - full.platform_rotation_vector))))
+                assert full.platform_compliance is not None  # asked for: compliance=True
+                assert result.platform_compliance is not None
                 scale = np.abs(full.platform_compliance).max()
                 record['compliance'].append(float(np.abs(
                     result.platform_compliance - full.platform_compliance).max() / scale))

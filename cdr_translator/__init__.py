@@ -15,14 +15,16 @@ if TYPE_CHECKING:
     from .params import TranslatorParams
     from .result import SolveResult
     from .solver import TranslatorSolver
+    from .wrench_estimate import WrenchEstimate
 
 __all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError',
-           'SolveResult', 'TranslatorParams', 'TranslatorSolver']
+           'SolveResult', 'TranslatorParams', 'TranslatorSolver', 'WrenchEstimate']
 
 #: The module that defines each exported name.
 _HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
           'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result',
-          'TranslatorParams': 'params', 'TranslatorSolver': 'solver'}
+          'TranslatorParams': 'params', 'TranslatorSolver': 'solver',
+          'WrenchEstimate': 'wrench_estimate'}
 
 
 def __getattr__(name: str) -> Any:

@@ -127,19 +127,27 @@ class BatchResult:
 
     def record_poses(self, rows: slice, pose: np.ndarray, bending: np.ndarray, fidelity: str,
                      solve_time_s: float, stable: Optional[bool] = None,
-                     matrix: Optional[np.ndarray] = None) -> None:
+                     matrix: Optional[np.ndarray] = None,
+                     estimate: Optional[np.ndarray] = None) -> None:
         """
-        Write good converged ``rows`` from compiled poses, without an error estimate.
+        Write good converged ``rows`` from compiled poses.
 
         ``pose`` (n, 7: position, quaternion x, y, z, w) and ``bending`` (n, 4: PJ angle,
         direction, DJ angle, direction) as fidelity.level_kernels.poses gives them;
         ``stable`` and the compliance ``matrix`` are shared by the rows (the 'linear'
-        level's). A row that is not good goes through ``record_pose`` instead.
+        level's); ``estimate`` (n, 2: m, deg) is an error estimate within the accuracy
+        target, None: none made. A row that is not good goes through ``record_pose``
+        instead.
         """
         self.converged[rows] = True
         self.stable[rows] = stable
-        self.accuracy_met[rows] = None
-        self.error_estimate_m[rows] = self.error_estimate_deg[rows] = math.nan
+        if estimate is None:
+            self.accuracy_met[rows] = None
+            self.error_estimate_m[rows] = self.error_estimate_deg[rows] = math.nan
+        else:
+            self.accuracy_met[rows] = True
+            self.error_estimate_m[rows] = estimate[:, 0]
+            self.error_estimate_deg[rows] = estimate[:, 1]
         self.end_disk_position[rows] = pose[:, :3]
         self.end_disk_quaternion_xyzw[rows] = pose[:, 3:]
         self.pj_bending[rows] = bending[:, :2]

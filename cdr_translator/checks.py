@@ -14,7 +14,8 @@ from numpy.typing import ArrayLike
 
 from .errors import InputError
 
-__all__ = ['check_integer', 'check_number', 'check_vector']
+__all__ = ['check_covariance', 'check_integer', 'check_number', 'check_unit_quaternion',
+           'check_vector']
 
 
 def check_number(name: str, value: Any, *, low: Optional[float] = None,
@@ -77,3 +78,44 @@ def check_vector(name: str, values: ArrayLike, size: int = 3,
         if not math.isfinite(value):
             raise error(f'{name} {label} component is {value}: it must be finite')
     return array
+
+
+def check_unit_quaternion(name: str, values: ArrayLike, tolerance: float = 1e-6,
+                          error: Type[ValueError] = InputError) -> np.ndarray:
+    """
+    Return ``values`` as a normalized (x, y, z, w) quaternion of norm 1 within ``tolerance``.
+
+    A tracker's quaternion, normalized in single precision, is off by about 1e-7: it passes
+    and is renormalized here; a zero or clearly unnormalized one is named.
+    """
+    quaternion = check_vector(name, values, 4, error)
+    norm = float(np.linalg.norm(quaternion))
+    if abs(norm - 1.0) > tolerance:
+        raise error(f'{name} must be a unit quaternion (x, y, z, w), got norm {norm:.9g}')
+    return quaternion / norm
+
+
+def check_covariance(name: str, values: ArrayLike, size: int,
+                     error: Type[ValueError] = InputError) -> np.ndarray:
+    """
+    Return ``values`` as a finite, symmetric, positive semidefinite ``size`` x ``size`` array.
+
+    Symmetry and the eigenvalues are judged relative to the largest entry (1e-9 and -1e-12 of
+    it: a covariance written with rounding passes); the returned array is symmetrized.
+    """
+    try:
+        matrix = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f'{name} must be a {size}x{size} matrix of numbers, got {values!r}') from None
+    if matrix.shape != (size, size):
+        raise error(f'{name} must be {size}x{size}, got shape {matrix.shape}')
+    if not np.all(np.isfinite(matrix)):
+        raise error(f'{name} must be finite, got {matrix.tolist()}')
+    largest = float(np.abs(matrix).max())
+    if float(np.abs(matrix - matrix.T).max()) > 1e-9 * largest:
+        raise error(f'{name} must be symmetric, got {matrix.tolist()}')
+    matrix = 0.5 * (matrix + matrix.T)
+    smallest = float(np.linalg.eigvalsh(matrix)[0])
+    if smallest < -1e-12 * largest:
+        raise error(f'{name} must be positive semidefinite, has eigenvalue {smallest:.3g}')
+    return matrix

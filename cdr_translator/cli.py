@@ -315,7 +315,8 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
 
     Solves once at every fidelity level, with each Jacobian, and the CDR; a cold solve with
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
-    warm solves along a path the extrapolating predictor (chord.extrapolate).
+    warm solves along a path the extrapolating predictor (chord.extrapolate), a batch
+    after them the compiled run of warm rows (warm_rows.py).
     """
     # 'auto' under a budget, so that it looks up the validated ranges (a compiled lookup)
     leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES
@@ -333,6 +334,7 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
     along_a_path = TranslatorSolver(params)
     for force in (1.0, 1.5, 2.0, 2.5):
         along_a_path.solve([force, 0.0, 0.0])
+    along_a_path.solve_many([[2.6, 0.0, 0.0], [2.7, 0.0, 0.0]])  # a compiled run of rows
     spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
     TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
     for level in ('full', 'cc', 'rod'):  # reduced legs run a compiled chain of their own

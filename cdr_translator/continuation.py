@@ -20,6 +20,7 @@ from ._linalg import residual_norm
 from .correctors import CHORD_RATE, LiftedNodes, LiftedState, Limits, Outcome, Pose
 from .problem import Problem
 from .warm_step import settings_array as warm_step_settings, warm_step as warm_step_kernel
+from .warm_step import WarmStep
 
 #: Largest nondimensional change of the unknowns a first continuation step may predict:
 #: past it the linear prediction has left its regime (see ``first_step``).
@@ -72,6 +73,10 @@ class PathState:
     lifted: LiftedNodes = field(default_factory=LiftedNodes)
     unloaded_lu: Optional[tuple] = None
     unloaded_pose: Optional[Pose] = None
+    #: a warm step already taken at the next wrench, (wrench, step, unknowns, residual) as
+    #: warm_step.warm_step returns them (a batch's compiled run stopped there): the next
+    #: ``warm_step`` at that wrench goes on from it instead of taking it again
+    handed_over: Optional[Tuple[np.ndarray, WarmStep, np.ndarray, np.ndarray]] = None
     #: warm_step's settings array and the (tolerance, max_iterations, judge) it was made for
     warm_settings: np.ndarray = field(default_factory=lambda: np.empty(0))
     warm_settings_for: Optional[Tuple[float, int, bool]] = None
@@ -229,20 +234,25 @@ def warm_step(problem: Problem, state: PathState, max_iterations: int, settings:
     without this call.
     """
     previous, lu, pose = state.previous, state.lu, state.pose
+    handed, state.handed_over = state.handed_over, None
     if previous is None or lu is None or pose is None or pose[0] is None:
         return None, 0
-    count = state.path_count if state.path_last is previous[0] else 0
-    step, xs, rs = warm_step_kernel(problem, previous,
-                                    (state.path_xs, state.path_wrenches, count),
-                                    wrench, lu, pose[0], settings)
+    if handed is not None and np.array_equal(handed[0], wrench):
+        step, xs, rs = handed[1:]
+    else:
+        count = state.path_count if state.path_last is previous[0] else 0
+        step, xs, rs = warm_step_kernel(problem, previous,
+                                        (state.path_xs, state.path_wrenches, count),
+                                        wrench, lu, pose[0], settings)
     if step.status == chord.CONVERGED:
         outcome = Outcome(xs, rs, step.iterations, True, 'converged', lu, pose,
                           estimate=step.estimate, residual_by_kind=step.residual_by_kind)
         outcome.shape = (xs, *problem.recorded_shape(step.slot))
         return outcome, 0
     if step.status == chord.REFACTOR and time.perf_counter() <= deadline:
-        outcome = newton(xs, wrench, deadline, None, max_iterations - step.iterations, pose,
-                         known=(rs, step.slot))
+        with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
+            outcome = newton(xs, wrench, deadline, None, max_iterations - step.iterations,
+                             pose, known=(rs, step.slot))
         if outcome.converged:
             state.lu, state.pose = outcome.lu, outcome.pose
             outcome.iterations += step.iterations

@@ -1,26 +1,108 @@
 """
-Rows of ``TranslatorSolver.solve_many``: the usual warm row without a SolveResult.
+Rows of ``TranslatorSolver.solve_many``: the usual warm rows without a SolveResult.
 
 Along a warm sequence almost every solve is the compiled warm step (warm_step.py), a
-stability verdict from the stored factorization and an error estimate within the target.
-Such a row goes from the step's recorded frames straight into the batch's columns; any
-other row (no verdict, unstable, short of its accuracy target, kept refined steps) takes
-the rest of the solve it has begun (``TranslatorSolver._judged``), so that every row is
-what ``solve`` gives.
+stability verdict kept from the stored factorization and an error estimate within the
+target. Runs of such rows, without compliance, are one compiled call (``solve_rows``,
+warm_rows.py). Any other row goes through ``solve_row``: a warm row with a verdict and
+an estimate from its step's recorded frames straight into the batch's columns; any other
+(no verdict, unstable, short of its accuracy target, kept refined steps) takes the rest of
+the solve it has begun (``TranslatorSolver._judged``), so that every row is what ``solve``
+gives.
 """
 
+from functools import partial
 import time
-from typing import TYPE_CHECKING
+from typing import Callable, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
-from .accuracy import meets
+from .accuracy import ErrorEstimate, meets
 from .batch import BatchResult
+from .branch import LOAD_FLOOR, RECHECK_MARGIN, STALE_WRENCH
 from .compliance import compliance_analysis, ComplianceAnalysis
+from .continuation import warm_settings
 from .correctors import Outcome
+from .stability import load_scale
+from .warm_rows import Checks, DJ, ERROR_DEG, ERROR_M, ERROR_RAD, PJ, POSITION, QUATERNION
+from .warm_rows import warm_rows
 
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
+
+
+def solve_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndarray,
+               rows: range, compliance: bool) -> None:
+    """
+    Solve ``rows`` of ``wrenches`` as consecutive ``solver.solve`` calls would.
+
+    Runs of usual warm rows (without compliance) go to one compiled call, the other rows
+    one by one (``solve_row``), each going on from the warm step that stopped the run.
+    """
+    row = rows.start
+    solve_one = partial(solve_row, solver)
+    state = solver._state
+    while row < rows.stop:
+        undo = None
+        if not compliance:
+            done, undo = usual_rows(solver, batch, wrenches, range(row, rows.stop))
+            row += done
+        if row < rows.stop:
+            try:
+                batch.run(row, solve_one, wrenches[row], compliance)
+            finally:
+                if state.handed_over is not None and undo is not None:
+                    undo()  # the row's solve did not go on from the step: as if never taken
+                state.handed_over = None  # only ever for this row's solve
+            row += 1
+
+
+def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndarray,
+               rows: range) -> Tuple[int, Optional[Callable[[], None]]]:
+    """
+    Solve the usual warm rows at the head of ``rows`` in one compiled call.
+
+    Returns how many, and the ``warm_rows.Run.undo`` of the warm step handed to the next
+    row's solve (``PathState.handed_over``). None (0) when the solver's state is not that
+    of a usual warm row: a fast, judged solver on the default path, not at kept refined
+    steps, with a stored factorization whose stable verdict (margin at least
+    branch.RECHECK_MARGIN) the next solve would keep.
+    """
+    state, verdicts, problem = solver._state, solver._verdicts, solver.problem
+    verdict, previous, pose = verdicts.verdict, state.previous, state.pose
+    if (verdict is None or not verdict.stable or verdict.margin < RECHECK_MARGIN
+            or verdicts.verdict_lu is not state.lu or state.lu is None or pose is None
+            or pose[0] is None or previous is None or verdicts.origin is None
+            or not solver.judge or solver.method != 'fast' or solver.path != 'default'
+            or solver._refinements.kept is not None):
+        return 0, None
+    started = time.perf_counter()
+    count = state.path_count if state.path_last is previous[0] else 0
+    target = solver.accuracy
+    checks = Checks(pose[1], verdicts.origin.length, LOAD_FLOOR * load_scale(verdicts.origin),
+                    min(STALE_WRENCH, 0.5 * verdict.margin), target.position_m,
+                    target.angle_deg)
+    run = warm_rows(problem, previous, (state.path_xs, state.path_wrenches, count),
+                    wrenches[rows.start:rows.stop], state.lu, pose[0],
+                    warm_settings(state, solver.tolerance, solver.max_iterations, True), checks)
+    if run.stopped_at is not None:  # the solve of the row that stopped it goes on from there
+        state.handed_over = (wrenches[rows.start + run.rows], *run.stopped_at)
+    if run.rows == 0:
+        return 0, run.undo
+    state.previous = run.previous
+    state.path_count, state.path_last = run.path_count, run.previous[0]
+    state.exact_at = None
+    last = run.answers[-1]
+    solver._refinements.last_estimate = ErrorEstimate(
+        float(last[ERROR_M]), float(last[ERROR_RAD]), problem.params.steps_per_segment,
+        run.coarse_steps)
+    answers = run.answers
+    batch.record_poses(slice(rows.start, rows.start + run.rows),
+                       answers[:, POSITION:QUATERNION + 4],
+                       answers[:, [PJ, PJ + 1, DJ, DJ + 1]], 'full',
+                       (time.perf_counter() - started) / run.rows, stable=True,
+                       estimate=answers[:, [ERROR_M, ERROR_DEG]])
+    return run.rows, run.undo
 
 
 def solve_row(solver: 'TranslatorSolver', batch: BatchResult, row: int, wrench: np.ndarray,

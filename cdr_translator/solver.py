@@ -12,11 +12,12 @@ of one residual per column, stopping at the paper's tolerances. It is the baseli
 benchmarks divide by.
 
 The solver is the front of its parts: continuation.py (the load path, with the state
-carried between solves), correctors.py, branch.py (stability verdict, stable branch) and
-refinement.py (error estimate, accuracy target).
+carried between solves), correctors.py, branch.py (stability verdict, stable branch),
+refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at``) and
+estimation.py (the wrench from a measured pose).
 """
 
-from functools import partial
+from contextlib import nullcontext
 import math
 import time
 from typing import Optional, Tuple
@@ -24,7 +25,7 @@ from typing import Optional, Tuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import branch, continuation, correctors, lean_rows, refinement
+from . import branch, continuation, correctors, estimation, given_unknowns, lean_rows, refinement
 from ._blas import one_blas_thread
 from ._jit import interpreted_kernels
 from ._linalg import residual_norm
@@ -38,6 +39,7 @@ from .problem import JACOBIANS, Problem
 from .result import SolveResult
 from .stability import Reference, Stability
 from .verify import verify as verify_result
+from .wrench_estimate import WrenchEstimate
 
 METHODS = ('fast', 'paper')
 
@@ -230,31 +232,8 @@ class TranslatorSolver:
         gives ``converged`` False and a message. The solver's warm start and stored
         factorization are unchanged.
         """
-        started = time.perf_counter()
-        wrench = check_wrench(wrench[:3], wrench[3:])
-        xs = np.array(xs, dtype=float)
-        state = self._state
-        saved = (state.lu, state.pose, state.exact_at)
-        rs = self.problem.residual_and_shape(xs, wrench)
-        largest = float(np.abs(rs).max())
-        converged = largest <= self.tolerance
-        lu, pose = (None, None) if factorization is None else (
-            factorization[0], (factorization[1], np.array(factorization[2], dtype=float)))
-        outcome = Outcome(xs, rs, 0, converged, 'converged' if converged else
-                          f'residual {largest:.2g} above the tolerance {self.tolerance:.2g} '
-                          'at the given unknowns', lu, pose)
-        outcome.shape = (xs, *self.problem.recorded_shape(0))
-        result = outcome.result(self.problem, wrench, self.method)
-        if converged:
-            try:
-                if self.method == 'fast':
-                    branch.apply_verdict(result, self._stability(outcome, wrench,
-                                                                 result.frames['de'][:3, :3]))
-                self._estimate_error(result, outcome, wrench)
-            finally:
-                state.lu, state.pose, state.exact_at = saved
-        result.solve_time_s = time.perf_counter() - started
-        return result
+        return given_unknowns.result_at(self, xs, check_wrench(wrench[:3], wrench[3:]),
+                                        factorization)
 
     @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
@@ -287,21 +266,40 @@ class TranslatorSolver:
                             compliance, verify, compliance_options)
 
     @one_blas_thread
+    def estimate_wrench(self, position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None,
+                        *, pose_covariance: Optional[ArrayLike] = None,
+                        moment: Optional[ArrayLike] = None,
+                        force: Optional[ArrayLike] = None) -> WrenchEstimate:
+        """
+        Estimate the end-disk wrench (N, N m, in {pe}) from a measured end-disk pose.
+
+        ``position`` (m) and ``quaternion_xyzw`` in {pe}: all six components; a position
+        only: the force under ``moment`` (default none), or the moment under ``force``.
+        ``pose_covariance``: 6x6 (position, rotation about the base axes; 3x3 for a
+        position) propagated to ``covariance``. Newton on the wrench with the exact
+        compliance, warm-started from the previous estimate (cdr_translator/estimation.py);
+        an unmatched pose is a flagged result, bad input an InputError (a ValueError).
+        """
+        return estimation.estimate_wrench(self, position, quaternion_xyzw,
+                                          pose_covariance=pose_covariance, moment=moment,
+                                          force=force)
+
+    @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
                    compliance: bool = False) -> BatchResult:
         """
         Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
         The rows equal N consecutive ``solve`` calls (warm-started along the sequence): a
-        usual warm row is the compiled warm step, its verdict and estimate, read into the
-        columns without a SolveResult; other rows (refinement, continuation, failures) go
-        through the whole solve. A row that fails is flagged (``converged`` False,
-        ``message``), never raised; InputError (a ValueError) names a bad input row.
+        run of usual warm rows is one compiled loop (warm step, kept verdict, estimate,
+        pose columns: lean_rows.solve_rows) without a SolveResult; other rows
+        (refinement, continuation, failures) go through the whole solve. A row that fails
+        is flagged (``converged`` False, ``message``), never raised; InputError (a
+        ValueError) names a bad input row.
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
-        for row in range(len(wrenches)):
-            batch.run(row, partial(lean_rows.solve_row, self), wrenches[row], compliance)
+        lean_rows.solve_rows(self, batch, wrenches, range(len(wrenches)), compliance)
         return batch
 
     def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
@@ -312,10 +310,11 @@ class TranslatorSolver:
         corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
         warm = warm_start and state.previous is not None and bool(state.previous[1].any())
         begin = state.previous[0] if warm and state.previous is not None else None
-        with np.errstate(over='ignore', invalid='ignore'):  # rejected trial steps overflow
-            usual, spent = (self._warm_step(wrench, deadline)
-                            if warm and self.method == 'fast' and self.path != 'tracking'
-                            else (None, 0))
+        usual, spent = (self._warm_step(wrench, deadline)  # compiled: nothing to silence
+                        if warm and self.method == 'fast' and self.path != 'tracking'
+                        else (None, 0))
+        # numpy's errstate costs 5 us: only the general path has rejected steps that overflow
+        with nullcontext() if usual is not None else np.errstate(over='ignore', invalid='ignore'):
             if usual is not None:
                 outcome = usual
             elif self.path == 'tracking' and self.method == 'fast':

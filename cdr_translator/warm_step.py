@@ -138,14 +138,19 @@ def warm_step(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
         problem.secant_steps, count, settings, pose, problem.shape_points,
         problem.shape_frames, state, report)
     problem.keep_secant_count(lu, int(count))
+    return described(problem, status, done, slot, report, settings), state[0], state[1]
+
+
+def described(problem: Problem, status: int, done: int, slot: int, report: np.ndarray,
+              settings: np.ndarray) -> WarmStep:
+    """Return the WarmStep of what ``_warm_step`` returned and reported."""
     estimate = by_kind = None
     values = report.tolist()  # plain floats in one call, not one numpy scalar each
     if status == CONVERGED and settings[_ESTIMATE] != 0.0:
         estimate = ErrorEstimate(values[_POSITION], values[_ANGLE],
                                  problem.params.steps_per_segment, int(values[_OTHER_STEPS]))
         by_kind = dict(zip(RESIDUAL_KINDS, values[_BY_KIND:]))
-    step = WarmStep(int(status), int(done), int(slot), values[_NORM], estimate, by_kind)
-    return step, state[0], state[1]
+    return WarmStep(int(status), int(done), int(slot), values[_NORM], estimate, by_kind)
 
 
 def settings_array(tolerance: float, max_iterations: int, chord_rate: float,

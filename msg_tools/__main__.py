@@ -1,18 +1,25 @@
 """
-Command line of msg_tools (no ROS needed): info, synth, replay.
+Command line of msg_tools (no ROS needed): info, synth, replay, calibrate.
 
     python -m msg_tools info FILE.mcap [--no-crc]
     python -m msg_tools synth OUT.mcap --profile ramp|step|sinusoid|random-walk|paper|hard
+                              [--measured-pose-noise POS_M ANG_DEG [--true-params FILE]
+                               [--frame-offset X Y Z RX RY RZ] [--pose-stamp-jitter S]]
     python -m msg_tools replay IN.mcap --out OUT.mcap [--topic NAME] [--params FILE]
                                [--csv FILE] [--plot FILE.png]
                                [--workers K | --scheduler ADDRESS]
+    python -m msg_tools calibrate RUN.mcap [RUN2.mcap ...] --fit NAME [NAME ...]
+                                  [--fit-frame] [--params FILE] [--out fitted.yaml] [--json]
+                                  [--plot PATH.png] [--stamp-tolerance S]
 
 Exit codes (replay; docs/replay.md): 0 all good; 1 the input was damaged, what could be
 read was replayed; 2 bad arguments, unusable input or an output that cannot be written
 (checked before reading; message on stderr, no traceback); 3 nothing could be decoded or
 solved; 130 interrupted by Ctrl-C (the output MCAP is finalized all the same). info and
 synth: 0 done (info also for a damaged file, which it reports), 2 bad arguments or unusable
-input. All: 141 when stdout was closed early (``| head``).
+input. calibrate (docs/measurements.md): 0 fitted; 1 fitted from a damaged input; 2 bad
+arguments or unusable input; 3 not converged; 4 refused, the parameters cannot be
+identified from the recordings. All: 141 when stdout was closed early (``| head``).
 """
 
 import argparse
@@ -24,6 +31,8 @@ from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
 quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
 
 from msg_tools import synth  # noqa: E402
+from msg_tools.calibration_command import (  # noqa: E402
+    add_frame_option, add_parser, run_calibrate)
 from msg_tools.errors import ReplayError  # noqa: E402
 from msg_tools.info import describe  # noqa: E402
 from msg_tools.plots import check_plot_path, plot_replay  # noqa: E402
@@ -32,6 +41,7 @@ from msg_tools.replay_summary import (  # noqa: E402
     EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK, EXIT_USAGE)
 from msg_tools.replay_windows import replay_on_dask  # noqa: E402
 from msg_tools.synth import PROFILES  # noqa: E402
+from msg_tools.synth_poses import check_noise, measure  # noqa: E402
 
 __all__ = ['EXIT_BROKEN_PIPE', 'main']
 
@@ -61,6 +71,13 @@ def _parser() -> argparse.ArgumentParser:
     synth.add_argument('--seed', type=int, default=0, help='random-walk seed; default 0')
     synth.add_argument('--frame-id', default='', help="header.frame_id; default ''")
     synth.add_argument('--topic', default='/wrench', help='default /wrench')
+    synth.add_argument('--measured-pose-noise', type=float, nargs=2, metavar=('POS_M', 'ANG_DEG'),
+                       help='also write noisy measured end-disk poses (seeded by --seed)')
+    synth.add_argument('--true-params', metavar='FILE',
+                       help='params file (over the defaults) the measured poses are solved with')
+    add_frame_option(synth, '--frame-offset', 'tracker frame of the poses')
+    synth.add_argument('--pose-stamp-jitter', type=float, default=0.0, metavar='S',
+                       help='pose stamps = wrench stamps + uniform [-S, S] s; default 0')
 
     replay = commands.add_parser('replay', help='solve recorded wrenches as the node would')
     replay.add_argument('input')
@@ -83,6 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                          help='replay in log-time windows on the Dask cluster at ADDRESS')
     replay.add_argument('--progress', choices=('auto', 'always', 'never'), default='auto',
                         help='progress bar on stderr; auto: when stderr is a terminal')
+    add_parser(commands)
     return parser
 
 
@@ -102,21 +120,40 @@ def _run(argv: Optional[Sequence[str]]) -> int:
             return 2
         return 0
     if args.command == 'synth':
-        try:
-            samples = synth.generate(args.profile, count=args.count, rate_hz=args.rate,
-                                     force=args.force, moment=args.moment,
-                                     frequency_hz=args.frequency, seed=args.seed,
-                                     frame_id=args.frame_id)
-            command = ' '.join(['python -m msg_tools'] + list(
-                sys.argv[1:] if argv is None else argv))
-            count = synth.write_wrenches(args.output, samples, args.topic,
-                                         metadata={'command': command})
-        except ValueError as error:
-            print(f'error: {error}', file=sys.stderr)
-            return 2
-        print(f'wrote {count} {args.profile} wrenches on {args.topic} to {args.output}')
-        return 0
+        return _run_synth(args, argv)
+    if args.command == 'calibrate':
+        return run_calibrate(args)
     return _run_replay(args)
+
+
+def _run_synth(args: argparse.Namespace, argv: Optional[Sequence[str]]) -> int:
+    """Run ``python -m msg_tools synth`` with parsed ``args``; return the exit code."""
+    try:
+        samples = synth.generate(args.profile, count=args.count, rate_hz=args.rate,
+                                 force=args.force, moment=args.moment,
+                                 frequency_hz=args.frequency, seed=args.seed,
+                                 frame_id=args.frame_id)
+        poses, frame_id = None, ''
+        if args.measured_pose_noise is not None:
+            poses, frame_id = measure(samples, check_noise(args.measured_pose_noise),
+                                      args.true_params, args.frame_offset or (0.0,) * 6,
+                                      args.seed, args.pose_stamp_jitter)
+        elif args.true_params or args.frame_offset or args.pose_stamp_jitter:
+            raise ValueError('--true-params, --frame-offset and --pose-stamp-jitter shape the '
+                             'measured poses: give --measured-pose-noise POS_M ANG_DEG too')
+        command = ' '.join(['python -m msg_tools'] + list(
+            sys.argv[1:] if argv is None else argv))
+        count = synth.write_wrenches(args.output, samples, args.topic,
+                                     metadata={'command': command}, poses=poses,
+                                     pose_frame_id=frame_id)
+    except ValueError as error:
+        print(f'error: {error}', file=sys.stderr)
+        return 2
+    measured = '' if poses is None else (
+        f' and {sum(pose is not None for pose in poses)} measured poses (frame '
+        f'{frame_id!r})')
+    print(f'wrote {count} {args.profile} wrenches on {args.topic}{measured} to {args.output}')
+    return 0
 
 
 def _run_replay(args: argparse.Namespace) -> int:

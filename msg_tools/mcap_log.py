@@ -19,12 +19,14 @@ happened, and writing resumes in a new file (``<stem>_<n><suffix>``) once that w
 See docs/logging.md.
 
 CDR encoding of plain dicts uses ``mcap_ros2``'s dynamic encoder (``serialize_dynamic`` of
-mcap-ros2-support 0.6.0, pinned in requirements.txt).
+mcap-ros2-support 0.6.0, pinned in requirements.txt) unless the writer is given faster
+encoders of the same bytes (``encoder_for``; replay passes ``msg_tools.cdr_codecs``'s).
 """
 
 import errno
 import os
 from pathlib import Path
+import struct
 import threading
 import time
 from typing import Any, Callable, cast, Dict, IO, List, Mapping, Optional, Tuple, Union
@@ -92,12 +94,16 @@ class McapLog:
     def __init__(self, path: Union[str, Path], *, flush_every_messages: int = 100,
                  flush_every_s: float = 1.0, chunk_size: int = 1024 * 1024,
                  if_exists: str = 'fail', retry_s: float = 1.0,
-                 opened: Optional[Tuple[int, Path]] = None) -> None:
+                 opened: Optional[Tuple[int, Path]] = None,
+                 encoder_for: Optional[Callable[[str], Callable[[Any], bytes]]] = None
+                 ) -> None:
         """
         Create ``path`` (see ``open_exclusive``), its parent folders, and start the MCAP.
 
         ``opened``: (descriptor, path) that ``open_exclusive(path, if_exists)`` returned
         already, e.g. in the process that handed the descriptor to this one; the log owns it.
+        ``encoder_for``: type name -> the CDR encoder ``write`` uses for it (default
+        ``mcap_ros2``'s dynamic one); it must give the bytes ``mcap_ros2`` gives.
         """
         if (isinstance(flush_every_messages, bool) or not isinstance(flush_every_messages, int)
                 or flush_every_messages < 0):
@@ -114,6 +120,7 @@ class McapLog:
         self._lock = threading.Lock()
         self._schemas: Dict[str, int] = {}
         self._encoders: Dict[str, Callable[[Any], bytes]] = {}
+        self._encoder_for = encoder_for or _dynamic_encoder
         self._channels: Dict[str, Tuple[int, str]] = {}
         self._qos: Dict[str, str] = {}
         self._type_of: Dict[str, str] = {}
@@ -355,8 +362,7 @@ class McapLog:
             if type_name not in self._encoders:
                 if type_name not in MESSAGE_DEFINITIONS:
                     raise ValueError(f'no message definition for type {type_name!r}')
-                self._encoders[type_name] = serialize_dynamic(
-                    type_name, MESSAGE_DEFINITIONS[type_name])[type_name]
+                self._encoders[type_name] = self._encoder_for(type_name)
             return self._encoders[type_name]
 
     def write(self, topic: str, type_name: str, message: Mapping[str, Any], log_time_ns: int,
@@ -364,7 +370,7 @@ class McapLog:
         """Encode a message given as a nested dict (ROS field names) to CDR and append it."""
         try:
             data = self._encoder(type_name)(message)
-        except (TypeError, ValueError, KeyError, AttributeError) as error:
+        except (TypeError, ValueError, KeyError, AttributeError, struct.error) as error:
             raise ValueError(f'cannot encode a {type_name} for topic {topic!r}: {error}'
                              ) from error
         self.write_serialized(topic, type_name, data, log_time_ns, publish_time_ns)
@@ -459,6 +465,11 @@ class McapLog:
         """Describe the log."""
         state = 'closed' if self._closed else 'open'
         return f'McapLog({str(self.path)!r}, {state}, {sum(self._sequences.values())} messages)'
+
+
+def _dynamic_encoder(type_name: str) -> Callable[[Any], bytes]:
+    """Return ``mcap_ros2``'s dynamic CDR encoder of the shipped type ``type_name``."""
+    return serialize_dynamic(type_name, MESSAGE_DEFINITIONS[type_name])[type_name]
 
 
 def _removed(fd: int) -> bool:

@@ -211,6 +211,8 @@ class McapSource:
         #: writer stored none) or 'unchecked' (the data section could not be read through).
         self.data_crc = 'unchecked'
         self._read = False
+        self._overview_read: Optional[Tuple[Dict[int, Channel], Dict[int, Schema],
+                                            Dict[int, int], Optional[Tuple[int, int]]]] = None
 
     # public -------------------------------------------------------------------------------
     def messages(self) -> Iterator[RawMessage]:
@@ -253,6 +255,8 @@ class McapSource:
                     if statistics.message_count else None)
             return (dict(summary.channels), dict(summary.schemas),
                     dict(statistics.channel_message_counts), span)
+        if self._overview_read is not None:  # this source has read the file through once
+            return self._overview_read
         counts: Dict[int, int] = {}
         start: Optional[int] = None
         end: Optional[int] = None
@@ -260,8 +264,9 @@ class McapSource:
             counts[message.channel.id] = counts.get(message.channel.id, 0) + 1
             start = message.log_time_ns if start is None else min(start, message.log_time_ns)
             end = message.log_time_ns if end is None else max(end, message.log_time_ns)
-        return (dict(self.channels), dict(self.schemas), counts,
-                (start, end) if start is not None and end is not None else None)
+        self._overview_read = (dict(self.channels), dict(self.schemas), counts,
+                               (start, end) if start is not None and end is not None else None)
+        return self._overview_read
 
     # indexed ------------------------------------------------------------------------------
     def _summary(self, stream: io.BufferedReader):

@@ -7,7 +7,8 @@ time limit) and writes a new MCAP holding the input messages and every output th
 publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /diagnostics
 and, on request, backbones) with header stamps equal to the input stamps and log times equal
 to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
-gives '/robot/end_disk_pose'). Optionally a CSV row per message and a plot. No rclpy needed.
+gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
+(``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
 
 Memory stays bounded however long the input: messages stream through and the statistics
 are running ones (``msg_tools.replay_summary``). The topics replayed are chosen by
@@ -24,12 +25,14 @@ from typing import Collection, IO, Optional, Sequence, Tuple, Union
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import WrenchProcessor
+from msg_tools.cdr_codecs import encoder, ShippedDecoders
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
-from msg_tools.reader import Decoders, McapSource
+from msg_tools.reader import McapSource, RawMessage
+from msg_tools.replay_estimates import pose_processors, register_poses, replay_pose
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
 import numpy as np
@@ -133,19 +136,24 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     if negative:
         raise ValueError(f'plot samples are message indices >= 0, got {negative}')
     source = McapSource(input_path)
-    chosen, warnings, total = select_topics(source, topics)
+    chosen, warnings, total, poses = select_topics(source, topics)
     if total is not None and any(index >= total for index in plot_samples):
         beyond = sorted(index for index in plot_samples if index >= total)
         raise ValueError(f"plot samples {beyond} are beyond the input's {total} messages "
                          f'(indices 0..{total - 1})')
     settings = TranslatorSettings.from_params_file(params_path)
     params = settings.params
-    source = McapSource(input_path, topics=chosen, check_data_crc=True)
+    source = McapSource(input_path, topics=chosen + poses, check_data_crc=True)
+    estimators = pose_processors(poses, settings)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
     summary = ReplaySummary(source.report, chosen, warnings, total=total)
     summary.series.keep = frozenset(plot_samples)
-    decoders = Decoders()
+    decoders = ShippedDecoders()
+
+    def warm_wrench(raw: RawMessage) -> None:
+        if raw.topic in processors:  # a measured pose's estimate warm-starts by itself
+            warm_up(processors[raw.topic], decoders, raw)
     bar = Progress(progress, total) if progress is not None else None
     started = time.perf_counter()
     first_stamp_ns = None
@@ -155,7 +163,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
         try:
             csv_file = open(csv_path, 'w', newline='') if csv_path else None
             log = McapLog(output_path, flush_every_messages=flush_every_messages,
-                          flush_every_s=flush_every_s, if_exists='overwrite')
+                          flush_every_s=flush_every_s, if_exists='overwrite',
+                          encoder_for=encoder)
         except OSError as error:
             raise OutputError(f'cannot write {error.filename or output_path}: '
                               f'{error}') from None
@@ -165,12 +174,15 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                 table.writerow(CSV_COLUMNS)
             for topic in chosen:
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
+            register_poses(log, poses)
             try:
-                for index, raw in window_messages(source.messages(), window, lambda raw: warm_up(
-                        processors[raw.topic], decoders, raw)):
+                for index, raw in window_messages(source.messages(), window, warm_wrench):
                     if interrupt.requested:
                         summary.interrupted = True
                         break
+                    if raw.topic in estimators:
+                        replay_pose(log, raw, estimators[raw.topic], decoders, summary, index)
+                        continue
                     summary.messages += 1
                     log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
                                          raw.log_time_ns, raw.publish_time_ns)

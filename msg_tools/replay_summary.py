@@ -150,6 +150,9 @@ class ReplaySummary:
     not_converged: int = 0
     rejected: int = 0
     undecodable: int = 0
+    #: Measured end-disk poses replayed, and those a matching wrench was estimated for.
+    poses: int = 0
+    estimated: int = 0
     solve_times: TimeStats = field(default_factory=TimeStats)
     wall_s: float = 0.0
     interrupted: bool = False
@@ -201,7 +204,7 @@ class ReplaySummary:
         report becomes ``later``'s (each window reads the whole input).
         """
         for name in ('messages', 'solved', 'not_converged', 'rejected', 'undecodable',
-                     'warnings_dropped'):
+                     'warnings_dropped', 'poses', 'estimated'):
             setattr(self, name, getattr(self, name) + getattr(later, name))
         for text in later.warnings:
             self.warn(text)
@@ -251,6 +254,8 @@ class ReplaySummary:
                 ('rejected (bad input)', str(self.rejected)),
                 ('undecodable', str(self.undecodable)),
                 ('duplicates skipped', str(self.input_report.duplicates))]
+        if self.poses:
+            rows.append(('measured poses', f'{self.poses} ({self.estimated} estimated)'))
         if self.solve_times.count:
             p50, p90, p99 = (1e3 * self.solve_times.percentile(q) for q in (50, 90, 99))
             rows.append(('solve time ms p50/p90/p99/max',

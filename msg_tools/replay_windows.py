@@ -26,12 +26,13 @@ from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, U
 
 from cdr_translator.interface import messages
 from cdr_translator.robot.atlas import dask_client
+from msg_tools.cdr_codecs import decoder, encoder
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
 from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
-from msg_tools.reader import Decoders, McapSource, RawMessage
+from msg_tools.reader import McapSource, RawMessage
 from msg_tools.replay import CSV_COLUMNS, Progress, replay
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import select_topics
@@ -75,22 +76,12 @@ def replay_window(input_path: str, part_path: str, csv_path: Optional[str],
                   window=window)
 
 
-def _plain(value: Any) -> Any:
-    """Return a decoded ROS message as the nested dicts and lists McapLog encodes."""
-    if isinstance(value, (list, tuple)):
-        return [_plain(item) for item in value]
-    if hasattr(value, '__slots__'):
-        return {name: _plain(getattr(value, name)) for name in value.__slots__}
-    return value
-
-
 class PartMerger:
     """Copies window parts into the output in order, continuing the diagnostics counters."""
 
     def __init__(self, log: McapLog, table: Optional[IO[str]]) -> None:
         """Merge into ``log`` and (rows without header) into the open CSV ``table``."""
         self.log, self.table = log, table
-        self.decoders = Decoders()
         #: Counters of each input topic at the end of the windows merged so far.
         self.counts: Dict[str, Dict[str, int]] = {}
 
@@ -113,7 +104,7 @@ class PartMerger:
 
     def _diagnostics(self, raw: RawMessage, offsets: Dict[str, int], topic: str) -> None:
         """Write a diagnostics record, its counters continued from the earlier windows."""
-        message = _plain(self.decoders.decode(raw))
+        message = decoder(messages.DIAGNOSTIC_ARRAY_TYPE)(raw.data)
         counts = self.counts.setdefault(topic, {})
         for value in message['status'][0]['values']:
             if value['key'] in COUNTERS:
@@ -163,7 +154,7 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     _check_outputs(input_path, [('output MCAP', output_path), ('CSV', csv_path),
                                 *other_outputs])
     source = McapSource(input_path)
-    chosen, warnings, total = select_topics(source, topics)
+    chosen, warnings, total, _ = select_topics(source, topics)
     span = source.channel_overview()[3]
     if total is not None and any(not 0 <= index < total for index in plot_samples):
         raise ValueError(f'plot samples are message indices 0..{total - 1}, '
@@ -209,7 +200,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
     """Merge the windows' parts into the outputs in window order, as they complete."""
     try:
         table = open(csv_path, 'w', newline='') if csv_path else None
-        log = McapLog(output_path, if_exists='overwrite')
+        log = McapLog(output_path, if_exists='overwrite', encoder_for=encoder)
     except OSError as error:
         raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
     bar = Progress(progress, total) if progress is not None else None

@@ -24,6 +24,8 @@ from typing import List, NamedTuple, Optional, Sequence, Union
 
 from cdr_translator.interface import messages
 from msg_tools.mcap_log import McapLog
+from msg_tools.synth_poses import (MEASURED_POSE_COV_TOPIC, MEASURED_POSE_TOPIC, MeasuredPose,
+                                   POSE_COV_TYPE, pose_messages)
 import numpy as np
 
 PROFILES = ('ramp', 'step', 'sinusoid', 'random-walk', 'paper', 'hard')
@@ -124,16 +126,35 @@ def generate(profile: str, count: int = 200, rate_hz: float = 100.0,
 
 def write_wrenches(path: Union[str, Path], samples: Sequence[Sample],
                    topic: str = '/' + messages.WRENCH_TOPIC,
-                   metadata: Optional[dict] = None) -> int:
-    """Write ``samples`` as WrenchStamped (sensor-data QoS) to a new MCAP; return the count."""
+                   metadata: Optional[dict] = None,
+                   poses: Optional[Sequence[Optional[MeasuredPose]]] = None,
+                   pose_frame_id: str = '') -> int:
+    """
+    Write ``samples`` as WrenchStamped (sensor-data QoS) to a new MCAP; return the count.
+
+    ``poses`` (one per sample, None for none; msg_tools.synth_poses) are written after
+    their wrench on MEASURED_POSE_TOPIC (PoseStamped) and MEASURED_POSE_COV_TOPIC
+    (PoseWithCovarianceStamped), both with header frame_id ``pose_frame_id``.
+    """
     with McapLog(path, flush_every_messages=0, flush_every_s=0.0,
                  if_exists='overwrite') as log:
         log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
-        for sample in samples:
+        if poses is not None:
+            log.register(MEASURED_POSE_TOPIC, messages.POSE_TYPE, qos='sensor_data')
+            log.register(MEASURED_POSE_COV_TOPIC, POSE_COV_TYPE, qos='sensor_data')
+        for index, sample in enumerate(samples):
             log.write(topic, messages.WRENCH_TYPE,
                       messages.wrench_message(sample.force, sample.moment, sample.frame_id,
                                               messages.stamp_from_ns(sample.stamp_ns)),
                       log_time_ns=sample.stamp_ns)
+            pose = poses[index] if poses is not None else None
+            if pose is not None:
+                plain, covariance = pose_messages(pose, pose_frame_id,
+                                                  messages.stamp_from_ns(pose.stamp_ns))
+                log.write(MEASURED_POSE_TOPIC, messages.POSE_TYPE, plain,
+                          log_time_ns=pose.stamp_ns)
+                log.write(MEASURED_POSE_COV_TOPIC, POSE_COV_TYPE, covariance,
+                          log_time_ns=pose.stamp_ns)
         if metadata:
             log.add_metadata('msg_tools.synth', metadata)
     return len(samples)

@@ -6,7 +6,8 @@ Fidelity levels of the translator model and the error budget that chooses among 
 the cheapest level whose validated error (fidelity.validation) meets a budget ('auto').
 """
 
-from .solver import FIDELITIES, FidelitySolver, LEVEL_COST_ORDER, LEVELS
+from .auto import LEVEL_COST_ORDER
+from .solver import FIDELITIES, FidelitySolver, LEVELS
 from .validation import pose_errors, reference_solver, Validation
 from ..batch import BatchResult
 

@@ -4,8 +4,9 @@ Runs of rows of ``FidelitySolver.solve_many``: rows chosen at one level, in orde
 A run at 'cc' or 'rod' without compliance goes through the level's compiled sequence
 (``ReducedModel.continue_sequence``) and a run at 'linear' through the compiled poses of the
 expansion (``TangentModel.poses``): one call for many rows, each row what ``solve`` gives,
-and the solver left as those solves would leave it. Any other row is solved by a row
-function (``RowSolver``): the full level's lean row, a reduced or linear row without a
+and the solver left as those solves would leave it; a run at 'full' goes through the full
+model's rows (``lean_rows.solve_rows``: runs of usual warm rows in one compiled call). Any
+other row is solved by a row function (``RowSolver``): a reduced or linear row without a
 SolveResult, or a whole ``solve`` where the level choice needs one.
 """
 
@@ -49,9 +50,12 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
         solve_row = partial(_reduced_row, solver, level)
     elif level == 'linear' and solver.tangent.ready:
         solve_row = partial(_linear_row, solver)
-    elif level == 'full' and not solver._tangent_worth_building(wrenches[rows[0]]):
-        solve_row = partial(_full_row, solver)  # a run of 'full' is one row in 'auto'
-    else:  # 'auto' at full expanding the tangent there, or 'linear' without one
+    elif level == 'full':
+        if len(rows) > 1:  # the fixed 'full' level: one run (in 'auto' a run is one row)
+            _full_rows(solver, reason, wrenches, rows, batch, compliance)
+            return
+        solve_row = partial(lean_rows.solve_row, solver.full)
+    else:  # 'linear' without an expansion: the row makes one
         solve_row, whole = partial(_result_row, solver, level, reason), True
     for row in rows:
         batch.fidelity[row] = level  # what a row that raises was tried at
@@ -131,19 +135,22 @@ def _result_row(solver: 'FidelitySolver', level: str, reason: str, batch: BatchR
     return result.solve_time_s
 
 
-def _full_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
-              compliance: bool) -> float:
-    """Row of the full level (TranslatorSolver's row; the running cost kept)."""
-    elapsed = lean_rows.solve_row(solver.full, batch, row, wrench, compliance)
-    solver._note_full_time(elapsed)
-    return elapsed
+def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
+               batch: BatchResult, compliance: bool) -> None:
+    """Rows of the full level in one run (TranslatorSolver's lean_rows.solve_rows)."""
+    lean_rows.solve_rows(solver.full, batch, wrenches, rows, compliance)
+    for row in rows:
+        if batch.message[row]:
+            batch.message[row] += f' [full: {reason}]'
+        solver._last_wrench = wrenches[row]
+        solver._last_level = 'full'
 
 
 def _linear_row(solver: 'FidelitySolver', batch: BatchResult, row: int, wrench: np.ndarray,
                 compliance: bool) -> float:
     """Row of the 'linear' level: the expansion's frames."""
     started = time.perf_counter()
-    frames = solver.tangent.predict(wrench)[2]
+    frames = solver.tangent.frames(wrench)
     elapsed = time.perf_counter() - started
     analysis = solver.tangent.compliance() if compliance else None
     batch.record_pose(row, frames, None if analysis is None else analysis.stable, None,

@@ -3,11 +3,13 @@ Exact residual and Jacobian of the 'cc' model (fidelity.cc): virtual work in clo
 
 The residual is grad U(x) - Q(x), Q_c = f . dp/dx_c + m . omega_c the generalized force of
 the end-disk wrench (p the end-disk centre, omega_c = vee(dR/dx_c R^T) its rotation, both in
-{pe}). Writing m . vee(A R^T) = <A, [m] R> / 2 (Frobenius product), the Jacobian needs the
-first and second partial derivatives of each joint's rotation and tip position; they are
-built from second-order jets (value, d/dbx, d/dby, d2/dbx2, d2/dbxdby, d2/dby2) of
-sin(theta)/theta and (1 - cos theta)/theta^2 as functions of theta^2 = bx^2 + by^2. The
-energy's Hessian is differentiated by hand from ``cc.energy_gradient``.
+{pe}). The residual alone (``cc_residual``: Newton's line search and chord steps) is plain
+scalar arithmetic on each joint's pose and twists. Writing m . vee(A R^T) = <A, [m] R> / 2
+(Frobenius product), the Jacobian needs the first and second partial derivatives of each
+joint's rotation and tip position; they are built from second-order jets (value, d/dbx,
+d/dby, d2/dbx2, d2/dbxdby, d2/dby2) of sin(theta)/theta and (1 - cos theta)/theta^2 as
+functions of theta^2 = bx^2 + by^2. The energy's Hessian is differentiated by hand from
+``cc.energy_gradient``.
 """
 
 import math
@@ -235,12 +237,104 @@ def energy_hessian(x, data, hessian):
 
 
 @jit
+def _joint_twists(bx, by, psi, length, nominal):
+    """
+    Pose of a joint and its first derivatives as twists, in scalars (no arrays: hot loop).
+
+    Returns the rotation's nine entries (row-major), the tip position, dp/dbx, dp/dby,
+    dp/de (e the nondimensional elongation) and the spatial angular velocities
+    vee(dR/da R^T) for a = bx, by, psi. With w = (-by, bx, 0), R = exp([w]) Rz(psi) and
+    the left Jacobian of SO(3), I + V [w] + W [w]^2 (W = (theta - sin theta) / theta^3),
+    those are J e_y, -J e_x and the bent z axis.
+    """
+    s = bx * bx + by * by
+    sine, d_sine, _, versine, d_versine, _ = arc_functions(s)
+    if s < SERIES_LIMIT:
+        third = 1.0 / 6.0 - s / 120.0 * (1.0 - s / 42.0 * (1.0 - s / 72.0 * (1.0 - s / 110.0)))
+    else:
+        third = (1.0 - sine) / s
+    b00 = 1.0 - versine * bx * bx
+    b01 = -versine * bx * by
+    b11 = 1.0 - versine * by * by
+    b02 = sine * bx
+    b12 = sine * by
+    b22 = 1.0 - versine * s
+    cos_psi = math.cos(psi)
+    sin_psi = math.sin(psi)
+    rotation = (cos_psi * b00 + sin_psi * b01, cos_psi * b01 - sin_psi * b00, b02,
+                cos_psi * b01 + sin_psi * b11, cos_psi * b11 - sin_psi * b01, b12,
+                -cos_psi * b02 - sin_psi * b12, sin_psi * b02 - cos_psi * b12, b22)
+    tip = (length * versine * bx, length * versine * by, length * sine)
+    d_bx = (length * (versine + 2.0 * bx * bx * d_versine), length * 2.0 * bx * by * d_versine,
+            length * 2.0 * bx * d_sine)
+    d_by = (length * 2.0 * bx * by * d_versine, length * (versine + 2.0 * by * by * d_versine),
+            length * 2.0 * by * d_sine)
+    d_e = (nominal * versine * bx, nominal * versine * by, nominal * sine)
+    turn_bx = (-third * bx * by, 1.0 - third * by * by, -versine * by)
+    turn_by = (-1.0 + third * bx * bx, third * bx * by, versine * bx)
+    turn_psi = (b02, b12, b22)
+    return rotation, tip, d_bx, d_by, d_e, turn_bx, turn_by, turn_psi
+
+
+@jit_inline
+def _dot3(u, v):
+    """Dot product of two 3-tuples."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@jit
+def cc_residual(x, data, out):
+    """
+    Nondimensional residual (grad U - Q) L / EI into ``out``, without the Jacobian's work.
+
+    The generalized force of coordinate c is Q_c = f . dp/dx_c + m . omega_c. For the PJ's
+    coordinates, dp/dx_c = dp1/dx_c + omega_c x r (r = R1 lever, the lever from the PJ's
+    tip to the end disk), so Q_c = f . dp1/dx_c + omega_c . (r x f + m); the DJ's see the
+    wrench turned into {pm}, R1^T f and R1^T m.
+    """
+    length = data[JOINT_LENGTH]
+    rot1, tip1, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = _joint_twists(
+        x[0], x[1], x[4], length * (1.0 + x[6]), length)
+    rot2, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = _joint_twists(
+        x[2], x[3], x[5], length * (1.0 + x[7]), length)
+    f = (data[WRENCH], data[WRENCH + 1], data[WRENCH + 2])
+    m = (data[WRENCH + 3], data[WRENCH + 4], data[WRENCH + 5])
+    lever = (tip2[0], tip2[1], tip2[2] + data[TUBE_LENGTH])
+    r = (rot1[0] * lever[0] + rot1[1] * lever[1] + rot1[2] * lever[2],
+         rot1[3] * lever[0] + rot1[4] * lever[1] + rot1[5] * lever[2],
+         rot1[6] * lever[0] + rot1[7] * lever[1] + rot1[8] * lever[2])
+    arm = (r[1] * f[2] - r[2] * f[1] + m[0], r[2] * f[0] - r[0] * f[2] + m[1],
+           r[0] * f[1] - r[1] * f[0] + m[2])
+    f2 = (rot1[0] * f[0] + rot1[3] * f[1] + rot1[6] * f[2],
+          rot1[1] * f[0] + rot1[4] * f[1] + rot1[7] * f[2],
+          rot1[2] * f[0] + rot1[5] * f[1] + rot1[8] * f[2])
+    m2 = (rot1[0] * m[0] + rot1[3] * m[1] + rot1[6] * m[2],
+          rot1[1] * m[0] + rot1[4] * m[1] + rot1[7] * m[2],
+          rot1[2] * m[0] + rot1[5] * m[1] + rot1[8] * m[2])
+    energy_gradient(x, data, out)
+    out[0] -= _dot3(f, d_bx1) + _dot3(turn_bx1, arm)
+    out[1] -= _dot3(f, d_by1) + _dot3(turn_by1, arm)
+    out[4] -= _dot3(turn_psi1, arm)
+    out[6] -= _dot3(f, d_e1)
+    out[2] -= _dot3(f2, d_bx2) + _dot3(turn_bx2, m2)
+    out[3] -= _dot3(f2, d_by2) + _dot3(turn_by2, m2)
+    out[5] -= _dot3(turn_psi2, m2)
+    out[7] -= _dot3(f2, d_e2)
+    scale = length / data[BENDING_STIFFNESS]
+    for c in range(SIZE):
+        out[c] *= scale
+
+
+@jit
 def cc_system(x, data, out, jac, want_jacobian):
     """
-    Nondimensional residual (grad U - Q) L / EI into ``out``; its Jacobian into ``jac`` too.
+    Residual of ``cc_residual`` into ``out``; with ``want_jacobian`` its Jacobian into ``jac``.
 
     The Jacobian is exact (to rounding), also for the moment's non-conservative part.
     """
+    cc_residual(x, data, out)
+    if not want_jacobian:
+        return
     length = data[JOINT_LENGTH]
     rot = np.empty((2, 3, 3))
     pos = np.empty((2, 3))
@@ -266,26 +360,11 @@ def cc_system(x, data, out, jac, want_jacobian):
     skew[2, 1] = moment[0]
     weight = np.empty((3, 3))  # m . vee(A R^T) = <A, weight> / 2
     _product(skew, end_rot, weight, False, False)
-    d_end = np.zeros((SIZE, 3))  # dp / dx
     d_end_rot = np.zeros((SIZE, 3, 3))  # dR / dx
     for a in range(3):
-        c = JOINT_UNKNOWNS[0][a]
-        d_end[c] = d_pos[0, a]
-        _apply(d_rot[0, a], lever, d_end[c], True)
-        _product(d_rot[0, a], rot[1], d_end_rot[c], False, False)
-        c = JOINT_UNKNOWNS[1][a]
-        _apply(rot[0], d_pos[1, a], d_end[c], False)
-        _product(rot[0], d_rot[1, a], d_end_rot[c], False, False)
-    d_end[JOINT_UNKNOWNS[0][3]] = d_pos[0, 3]
-    _apply(rot[0], d_pos[1, 3], d_end[JOINT_UNKNOWNS[1][3]], False)
-    energy_gradient(x, data, out)
-    for c in range(SIZE):
-        out[c] -= _dot(force, d_end[c]) + 0.5 * _frobenius(d_end_rot[c], weight)
+        _product(d_rot[0, a], rot[1], d_end_rot[JOINT_UNKNOWNS[0][a]], False, False)
+        _product(rot[0], d_rot[1, a], d_end_rot[JOINT_UNKNOWNS[1][a]], False, False)
     scale = length / data[BENDING_STIFFNESS]
-    for c in range(SIZE):
-        out[c] *= scale
-    if not want_jacobian:
-        return
     energy_hessian(x, data, jac)
     proximal_weight = np.empty((3, 3))  # <A R2, W> = <A, W R2^T>
     _product(weight, rot[1], proximal_weight, False, True)

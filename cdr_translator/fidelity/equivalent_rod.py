@@ -23,9 +23,9 @@ secondary's path length (PJ + tube lumen + DJ) equals its clamped length stretch
 tension, L_s (1 + tau_k / EA). Not modelled: the secondaries' own shapes between disks (the
 spacer disks are not discrete here), their shear forces and their own twist.
 
-The Jacobian is forward-mode: every state of the shot carries its derivative with respect to
-the unknowns (one column each) through the same RK4 steps and curvature sweeps, so it is the
-derivative of the discrete residual itself, to rounding.
+The shot here (residual, frames, points) is scalar arithmetic on tuples, no arrays in its
+RK4 steps: Newton's line search and chord steps evaluate it several times per answer. Its
+Jacobian, forward mode through the same steps, is in fidelity.equivalent_rod_jacobian.
 """
 
 import math
@@ -78,296 +78,191 @@ def model_data(params, steps: int) -> np.ndarray:
 
 
 @jit_inline
-def _derivative(p, rot, tp, trot, tension, t_tension, m0, t_m0, data, holes, dp, drot,
-                dlength, t_dp, t_drot, t_dlength, sweep):
+def _slope(p, rot, force, m0, tension, holes, constants):
     """
-    d/ds of the position, rotation and the four secondaries' path lengths, with tangents.
+    Return d/ds of the position, the rotation (row-major 9-tuple) and the path lengths.
 
-    t_* hold the derivatives of each quantity with respect to the unknowns (trailing axis,
-    zero columns for none); ``holes`` the secondaries' (x, y) (4, 2); ``sweep`` is
-    scratch (3, CURVATURE_SWEEPS + 1).
+    Scalars and tuples only (no arrays): the shot calls it 4 times per RK4 step.
+    ``constants`` = (pitch radius, EI, 1 / 5GA, 1 / EA, twist stiffness without tension).
     """
-    force0 = data[WRENCH]
-    force1 = data[WRENCH + 1]
-    force2 = data[WRENCH + 2]
-    radius = data[PITCH_RADIUS]
-    ei = data[BENDING_STIFFNESS]
-    moment0 = m0[0] - (p[1] * force2 - p[2] * force1)
-    moment1 = m0[1] - (p[2] * force0 - p[0] * force2)
-    moment2 = m0[2] - (p[0] * force1 - p[1] * force0)
-    mb0 = rot[0, 0] * moment0 + rot[1, 0] * moment1 + rot[2, 0] * moment2
-    mb1 = rot[0, 1] * moment0 + rot[1, 1] * moment1 + rot[2, 1] * moment2
-    mb2 = rot[0, 2] * moment0 + rot[1, 2] * moment1 + rot[2, 2] * moment2
-    nb0 = rot[0, 0] * force0 + rot[1, 0] * force1 + rot[2, 0] * force2
-    nb1 = rot[0, 1] * force0 + rot[1, 1] * force1 + rot[2, 1] * force2
-    nb2 = rot[0, 2] * force0 + rot[1, 2] * force1 + rot[2, 2] * force2
-    total = 0.0
-    rhs_x = mb0
+    radius, ei, inverse_shear, inverse_axial, twist = constants
+    moment0 = m0[0] - (p[1] * force[2] - p[2] * force[1])
+    moment1 = m0[1] - (p[2] * force[0] - p[0] * force[2])
+    moment2 = m0[2] - (p[0] * force[1] - p[1] * force[0])
+    mb0 = rot[0] * moment0 + rot[3] * moment1 + rot[6] * moment2
+    mb1 = rot[1] * moment0 + rot[4] * moment1 + rot[7] * moment2
+    mb2 = rot[2] * moment0 + rot[5] * moment1 + rot[8] * moment2
+    nb0 = rot[0] * force[0] + rot[3] * force[1] + rot[6] * force[2]
+    nb1 = rot[1] * force[0] + rot[4] * force[1] + rot[7] * force[2]
+    nb2 = rot[2] * force[0] + rot[5] * force[1] + rot[8] * force[2]
+    total = tension[0] + tension[1] + tension[2] + tension[3]
+    rhs_x = mb0  # r_k x e3 = (r_y, -r_x, 0)
     rhs_y = mb1
     for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        total += tension[k]
-        rhs_x -= tension[k] * hy  # r_k x e3 = (r_y, -r_x, 0)
-        rhs_y += tension[k] * hx
+        rhs_x -= tension[k] * holes[2 * k + 1]
+        rhs_y += tension[k] * holes[2 * k]
     ux = rhs_x / (5.0 * ei)
     uy = rhs_y / (5.0 * ei)
-    sweep[0, 0] = ux
-    sweep[1, 0] = uy
-    for s in range(CURVATURE_SWEEPS):
-        factor = (1.0 + 2.0 / (1.0 - (radius * uy) ** 2) + 2.0 / (1.0 - (radius * ux) ** 2))
-        ux = rhs_x / (ei * factor)
-        uy = rhs_y / (ei * factor)
-        sweep[0, s + 1] = ux
-        sweep[1, s + 1] = uy
-        sweep[2, s] = factor
-    twist_stiffness = data[TWIST_STIFFNESS] + radius * radius * total
-    uz = mb2 / twist_stiffness
-    vx = data[INVERSE_SHEAR] * nb0
-    vy = data[INVERSE_SHEAR] * nb1
-    vz = 1.0 + data[INVERSE_AXIAL] * (nb2 - total)
-    for i in range(3):
-        dp[i] = rot[i, 0] * vx + rot[i, 1] * vy + rot[i, 2] * vz
-        drot[i, 0] = rot[i, 1] * uz - rot[i, 2] * uy
-        drot[i, 1] = rot[i, 2] * ux - rot[i, 0] * uz
-        drot[i, 2] = rot[i, 0] * uy - rot[i, 1] * ux
-    for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        # v + u x r_k with r_k = (hx, hy, 0)
-        tx = vx - uz * hy
-        ty = vy + uz * hx
-        tz = vz + ux * hy - uy * hx
-        dlength[k] = math.sqrt(tx * tx + ty * ty + tz * tz)
-    for d in range(tp.shape[1]):
-        _derivative_column(d, rot, tp, trot, t_tension, t_m0, data, holes, moment0, moment1,
-                           moment2, total, rhs_x, rhs_y, sweep, uz, twist_stiffness, vx, vy,
-                           vz, dlength, t_dp, t_drot, t_dlength)
+    for _ in range(CURVATURE_SWEEPS):
+        factor = ei * (1.0 + 2.0 / (1.0 - (radius * uy) ** 2) + 2.0 / (1.0 - (radius * ux) ** 2))
+        ux = rhs_x / factor
+        uy = rhs_y / factor
+    uz = mb2 / (twist + radius * radius * total)
+    vx = inverse_shear * nb0
+    vy = inverse_shear * nb1
+    vz = 1.0 + inverse_axial * (nb2 - total)
+    dp = (rot[0] * vx + rot[1] * vy + rot[2] * vz, rot[3] * vx + rot[4] * vy + rot[5] * vz,
+          rot[6] * vx + rot[7] * vy + rot[8] * vz)
+    drot = (rot[1] * uz - rot[2] * uy, rot[2] * ux - rot[0] * uz, rot[0] * uy - rot[1] * ux,
+            rot[4] * uz - rot[5] * uy, rot[5] * ux - rot[3] * uz, rot[3] * uy - rot[4] * ux,
+            rot[7] * uz - rot[8] * uy, rot[8] * ux - rot[6] * uz, rot[6] * uy - rot[7] * ux)
+    dlength = (_path_rate(vx, vy, vz, ux, uy, uz, holes[0], holes[1]),
+               _path_rate(vx, vy, vz, ux, uy, uz, holes[2], holes[3]),
+               _path_rate(vx, vy, vz, ux, uy, uz, holes[4], holes[5]),
+               _path_rate(vx, vy, vz, ux, uy, uz, holes[6], holes[7]))
+    return dp, drot, dlength
 
 
 @jit_inline
-def _derivative_column(d, rot, tp, trot, t_tension, t_m0, data, holes, moment0, moment1, moment2,
-                       total, rhs_x, rhs_y, sweep, uz, twist_stiffness, vx, vy, vz, dlength,
-                       t_dp, t_drot, t_dlength):
-    """Column d of the tangent of ``_derivative`` (its primal values passed in)."""
-    force = data[WRENCH:WRENCH + 3]
-    radius = data[PITCH_RADIUS]
-    ei = data[BENDING_STIFFNESS]
-    d_moment0 = t_m0[0, d] - (tp[1, d] * force[2] - tp[2, d] * force[1])
-    d_moment1 = t_m0[1, d] - (tp[2, d] * force[0] - tp[0, d] * force[2])
-    d_moment2 = t_m0[2, d] - (tp[0, d] * force[1] - tp[1, d] * force[0])
-    d_mb0 = 0.0
-    d_mb1 = 0.0
-    d_mb2 = 0.0
-    d_nb0 = 0.0
-    d_nb1 = 0.0
-    d_nb2 = 0.0
-    for i, moment, d_moment in ((0, moment0, d_moment0), (1, moment1, d_moment1),
-                                (2, moment2, d_moment2)):
-        d_mb0 += trot[i, 0, d] * moment + rot[i, 0] * d_moment
-        d_mb1 += trot[i, 1, d] * moment + rot[i, 1] * d_moment
-        d_mb2 += trot[i, 2, d] * moment + rot[i, 2] * d_moment
-        d_nb0 += trot[i, 0, d] * force[i]
-        d_nb1 += trot[i, 1, d] * force[i]
-        d_nb2 += trot[i, 2, d] * force[i]
-    d_total = 0.0
-    d_rhs_x = d_mb0
-    d_rhs_y = d_mb1
-    for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        d_total += t_tension[k, d]
-        d_rhs_x -= t_tension[k, d] * hy
-        d_rhs_y += t_tension[k, d] * hx
-    d_ux = d_rhs_x / (5.0 * ei)
-    d_uy = d_rhs_y / (5.0 * ei)
-    for s in range(CURVATURE_SWEEPS):
-        a = radius * sweep[1, s]
-        b = radius * sweep[0, s]
-        d_factor = (4.0 * a * radius * d_uy / (1.0 - a * a) ** 2
-                    + 4.0 * b * radius * d_ux / (1.0 - b * b) ** 2)
-        factor = sweep[2, s]
-        d_ux = (d_rhs_x - sweep[0, s + 1] * ei * d_factor) / (ei * factor)
-        d_uy = (d_rhs_y - sweep[1, s + 1] * ei * d_factor) / (ei * factor)
-    ux = sweep[0, CURVATURE_SWEEPS]
-    uy = sweep[1, CURVATURE_SWEEPS]
-    d_uz = (d_mb2 - uz * radius * radius * d_total) / twist_stiffness
-    d_vx = data[INVERSE_SHEAR] * d_nb0
-    d_vy = data[INVERSE_SHEAR] * d_nb1
-    d_vz = data[INVERSE_AXIAL] * (d_nb2 - d_total)
+def offset_tangent(vx, vy, vz, ux, uy, uz, hx, hy):
+    """Return v + u x r for r = (hx, hy, 0): a secondary's tangent (d/ds of p + R r)."""
+    return vx - uz * hy, vy + uz * hx, vz + ux * hy - uy * hx
+
+
+@jit_inline
+def _path_rate(vx, vy, vz, ux, uy, uz, hx, hy):
+    """Return |v + u x r| for r = (hx, hy, 0): how fast a secondary's path grows."""
+    tx, ty, tz = offset_tangent(vx, vy, vz, ux, uy, uz, hx, hy)
+    return math.sqrt(tx * tx + ty * ty + tz * tz)
+
+
+@jit_inline
+def _moved3(a, h, b):
+    """Return a + h b for 3-tuples."""
+    return (a[0] + h * b[0], a[1] + h * b[1], a[2] + h * b[2])
+
+
+@jit_inline
+def _moved9(a, h, b):
+    """Return a + h b for 9-tuples."""
+    return (a[0] + h * b[0], a[1] + h * b[1], a[2] + h * b[2], a[3] + h * b[3],
+            a[4] + h * b[4], a[5] + h * b[5], a[6] + h * b[6], a[7] + h * b[7],
+            a[8] + h * b[8])
+
+
+@jit_inline
+def _rk4_3(a, weight, k1, k2, k3, k4):
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 3-tuples."""
+    return (a[0] + weight * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+            a[1] + weight * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+            a[2] + weight * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]))
+
+
+@jit_inline
+def _rk4_4(a, weight, k1, k2, k3, k4):
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 4-tuples."""
+    return (a[0] + weight * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+            a[1] + weight * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+            a[2] + weight * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
+            a[3] + weight * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]))
+
+
+@jit_inline
+def _rk4_9(a, weight, k1, k2, k3, k4):
+    """Return a + weight (k1 + 2 k2 + 2 k3 + k4) for 9-tuples."""
+    first = _rk4_3((a[0], a[1], a[2]), weight, (k1[0], k1[1], k1[2]), (k2[0], k2[1], k2[2]),
+                   (k3[0], k3[1], k3[2]), (k4[0], k4[1], k4[2]))
+    second = _rk4_3((a[3], a[4], a[5]), weight, (k1[3], k1[4], k1[5]), (k2[3], k2[4], k2[5]),
+                    (k3[3], k3[4], k3[5]), (k4[3], k4[4], k4[5]))
+    third = _rk4_3((a[6], a[7], a[8]), weight, (k1[6], k1[7], k1[8]), (k2[6], k2[7], k2[8]),
+                   (k3[6], k3[7], k3[8]), (k4[6], k4[7], k4[8]))
+    return (first[0], first[1], first[2], second[0], second[1], second[2], third[0], third[1],
+            third[2])
+
+
+@jit_inline
+def _set_frame(frame, p, rot):
+    """Write the 4x4 ``frame`` of position p and row-major rotation rot."""
     for i in range(3):
-        t_dp[i, d] = (trot[i, 0, d] * vx + trot[i, 1, d] * vy + trot[i, 2, d] * vz
-                      + rot[i, 0] * d_vx + rot[i, 1] * d_vy + rot[i, 2] * d_vz)
-        t_drot[i, 0, d] = (trot[i, 1, d] * uz + rot[i, 1] * d_uz
-                           - trot[i, 2, d] * uy - rot[i, 2] * d_uy)
-        t_drot[i, 1, d] = (trot[i, 2, d] * ux + rot[i, 2] * d_ux
-                           - trot[i, 0, d] * uz - rot[i, 0] * d_uz)
-        t_drot[i, 2, d] = (trot[i, 0, d] * uy + rot[i, 0] * d_uy
-                           - trot[i, 1, d] * ux - rot[i, 1] * d_ux)
-    for k in range(4):
-        hx = holes[k, 0]
-        hy = holes[k, 1]
-        tx = vx - uz * hy
-        ty = vy + uz * hx
-        tz = vz + ux * hy - uy * hx
-        t_dlength[k, d] = (tx * (d_vx - d_uz * hy) + ty * (d_vy + d_uz * hx)
-                           + tz * (d_vz + d_ux * hy - d_uy * hx)) / dlength[k]
+        for j in range(3):
+            frame[i, j] = rot[3 * i + j]
+        frame[i, 3] = p[i]
+        frame[3, i] = 0.0
+    frame[3, 3] = 1.0
 
 
 @jit
-def _shoot(x, data, frames, points, columns):
+def shoot(x, data, frames, points):
     """
-    Integrate base to end disk; return the state used by the residual, with tangents.
+    Integrate base to end disk; return (end position, base moment, tensions, path lengths).
 
     Writes {pe}, {pm}, {dm}, {de} into ``frames`` and, when ``points`` has rows, the
-    centre lines of the five backbones. ``columns``: number of tangent columns (0, or SIZE
-    for the Jacobian). Returns (end position, base moment, tensions, path lengths) and their
-    tangents (3, columns), (3, columns), (4, columns), (4, columns).
+    centre lines of the five backbones.
     """
     length = data[JOINT_LENGTH]
     ei = data[BENDING_STIFFNESS]
     radius = data[PITCH_RADIUS]
     intervals = int(data[INTERVALS])
     steps = int(data[STEPS])
-    m0 = np.empty(3)
-    t_m0 = np.zeros((3, columns))
-    for c in range(3):
-        m0[c] = x[c] * ei / length
-        if columns:
-            t_m0[c, c] = ei / length
-    tension = np.empty(4)
-    t_tension = np.zeros((4, columns))
-    for k in range(4):
-        tension[k] = x[3 + k] * ei / length ** 2
-        if columns:
-            t_tension[k, 3 + k] = ei / length ** 2
-    p = np.zeros(3)
-    rot = np.eye(3)
-    lengths = np.zeros(4)
-    tp = np.zeros((3, columns))
-    trot = np.zeros((3, 3, columns))
-    t_lengths = np.zeros((4, columns))
-    k_p = np.empty((4, 3))
-    k_rot = np.empty((4, 3, 3))
-    k_len = np.empty((4, 4))
-    tk_p = np.empty((4, 3, columns))
-    tk_rot = np.empty((4, 3, 3, columns))
-    tk_len = np.empty((4, 4, columns))
-    p_stage = np.empty(3)
-    rot_stage = np.empty((3, 3))
-    tp_stage = np.empty((3, columns))
-    trot_stage = np.empty((3, 3, columns))
-    sweep = np.empty((3, CURVATURE_SWEEPS + 1))
-    holes = np.empty((4, 2))
-    for k in range(4):
-        holes[k, 0], holes[k, 1] = hole(radius, k)
+    m0 = (x[0] * ei / length, x[1] * ei / length, x[2] * ei / length)
+    unit_tension = ei / length ** 2
+    tension = (x[3] * unit_tension, x[4] * unit_tension, x[5] * unit_tension,
+               x[6] * unit_tension)
+    force = (data[WRENCH], data[WRENCH + 1], data[WRENCH + 2])
+    h0x, h0y = hole(radius, 0)
+    h1x, h1y = hole(radius, 1)
+    h2x, h2y = hole(radius, 2)
+    h3x, h3y = hole(radius, 3)
+    holes = (h0x, h0y, h1x, h1y, h2x, h2y, h3x, h3y)
+    constants = (radius, ei, data[INVERSE_SHEAR], data[INVERSE_AXIAL], data[TWIST_STIFFNESS])
+    p = (0.0, 0.0, 0.0)
+    rot = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    lengths = (0.0, 0.0, 0.0, 0.0)
     h = length / (intervals * steps)
+    half = 0.5 * h
+    weight = h / 6.0
     record = points.shape[1] > 0
     row = 0
-    frames[0] = np.eye(4)
+    _set_frame(frames[0], p, rot)
     for joint in range(2):
         for _ in range(intervals):
             for step in range(steps + 1):
                 if record:
                     for c in range(3):
                         points[0, row, c] = p[c]
-                    for k in range(4):
-                        for c in range(3):
-                            points[k + 1, row, c] = (p[c] + rot[c, 0] * holes[k, 0]
-                                                     + rot[c, 1] * holes[k, 1])
+                        for k in range(4):
+                            points[k + 1, row, c] = (p[c] + rot[3 * c] * holes[2 * k]
+                                                     + rot[3 * c + 1] * holes[2 * k + 1])
                     row += 1
                 if step == steps:
                     break
-                for stage in range(4):  # one call site: _derivative is inlined
-                    _stage(p, rot, tp, trot, k_p, k_rot, tk_p, tk_rot, stage, h, p_stage,
-                           rot_stage, tp_stage, trot_stage)
-                    _derivative(p_stage, rot_stage, tp_stage, trot_stage, tension, t_tension,
-                                m0, t_m0, data, holes, k_p[stage], k_rot[stage],
-                                k_len[stage], tk_p[stage], tk_rot[stage], tk_len[stage], sweep)
-                _advance(p, rot, k_p, k_rot, h)
-                for k in range(4):
-                    lengths[k] += h / 6.0 * (k_len[0, k] + 2.0 * k_len[1, k]
-                                             + 2.0 * k_len[2, k] + k_len[3, k])
-                _advance_tangent(tp, trot, t_lengths, tk_p, tk_rot, tk_len, h)
-        target = 1 if joint == 0 else 3
-        frames[target, :3, :3] = rot
-        frames[target, :3, 3] = p
-        frames[target, 3, :3] = 0.0
-        frames[target, 3, 3] = 1.0
+                p1, r1, l1 = _slope(p, rot, force, m0, tension, holes, constants)
+                p2, r2, l2 = _slope(_moved3(p, half, p1), _moved9(rot, half, r1), force, m0,
+                                    tension, holes, constants)
+                p3, r3, l3 = _slope(_moved3(p, half, p2), _moved9(rot, half, r2), force, m0,
+                                    tension, holes, constants)
+                p4, r4, l4 = _slope(_moved3(p, h, p3), _moved9(rot, h, r3), force, m0,
+                                    tension, holes, constants)
+                p = _rk4_3(p, weight, p1, p2, p3, p4)
+                rot = _rk4_9(rot, weight, r1, r2, r3, r4)
+                lengths = _rk4_4(lengths, weight, l1, l2, l3, l4)
+        _set_frame(frames[1 if joint == 0 else 3], p, rot)
         if joint == 0:  # the rigid tube: straight lumens of length L_m
-            for i in range(3):
-                p[i] += data[TUBE_LENGTH] * rot[i, 2]
-                for d in range(columns):
-                    tp[i, d] += data[TUBE_LENGTH] * trot[i, 2, d]
-            for k in range(4):
-                lengths[k] += data[TUBE_LENGTH]
-            frames[2] = frames[1]
-            frames[2, :3, 3] = p
-    return p, m0, tension, lengths, tp, t_m0, t_tension, t_lengths
-
-
-@jit_inline
-def _stage(p, rot, tp, trot, k_p, k_rot, tk_p, tk_rot, stage, h, p_stage, rot_stage,
-           tp_stage, trot_stage):
-    """RK4 stage pose (p, rot) + c h k[stage - 1] (c = 0, 1/2, 1/2, 1), with tangents."""
-    if stage == 0:  # the slopes of stage -1 are left from the previous step: not read
-        p_stage[:] = p
-        rot_stage[:] = rot
-        tp_stage[:] = tp
-        trot_stage[:] = trot
-        return
-    dt = h if stage == 3 else 0.5 * h
-    previous = stage - 1
-    for i in range(3):
-        p_stage[i] = p[i] + dt * k_p[previous, i]
-        for d in range(tp.shape[1]):
-            tp_stage[i, d] = tp[i, d] + dt * tk_p[previous, i, d]
-        for j in range(3):
-            rot_stage[i, j] = rot[i, j] + dt * k_rot[previous, i, j]
-            for d in range(tp.shape[1]):
-                trot_stage[i, j, d] = trot[i, j, d] + dt * tk_rot[previous, i, j, d]
-
-
-@jit_inline
-def _advance(p, rot, k_p, k_rot, h):
-    """Advance (p, rot) in place by one RK4 step of length h from the four stage slopes."""
-    weight = h / 6.0
-    for i in range(3):
-        p[i] += weight * (k_p[0, i] + 2.0 * k_p[1, i] + 2.0 * k_p[2, i] + k_p[3, i])
-        for j in range(3):
-            rot[i, j] += weight * (k_rot[0, i, j] + 2.0 * k_rot[1, i, j]
-                                   + 2.0 * k_rot[2, i, j] + k_rot[3, i, j])
-
-
-@jit_inline
-def _advance_tangent(tp, trot, t_lengths, tk_p, tk_rot, tk_len, h):
-    """Tangent of ``_advance`` and of the path lengths' RK4 step."""
-    weight = h / 6.0
-    for d in range(tp.shape[1]):
-        for i in range(3):
-            tp[i, d] += weight * (tk_p[0, i, d] + 2.0 * tk_p[1, i, d] + 2.0 * tk_p[2, i, d]
-                                  + tk_p[3, i, d])
-            for j in range(3):
-                trot[i, j, d] += weight * (tk_rot[0, i, j, d] + 2.0 * tk_rot[1, i, j, d]
-                                           + 2.0 * tk_rot[2, i, j, d] + tk_rot[3, i, j, d])
-        for k in range(4):
-            t_lengths[k, d] += weight * (tk_len[0, k, d] + 2.0 * tk_len[1, k, d]
-                                         + 2.0 * tk_len[2, k, d] + tk_len[3, k, d])
+            tube = data[TUBE_LENGTH]
+            p = (p[0] + tube * rot[2], p[1] + tube * rot[5], p[2] + tube * rot[8])
+            lengths = (lengths[0] + tube, lengths[1] + tube, lengths[2] + tube,
+                       lengths[3] + tube)
+            _set_frame(frames[2], p, rot)
+    return p, m0, tension, lengths
 
 
 @jit
-def rod_system(x, data, out, jac, want_jacobian):
-    """
-    Nondimensional residual: end-disk moment / (EI / L), path-length mismatch / L.
-
-    With ``want_jacobian`` its exact Jacobian goes into ``jac`` too (forward mode).
-    """
+def rod_residual(x, data, out):
+    """Nondimensional residual: end-disk moment / (EI / L), path-length mismatch / L."""
     frames = np.empty((4, 4, 4))
-    no_points = np.empty((5, 0, 3))
-    p, m0, tension, lengths, tp, t_m0, t_tension, t_lengths = _shoot(
-        x, data, frames, no_points, SIZE if want_jacobian else 0)
-    force = data[WRENCH:WRENCH + 3]
+    p, m0, tension, lengths = shoot(x, data, frames, np.empty((5, 0, 3)))
     scale = data[JOINT_LENGTH] / data[BENDING_STIFFNESS]
+    force = (data[WRENCH], data[WRENCH + 1], data[WRENCH + 2])
     out[0] = (m0[0] - (p[1] * force[2] - p[2] * force[1]) - data[WRENCH + 3]) * scale
     out[1] = (m0[1] - (p[2] * force[0] - p[0] * force[2]) - data[WRENCH + 4]) * scale
     out[2] = (m0[2] - (p[0] * force[1] - p[1] * force[0]) - data[WRENCH + 5]) * scale
@@ -375,23 +270,16 @@ def rod_system(x, data, out, jac, want_jacobian):
     for k in range(4):
         out[3 + k] = (lengths[k] - rest * (1.0 + data[INVERSE_AXIAL] * tension[k])) \
             / data[JOINT_LENGTH]
-    for d in range(tp.shape[1]):
-        jac[0, d] = (t_m0[0, d] - (tp[1, d] * force[2] - tp[2, d] * force[1])) * scale
-        jac[1, d] = (t_m0[1, d] - (tp[2, d] * force[0] - tp[0, d] * force[2])) * scale
-        jac[2, d] = (t_m0[2, d] - (tp[0, d] * force[1] - tp[1, d] * force[0])) * scale
-        for k in range(4):
-            jac[3 + k, d] = (t_lengths[k, d] - rest * data[INVERSE_AXIAL] * t_tension[k, d]) \
-                / data[JOINT_LENGTH]
 
 
 @jit
 def rod_frames(x, data, frames):
     """Write {pe}, {pm}, {dm}, {de} for the unknowns x."""
-    _shoot(x, data, frames, np.empty((5, 0, 3)), 0)
+    shoot(x, data, frames, np.empty((5, 0, 3)))
 
 
 @jit
 def rod_points(x, data, points):
     """Centre-line points (5, 2 (S + 1) (steps + 1), 3) of the five backbones."""
     frames = np.empty((4, 4, 4))
-    _shoot(x, data, frames, points, 0)
+    shoot(x, data, frames, points)

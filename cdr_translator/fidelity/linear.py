@@ -11,7 +11,7 @@ Nothing is solved at a new wrench: the cost is a few small matrix products.
 """
 
 import time
-from typing import Optional, Tuple
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 
@@ -30,6 +30,12 @@ class TangentModel:
         """Bind the full model's ``problem`` (the one TranslatorSolver uses)."""
         self.problem = problem
         self.origin: Optional[np.ndarray] = None  # the cached wrench w0
+        self.origin_text = ''
+        #: LU factorization of the full model's Jacobian at the cached solution (what the
+        #: 'auto' fidelity's chord-step check of a prediction uses)
+        self.factorization: tuple = ()
+        #: and the end-disk frame's derivative there (Problem.pose_jacobian)
+        self.pose_jacobian: np.ndarray = np.empty(0)
         self.build_time_s = 0.0
         # the expansion, set by build(): unknowns, their derivative, C, frames, their twists
         # (derivatives), backbone points and theirs; all empty until then
@@ -74,18 +80,40 @@ class TangentModel:
         self._dxdw = dxdw * problem.x_scale[:, None]
         self._compliance = compliance
         self._frames, self._twists, self._points, self._dpdw = frames, twists, points, dpdw
+        self.factorization = lu
+        assert problem.pose_jacobian is not None  # the compliance's shot set it at xs0
+        self.pose_jacobian = problem.pose_jacobian.copy()
         self.origin = wrench0.copy()
+        self.origin_text = str(np.round(wrench0, 6).tolist())  # said by every linear result
         self.build_time_s = time.perf_counter() - started
 
-    def predict(self, wrench: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return (SI unknowns, points, frames) predicted to first order at ``wrench``."""
+    def frames(self, wrench: np.ndarray) -> np.ndarray:
+        """Return the frames {pe}, {pm}, {dm}, {de} (4, 4, 4) predicted at ``wrench``."""
+        if self.origin is None:
+            raise RuntimeError('the linear level has no cached full solution yet')
+        frames = np.empty((4, 4, 4))
+        linear_frames(self._frames, self._twists, wrench - self.origin, frames)
+        return frames
+
+    def unknowns(self, wrench: np.ndarray) -> np.ndarray:
+        """Return the SI unknowns predicted to first order at ``wrench``."""
+        if self.origin is None:
+            raise RuntimeError('the linear level has no cached full solution yet')
+        return self._unknowns + self._dxdw @ (wrench - self.origin)
+
+    def unknowns_and_points(self, wrench: np.ndarray
+                            ) -> Tuple[Callable[[], np.ndarray], Callable[[], np.ndarray]]:
+        """
+        Return makers of the SI unknowns and of the backbone points predicted at ``wrench``.
+
+        They hold this expansion's arrays (a later ``build`` makes new ones): a result
+        built from them says what this expansion predicted, however late it is read.
+        """
         if self.origin is None:
             raise RuntimeError('the linear level has no cached full solution yet')
         offset = wrench - self.origin
-        frames = np.empty((4, 4, 4))
-        linear_frames(self._frames, self._twists, offset, frames)
-        return (self._unknowns + self._dxdw @ offset, self._points + self._dpdw @ offset,
-                frames)
+        unknowns, dxdw, points, dpdw = self._unknowns, self._dxdw, self._points, self._dpdw
+        return lambda: unknowns + dxdw @ offset, lambda: points + dpdw @ offset
 
     def poses(self, wrenches: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """

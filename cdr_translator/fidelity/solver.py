@@ -3,22 +3,22 @@ FidelitySolver: one solve interface over every fidelity level, and the error bud
 
 Levels: 'full' (TranslatorSolver, the paper's model), 'rod' (equivalent rod, 7 unknowns),
 'cc' (constant-curvature virtual work, 8), 'linear' (first-order expansion about a cached
-full solution). 'auto' picks, for each wrench, the cheapest level whose measured error in
-its validated range (``fidelity.validation``) stays inside the budget
-(``max_position_error`` m, ``max_angle_error_deg`` deg), in the order LEVEL_COST_ORDER,
-and falls back to 'full' outside every validated range. Every result says which level
-produced it (``result.fidelity``) and why (``result.message``).
+full solution). 'auto' picks, for each wrench, the cheapest level that meets the budget
+(``max_position_error`` m, ``max_angle_error_deg`` deg) by its validated error
+(``fidelity.validation``), the errors it checks as it goes and the costs it measures
+(``fidelity.auto``), and falls back to 'full' outside every validated range. Every result
+says which level produced it (``result.fidelity``) and why (``result.message``).
 """
 
-import math
 from pathlib import Path
 import time
-from typing import Any, Dict, Optional, Tuple, Union
+from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import batch_rows
+from .auto import AutoFidelity
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
@@ -36,18 +36,6 @@ LEVELS = ('full', 'rod', 'cc', 'linear')
 
 #: Values of the ``fidelity`` parameter: a level, or 'auto' (the error budget decides).
 FIDELITIES = LEVELS + ('auto',)
-
-#: Reduced levels, cheapest first (the order 'auto' tries them; make bench measures it).
-LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
-
-#: Weight of the newest full solve in the running mean of its cost.
-FULL_TIME_WEIGHT = 0.2
-
-#: An expansion about a full solution must promise this many times its own cost in savings.
-EXPANSION_MARGIN = 2.0
-
-#: ... and at least this many solves inside its offset box at the current pace.
-MIN_EXPANSION_REUSE = 12.0
 
 #: Wrench steps of the finite-difference compliance of a reduced level (N, N m).
 COMPLIANCE_STEPS = (1e-3, 1e-4)
@@ -105,11 +93,9 @@ class FidelitySolver:
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench: Optional[np.ndarray] = None
         self._last_level: Optional[str] = None
-        # running costs of a full solve and of a tangent expansion (guesses until measured)
-        self._full_time_s = 1e-3
-        self._build_time_s = 3e-3
-        self._reaches_for: Optional[tuple] = None
-        self._reach_by_level: Dict[str, float] = {}
+        #: the choices, checks and measured costs of 'auto'
+        self.auto = AutoFidelity(self)
+        self.auto.measure_costs()
 
     @property
     def time_limit_s(self) -> float:
@@ -145,48 +131,20 @@ class FidelitySolver:
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench = None
         self._last_level = None
+        self.auto.reset()
 
     # level choice -----------------------------------------------------------------------------
     def choose(self, wrench: np.ndarray) -> Tuple[str, str]:
-        """Return (level, reason) for ``wrench`` under the fixed level or the budget."""
+        """
+        Return (level, reason) for ``wrench``: the fixed level, or the validated choice.
+
+        The validated choice is the cheapest level whose validated error meets the budget
+        (``AutoFidelity.validated_choice``); 'auto' solves start there and widen the
+        'linear' level's range by checks (``fidelity.auto``).
+        """
         if self.fidelity != 'auto':
             return self.fidelity, f'fidelity fixed to {self.fidelity}'
-        if self.max_position_error <= 0.0 or self.max_angle_error_deg <= 0.0:
-            return 'full', 'no error budget'
-        if self.validation is None:
-            return 'full', 'no validation data for these parameters'
-        reaches = self._reaches()
-        scale = box_scale(wrench)
-        for level in LEVEL_COST_ORDER:
-            if level == 'linear' and not self.tangent.ready:
-                continue
-            reach = reaches.get(level, -math.inf)
-            origin = self.tangent.origin
-            if math.isnan(reach):  # bounds that do not grow: the box-by-box rule
-                admitted = self.validation.admissible(
-                    level, wrench, self.max_position_error, self.max_angle_error_deg,
-                    origin=origin)
-            elif level == 'linear':
-                admitted = (origin is not None and box_scale(origin) <= 1.0
-                            and box_scale(wrench - origin) <= reach)
-            else:
-                admitted = scale <= reach
-            if admitted:
-                return level, 'the cheapest level whose validated error meets the budget'
-        if scale > 1.0:
-            return 'full', 'wrench outside the validated range'
-        return 'full', 'no reduced level meets the budget here'
-
-    def _reaches(self) -> Dict[str, float]:
-        """Each level's validated reach under the budget (LevelBound.reach), made once."""
-        assert self.validation is not None
-        key = (self.max_position_error, self.max_angle_error_deg, id(self.validation))
-        if self._reaches_for != key:
-            self._reach_by_level = {
-                level: bound.reach(self.max_position_error, self.max_angle_error_deg)
-                for level, bound in self.validation.levels.items()}
-            self._reaches_for = key
-        return self._reach_by_level
+        return self.auto.validated_choice(wrench)
 
     # solving --------------------------------------------------------------------------------
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
@@ -201,7 +159,10 @@ class FidelitySolver:
         wrench = check_wrench(force, moment)
         if not warm_start:
             self.reset()
-        return self._solve_at(*self.choose(wrench), wrench, compliance, compliance_options)
+        if self.fidelity == 'auto':
+            return self.auto.solve(wrench, compliance, compliance_options)
+        return self._solve_at(self.fidelity, f'fidelity fixed to {self.fidelity}', wrench,
+                              compliance, compliance_options)
 
     @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
@@ -216,19 +177,19 @@ class FidelitySolver:
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
-        row = 0
-        while row < len(wrenches):
-            level, reason = self.choose(wrenches[row])
-            end = row + 1
-            if level in self.reduced or (level == 'linear' and self.tangent.ready):
-                # these levels leave the choice alone: a run of them is chosen up front
-                if self.fidelity != 'auto':  # a fixed level: every row
-                    end = len(wrenches)
-                while end < len(wrenches) and self.choose(wrenches[end]) == (level, reason):
-                    end += 1
-            batch_rows.solve_run(self, level, reason, wrenches, range(row, end), batch,
-                                 compliance)
-            row = end
+        if self.fidelity == 'auto':
+            self.auto.solve_many(wrenches, batch, compliance)
+            return batch
+        reason = f'fidelity fixed to {self.fidelity}'
+        if not len(wrenches):
+            return batch
+        first = 0
+        if self.fidelity == 'linear' and not self.tangent.ready:
+            # the first row makes the expansion the others use
+            batch_rows.solve_run(self, 'linear', reason, wrenches, range(1), batch, compliance)
+            first = 1
+        batch_rows.solve_run(self, self.fidelity, reason, wrenches, range(first, len(wrenches)),
+                             batch, compliance)
         return batch
 
     def _solve_at(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
@@ -265,59 +226,27 @@ class FidelitySolver:
 
     def _solve_full(self, wrench: np.ndarray, compliance: bool,
                     compliance_options: dict) -> SolveResult:
-        """Full model; in 'auto' it refreshes the tangent when the wrench moves slowly."""
-        if not self._tangent_worth_building(wrench):
-            result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
-                                     **compliance_options)
-            self._note_full_time(result.solve_time_s)
-            return result
-        result = self.cache_full_solution(wrench, compliance, **compliance_options)
-        self._build_time_s = self.tangent.build_time_s
-        return result
-
-    def _note_full_time(self, elapsed: float) -> None:
-        """Fold a full solve's time into its running cost, when it followed a full one."""
-        if self._last_level == 'full':
-            self._full_time_s += FULL_TIME_WEIGHT * (elapsed - self._full_time_s)
-
-    def _tangent_worth_building(self, wrench: np.ndarray) -> bool:
-        """
-        In 'auto': whether to expand about the coming full solution.
-
-        Only when the budget admits 'linear' in some offset box, the wrench lies in the
-        validated range, and the expected reuse pays for the expansion: the box's reach
-        divided by the last wrench step (the solves it may serve) times the cost of a full
-        solve exceeds EXPANSION_MARGIN times the cost of an expansion (both measured as the
-        solver runs; a full solve's cost only from solves that followed a full one, i.e.
-        truly warm: the one after a run of linear solves starts further away, which is also
-        why an expansion must promise at least MIN_EXPANSION_REUSE solves).
-        """
-        if self.fidelity != 'auto' or self.validation is None or self._last_wrench is None:
-            return False
-        bound = self.validation.levels.get('linear')
-        if bound is None or box_scale(wrench) > 1.0:
-            return False
-        reach = bound.largest_scale(self.max_position_error, self.max_angle_error_deg)
-        step = box_scale(wrench - self._last_wrench)
-        if reach <= 0.0 or step > reach:
-            return False
-        expected_reuse = reach / max(step, 1e-12)
-        return (expected_reuse >= MIN_EXPANSION_REUSE
-                and expected_reuse * self._full_time_s > EXPANSION_MARGIN * self._build_time_s)
+        """Solve the full model (an expansion about it, if 'auto' wants one: fidelity.auto)."""
+        return self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
+                               **compliance_options)
 
     def _solve_linear(self, wrench: np.ndarray, compliance: bool,
                       compliance_options: dict) -> SolveResult:
+        """Return the expansion's frames; its unknowns, points and dictionaries when read."""
         started = time.perf_counter()
-        unknowns, points, frames = self.tangent.predict(wrench)
+        frames = self.tangent.frames(wrench)
         elapsed = time.perf_counter() - started
-        origin = self.tangent.origin
-        assert origin is not None  # predict() has raised otherwise
-        offset = np.abs(wrench - origin).max()
+        unknowns, points = self.tangent.unknowns_and_points(wrench)
+        offset = max(map(abs, (wrench - self.tangent.origin).tolist()))
         # the level solves no equations: its residual is zero by construction
-        result = _result(True, f'first-order expansion about the full solution at '
-                         f'{np.round(origin, 6).tolist()} (largest offset '
-                         f'{offset:.3g})', 0, np.zeros(1), dict.fromkeys(RESIDUAL_KINDS, 0.0),
-                         wrench, frames, points, elapsed, unknowns, 'linear')
+        result = SolveResult.deferred(
+            {'frames': lambda: dict(zip(FRAME_NAMES, frames)), 'backbones': points,
+             'unknowns': unknowns,
+             'residual_by_type': lambda: dict.fromkeys(RESIDUAL_KINDS, 0.0)},
+            converged=True, message=f'first-order expansion about the full solution at '
+            f'{self.tangent.origin_text} (largest offset {offset:.3g})', iterations=0,
+            residual_norm=0.0, force=wrench[:3].copy(), moment=wrench[3:].copy(),
+            solve_time_s=elapsed, method='fast', fidelity='linear')
         if compliance:
             result.compliance = self.tangent.compliance(**compliance_options)
         return result
@@ -376,19 +305,6 @@ class FidelitySolver:
             analysis, failure = None, f'; no compliance: {error}'
         self._previous[level] = (outcome.x, wrench)  # the differences moved the model
         return analysis, failure
-
-
-def _result(converged: bool, message: str, iterations: int, rs: np.ndarray,
-            residual_by_type: dict, wrench: np.ndarray, frames: np.ndarray,
-            points: np.ndarray, elapsed: float, unknowns: np.ndarray,
-            fidelity: str) -> SolveResult:
-    return SolveResult(
-        converged=converged, message=message, iterations=iterations,
-        residual_norm=float(np.sqrt(rs @ rs)), residual_by_type=residual_by_type,
-        force=wrench[:3].copy(), moment=wrench[3:].copy(),
-        frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
-        backbones=points, solve_time_s=elapsed, method='fast', unknowns=unknowns,
-        fidelity=fidelity)
 
 
 def _reduced_compliance(model: ReducedModel, x: np.ndarray, wrench: np.ndarray,

@@ -32,7 +32,7 @@ import yaml
 from .. import geometry
 from .._jit import jit
 from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
-from ..result import SolveResult
+from ..result import FRAME_NAMES, SolveResult
 from ..solver import TranslatorSolver
 
 #: RK4 steps per disk interval and tolerance of the reference solution.
@@ -71,11 +71,23 @@ def reference_solver(params: TranslatorParams) -> TranslatorSolver:
 
 def pose_errors(result: SolveResult, reference: SolveResult) -> Tuple[float, float]:
     """Return (end-disk position error in m, angle error in rad) of ``result``."""
-    position = float(np.linalg.norm(result.end_disk_position - reference.end_disk_position))
-    orientation = geometry.rotation_angle(
-        geometry.relative_rotation(reference.frames['de'], result.frames['de']))
-    angle = max(abs(result.pj_bending[0] - reference.pj_bending[0]),
-                abs(result.dj_bending[0] - reference.dj_bending[0]), orientation)
+    return frame_errors(np.stack([result.frames[name] for name in FRAME_NAMES]),
+                        np.stack([reference.frames[name] for name in FRAME_NAMES]))
+
+
+def frame_errors(frames: np.ndarray, reference: np.ndarray) -> Tuple[float, float]:
+    """
+    ``pose_errors`` of frames {pe}, {pm}, {dm}, {de} (4, 4, 4) against ``reference`` frames.
+
+    (end-disk position error in m, angle error in rad: the largest of the PJ and DJ
+    bending-angle errors and the end-disk orientation error).
+    """
+    position = float(np.linalg.norm(frames[3, :3, 3] - reference[3, :3, 3]))
+    orientation = geometry.rotation_angle(geometry.relative_rotation(reference[3], frames[3]))
+    pj = geometry.bending_between(frames[0], frames[1])[0]
+    dj = geometry.bending_between(frames[2], frames[3])[0]
+    angle = max(abs(pj - geometry.bending_between(reference[0], reference[1])[0]),
+                abs(dj - geometry.bending_between(reference[2], reference[3])[0]), orientation)
     return position, angle
 
 

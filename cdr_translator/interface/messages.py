@@ -29,6 +29,7 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Message types ('package/msg/Name') of the topics above.
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 POSE_TYPE = 'geometry_msgs/msg/PoseStamped'
+POSE_COV_TYPE = 'geometry_msgs/msg/PoseWithCovarianceStamped'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 FLOAT64_MULTI_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
@@ -177,7 +178,11 @@ def compliance_message(result: SolveResult) -> dict:
     (i, j) is ``data[6 * i + j]``: the twist component i per unit wrench component j,
     wrench [f; m] in the base frame at the end-disk centre, twist [v; w].
     """
-    matrix = np.asarray(_compliance(result).matrix, dtype=float)
+    return matrix_message(np.asarray(_compliance(result).matrix, dtype=float))
+
+
+def matrix_message(matrix: np.ndarray) -> dict:
+    """Return the Float64MultiArray of a matrix, row-major, layout dims 'rows' and 'cols'."""
     rows, cols = matrix.shape
     return {'layout': {'dim': [{'label': 'rows', 'size': rows, 'stride': rows * cols},
                                {'label': 'cols', 'size': cols, 'stride': cols}],

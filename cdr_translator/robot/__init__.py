@@ -2,6 +2,7 @@
 
 from .delta import DeltaRobot
 from .params import DeltaParams
+from .payload_estimate import PayloadEstimate
 from .result import DeltaResult
 
-__all__ = ['DeltaParams', 'DeltaResult', 'DeltaRobot']
+__all__ = ['DeltaParams', 'DeltaResult', 'DeltaRobot', 'PayloadEstimate']

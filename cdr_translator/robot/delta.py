@@ -58,6 +58,7 @@ from .legs import ChainLegs
 from .levels import check_fidelity
 from .linearization import Factorization, factorize, linearize
 from .params import cdr_values, check_sliders, DeltaParams, Leg
+from .payload_estimate import estimate_payload, PayloadEstimate
 from .reduced_batch import solve_rows
 from .reduced_legs import ReducedLegs
 from .result import DeltaResult
@@ -291,6 +292,20 @@ class DeltaRobot:
         """
         return self._inverse.solve(platform_position, payload_force, payload_moment,
                                    payload_offset, warm_start)
+
+    @one_blas_thread
+    def estimate_payload(self, platform_position: ArrayLike, sliders: ArrayLike,
+                         platform_quaternion_xyzw: Optional[ArrayLike] = None, *,
+                         covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
+        """
+        Estimate the payload (N, N m, in {w}) from a measured platform pose at ``sliders``.
+
+        Position (m, {w}) only: the force under no moment; with the orientation all six
+        components. ``covariance`` (6x6 or, for a position, 3x3) is propagated to the
+        estimate's. Flagged, not raised, when no payload matches; see robot/payload_estimate.py.
+        """
+        return estimate_payload(self, platform_position, sliders, platform_quaternion_xyzw,
+                                covariance=covariance)
 
     # private ---------------------------------------------------------------------------------
     def _held_reference(self) -> HeldReference:

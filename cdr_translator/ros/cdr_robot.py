@@ -11,6 +11,11 @@ message of each). Inverse statics: ``target_position`` (geometry_msgs/PointStamp
 frame, sensor-data QoS) is solved under the latest payload and answered on
 ``slider_command`` (sensor_msgs/JointState) and ``predicted_platform_pose``, warm-started
 along the path of targets; an unreachable target is an ERROR diagnostic (no command).
+Force sensing: ``measured_platform_pose`` (geometry_msgs/PoseStamped) or
+``measured_platform_pose_cov`` (PoseWithCovarianceStamped), world frame, gives
+``estimated_payload`` (WrenchStamped) and ``estimated_payload_covariance``
+(Float64MultiArray) at the sliders last received, through a mailbox, thread and robot of
+their own (estimate_stream.EstimateStream, interface.payload_estimation).
 The translator node's parts do the rest: the latest-wins mailbox and
 solver thread pattern, message filling, MCAP log thread and ``run`` loop (runtime.py); the
 parameters are CdrSettings' (cdr_translator.interface.settings).
@@ -21,7 +26,8 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from geometry_msgs.msg import PointStamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -30,12 +36,14 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from . import node_help, serialization
+from .estimate_stream import count_line, EstimateStream
 from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, open_log, OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
 from .._jit import timed_warm_up
-from ..interface import messages, robot_messages
+from ..interface import messages, payload_estimation, robot_messages
+from ..interface.payload_estimation import PayloadProcessor
 from ..interface.settings import CDR_SPECS, CdrSettings
 from ..interface.wrench_processing import check_magnitude
 from ..params import DEFAULT_PARAMS_PATH
@@ -52,12 +60,19 @@ CDR_OUTPUTS = {
     robot_messages.DIAGNOSTICS_TOPIC: OUTPUTS[messages.DIAGNOSTICS_TOPIC],
     robot_messages.SLIDER_COMMAND_TOPIC: OUTPUTS[messages.BENDING_ANGLES_TOPIC],
     robot_messages.PREDICTED_POSE_TOPIC: OUTPUTS[messages.END_DISK_POSE_TOPIC],
+    payload_estimation.ESTIMATED_PAYLOAD_TOPIC: WrenchStamped,
+    payload_estimation.ESTIMATED_PAYLOAD_COVARIANCE_TOPIC: OUTPUTS[messages.COMPLIANCE_TOPIC],
 }
+
+#: The measured-pose inputs of the payload estimate, and their message classes.
+CDR_ESTIMATE_INPUTS = {payload_estimation.MEASURED_PLATFORM_POSE_TOPIC: PoseStamped,
+                       payload_estimation.MEASURED_PLATFORM_POSE_COV_TOPIC:
+                       PoseWithCovarianceStamped}
 
 #: Input topics and their message classes.
 CDR_INPUTS = {robot_messages.PLATFORM_WRENCH_TOPIC: WrenchStamped,
               robot_messages.SLIDERS_TOPIC: JointState,
-              robot_messages.TARGET_TOPIC: PointStamped}
+              robot_messages.TARGET_TOPIC: PointStamped, **CDR_ESTIMATE_INPUTS}
 
 #: Mailbox item kinds: a forward solve (sliders) or an inverse one (target position).
 FORWARD, INVERSE = 'forward', 'inverse'
@@ -87,6 +102,7 @@ class CdrNode(Node):
         self._settings = CdrSettings.from_values(values)
         self.robot = DeltaRobot(self._settings.params, self._settings.geometry,
                                 time_limit_s=self._settings.solve_time_limit_s)
+        self.estimator = PayloadProcessor(self._settings, self._latest_sliders)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.received = self.rejected = self.solved = self.failed = 0
         self._sliders = np.zeros(3)
@@ -120,8 +136,12 @@ class CdrNode(Node):
                                      sensor, raw=True),
             self.create_subscription(PointStamped, robot_messages.TARGET_TOPIC, self._on_target,
                                      sensor, raw=True)]
+        self._estimates = EstimateStream(self, CDR_ESTIMATE_INPUTS, self.estimator,
+                                         self._publish, self._log,
+                                         self._settings.input_queue_depth)
         self.get_logger().info(
-            f'ready: {", ".join(s.topic_name for s in self._subscriptions)} -> '
+            f'ready: {", ".join(s.topic_name for s in self._subscriptions)}, '
+            f'{", ".join(s.topic_name for s in self._estimates.subscriptions)} -> '
             f'{", ".join(p.topic_name for p in self._publishers_by_topic.values())}; '
             f'MCAP log {self.mcap_path or "off"}')
 
@@ -135,6 +155,8 @@ class CdrNode(Node):
         self._settings = self._settings.with_values(
             **{parameter.name: parameter.value for parameter in parameters})
         self.robot.time_limit_s = self._settings.solve_time_limit_s
+        self.estimator.settings = self._settings
+        self.estimator.robot.time_limit_s = self._settings.solve_time_limit_s
 
     def _check_log(self) -> None:
         """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
@@ -142,9 +164,18 @@ class CdrNode(Node):
 
     # input -----------------------------------------------------------------------------------
     def _warm_up(self) -> None:
-        """Solve once at home (loads the kernels, the compliance's too), then forget it."""
-        self.robot.solve(self._sliders, (0.0, 0.0, -1.0), compliance=True)  # inverse uses it
+        """Solve once at home (loads the kernels, the compliance's too), estimate its payload."""
+        result = self.robot.solve(self._sliders, (0.0, 0.0, -1.0), compliance=True)
+        self.estimator.process(robot_messages.platform_pose_message(
+            result, {'sec': 0, 'nanosec': 0}, ''))
         self.robot.reset()
+        self.estimator.robot.reset()
+        self.estimator.counts.update(dict.fromkeys(self.estimator.counts, 0))
+
+    def _latest_sliders(self) -> np.ndarray:
+        """Return the slider positions last received (the payload estimate's)."""
+        with self._inputs_lock:
+            return self._sliders
 
     def _log_input(self, index: int, data: bytes) -> None:
         """Count and log an input as received (the EventsExecutor gives no message info)."""
@@ -312,6 +343,7 @@ class CdrNode(Node):
             f'inputs: {counts["received"]} received, {counts["solved"]} solved, '
             f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
             f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
+        self.get_logger().info(count_line('measured platform poses', self._estimates.close(self)))
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)
         if self._log is not None:

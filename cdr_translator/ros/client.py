@@ -23,8 +23,9 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 
+from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
 from .runtime import fill_message, OUTPUTS
-from ..interface import messages
+from ..interface import messages, pose_estimation
 
 #: What a client listens to unless told otherwise.
 DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
@@ -98,10 +99,10 @@ class NodeProcess:
 
 class TranslatorClient:
     """
-    A second node in its own rclpy context: publishes wrenches, records the node's outputs.
+    A second node in its own rclpy context: sends inputs, records the node's outputs.
 
-    ``received[topic]`` lists (message, receive time in ns) in arrival order; an executor
-    thread spins the node until ``close()``.
+    It publishes wrenches and measured poses; ``received[topic]`` lists (message, receive
+    time in ns) in arrival order; an executor thread spins the node until ``close()``.
     """
 
     def __init__(self, topics: Sequence[str] = DEFAULT_TOPICS, name: str = 'translator_client',
@@ -112,12 +113,16 @@ class TranslatorClient:
         self.node = Node(name, context=self.context)
         self.publisher = self.node.create_publisher(WrenchStamped, messages.WRENCH_TOPIC,
                                                     qos_profile_sensor_data)
+        self.pose_publishers = {
+            topic: self.node.create_publisher(message_class, topic, qos_profile_sensor_data)
+            for topic, message_class in TRANSLATOR_ESTIMATE_INPUTS.items()}
+        outputs = {**OUTPUTS, **TRANSLATOR_ESTIMATE_OUTPUTS}
         self.received: Dict[str, List[Tuple[Any, int]]] = {topic: [] for topic in topics}
         self.handshake_stamps: List[dict] = []
         self._condition = threading.Condition()
         reliable = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         self.subscriptions = [
-            self.node.create_subscription(OUTPUTS[topic], topic, self._recorder(topic),
+            self.node.create_subscription(outputs[topic], topic, self._recorder(topic),
                                           reliable)
             for topic in topics]
         self.executor = EventsExecutor(context=self.context)
@@ -180,6 +185,27 @@ class TranslatorClient:
         stamp = messages.stamp_from_ns(time.time_ns() if stamp_ns is None else stamp_ns)
         self.publisher.publish(fill_message(WrenchStamped(), messages.wrench_message(
             force, moment, frame_id, stamp)))
+        return stamp
+
+    def publish_pose(self, position: Sequence[float], quaternion_xyzw: Sequence[float],
+                     frame_id: str = '', covariance: Optional[Sequence[float]] = None,
+                     stamp_ns: Optional[int] = None) -> dict:
+        """
+        Publish a measured end-disk pose stamped now (or ``stamp_ns``); return its stamp.
+
+        With ``covariance`` (36 values, row-major) on ``measured_end_disk_pose_cov``, else on
+        ``measured_end_disk_pose``.
+        """
+        stamp = messages.stamp_from_ns(time.time_ns() if stamp_ns is None else stamp_ns)
+        pose: Dict[str, Any] = {'position': dict(zip('xyz', map(float, position))),
+                                'orientation': dict(zip('xyzw', map(float, quaternion_xyzw)))}
+        topic = pose_estimation.MEASURED_POSE_TOPIC
+        if covariance is not None:
+            topic = pose_estimation.MEASURED_POSE_COV_TOPIC
+            pose = {'pose': pose, 'covariance': [float(value) for value in covariance]}
+        publisher = self.pose_publishers[topic]
+        publisher.publish(fill_message(TRANSLATOR_ESTIMATE_INPUTS[topic](), {
+            'header': messages.header(stamp, frame_id), 'pose': pose}))
         return stamp
 
     def messages_stamped(self, topic: str, stamp: Mapping[str, int]) -> List[Any]:

@@ -13,7 +13,9 @@ about 2 us and a WrenchStamped decodes in about 3 us, where walking the layout f
 field took 5-9 and 10-19 us, and rclpy's ``deserialize_message`` 0.15-0.3 ms. Fields
 missing from a dict take their default (the .msg file's), as ``fill_message`` leaves them.
 Only padding bytes can differ from rclpy's output (rclpy leaves them uninitialized and may
-add a few at the end): decoded, the messages are equal.
+add a few at the end): decoded, the messages are equal. Without ROS, ``description_plan``
+reads the layout from REP-2011 type descriptions instead (msg_tools builds them from the
+shipped .msg texts), and ``plan_encoder``/``plan_decoder`` give that plan's writer and reader.
 """
 
 import abc
@@ -41,6 +43,7 @@ _MESSAGE_SEQUENCE, _PRIMITIVE_ARRAY, _BYTES_SEQUENCE = range(5, 8)
 
 Plan = List[Tuple[str, int, Any, Any]]
 _PLANS: Dict[type, Plan] = {}
+_DESCRIBED: Dict[str, Plan] = {}
 
 
 def _message_class(namespaced: Any) -> type:
@@ -90,6 +93,81 @@ def plan(message_class: type) -> Plan:
             raise TypeError(f'{message_class.__name__}.{name}: unsupported type {kind}')
     _PLANS[message_class] = fields
     return fields
+
+
+#: REP-2011 FieldType ids of the primitive types (type_description_interfaces/msg/FieldType).
+DESCRIPTION_PRIMITIVES = {
+    2: 'int8', 3: 'uint8', 4: 'int16', 5: 'uint16', 6: 'int32', 7: 'uint32', 8: 'int64',
+    9: 'uint64', 10: 'float', 11: 'double', 13: 'char', 15: 'boolean', 16: 'octet',
+}
+#: REP-2011 FieldType ids of a nested type and of the (bounded) strings.
+_NESTED_ID, _STRING_IDS = 1, (17, 21)
+#: REP-2011 offsets of a fixed array, a bounded and an unbounded sequence of a base type.
+_ARRAY_ID, _BOUNDED_SEQUENCE_ID, _SEQUENCE_ID = 48, 96, 144
+
+
+def description_plan(type_name: str, descriptions: Mapping[str, Mapping[str, Any]]) -> Plan:
+    """
+    Return the field layout of ``type_name`` from REP-2011 individual type descriptions.
+
+    ``descriptions`` maps 'package/msg/Name' to its description (``fields``, each with its
+    ``name`` and ``type``: ``type_id``, ``capacity``, ``nested_type_name``), as a ROS 2
+    MCAP's type hash is computed from: a layout without the generated rclpy classes, so
+    without ROS. Fields take the zero of their type as default.
+    """
+    found = _DESCRIBED.get(type_name)
+    if found is not None:
+        return found
+    fields: Plan = []
+    for field in descriptions[type_name]['fields']:
+        name, described = field['name'], field['type']
+        type_id = described['type_id']
+        base = type_id % _ARRAY_ID
+        shape = type_id - base
+        element: Any
+        if base == _NESTED_ID:
+            element = description_plan(described['nested_type_name'], descriptions)
+        elif base in _STRING_IDS:
+            element = None
+        elif base in DESCRIPTION_PRIMITIVES:
+            code, size = PRIMITIVES[DESCRIPTION_PRIMITIVES[base]]
+            element = (code, size)
+        else:
+            raise TypeError(f'{type_name}.{name}: unsupported field type id {type_id}')
+        if shape == 0:
+            fields.append(_scalar_field(name, base, element))
+        elif shape == _ARRAY_ID and base in DESCRIPTION_PRIMITIVES:
+            zero = False if element[0] == '?' else 0
+            fields.append((name, _PRIMITIVE_ARRAY, (element, described['capacity']),
+                           (zero,) * described['capacity']))
+        elif shape in (_BOUNDED_SEQUENCE_ID, _SEQUENCE_ID):
+            fields.append(_sequence_field(name, base, element))
+        else:
+            raise TypeError(f'{type_name}.{name}: arrays of type id {base} are not supported')
+    _DESCRIBED[type_name] = fields
+    return fields
+
+
+def _scalar_field(name: str, base: int, element: Any) -> Tuple[str, int, Any, Any]:
+    """Return the plan entry of a single (not array) field of REP-2011 base type ``base``."""
+    if base == _NESTED_ID:
+        return (name, _MESSAGE, element, {})
+    if base in _STRING_IDS:
+        return (name, _STRING, None, '')
+    code, size = element
+    return (name, _PRIMITIVE, (struct.Struct('<' + code), size),
+            False if code == '?' else 0.0 if code in 'fd' else 0)
+
+
+def _sequence_field(name: str, base: int, element: Any) -> Tuple[str, int, Any, Any]:
+    """Return the plan entry of a sequence of REP-2011 base type ``base``."""
+    if base == _NESTED_ID:
+        return (name, _MESSAGE_SEQUENCE, element, ())
+    if base in _STRING_IDS:
+        return (name, _STRING_SEQUENCE, None, ())
+    if DESCRIPTION_PRIMITIVES[base] in ('uint8', 'octet', 'char'):
+        return (name, _BYTES_SEQUENCE, None, b'')
+    return (name, _PRIMITIVE_SEQUENCE, element, ())
 
 
 def _write_string(buffer: bytearray, text: str) -> None:
@@ -342,6 +420,28 @@ def _reader(fields: Plan) -> Callable[[bytes, int], Tuple[Dict[str, Any], int]]:
     return found
 
 
+def plan_encoder(fields: Plan) -> Callable[[Mapping[str, Any]], bytes]:
+    """Return the function that gives the CDR bytes of a message of this plan."""
+    write = _writer(fields)
+
+    def encode_one(values: Mapping[str, Any]) -> bytes:
+        buffer = bytearray(HEADER)
+        write(buffer, values)
+        return bytes(buffer)
+    return encode_one
+
+
+def plan_decoder(fields: Plan) -> Callable[[bytes], Dict[str, Any]]:
+    """Return the function that reads a message of this plan from its CDR bytes."""
+    read = _reader(fields)
+
+    def decode_one(data: bytes) -> Dict[str, Any]:
+        if len(data) < 4 or data[:2] != HEADER[:2]:
+            raise ValueError(f'not little-endian plain CDR: header {bytes(data[:4])!r}')
+        return read(data, 4)[0]
+    return decode_one
+
+
 def encode(message_class: type, values: Mapping[str, Any]) -> bytes:
     """Return the CDR bytes of a ``message_class`` message given as a nested dict."""
     buffer = bytearray(HEADER)
@@ -351,24 +451,12 @@ def encode(message_class: type, values: Mapping[str, Any]) -> bytes:
 
 def encoder(message_class: type) -> Callable[[Mapping[str, Any]], bytes]:
     """Return ``encode`` bound to one message class."""
-    write = _writer(plan(message_class))
-
-    def encode_one(values: Mapping[str, Any]) -> bytes:
-        buffer = bytearray(HEADER)
-        write(buffer, values)
-        return bytes(buffer)
-    return encode_one
+    return plan_encoder(plan(message_class))
 
 
 def decoder(message_class: type) -> Callable[[bytes], Dict[str, Any]]:
     """Return ``decode`` bound to one message class (its layout read and its reader built now)."""
-    read = _reader(plan(message_class))
-
-    def decode_one(data: bytes) -> Dict[str, Any]:
-        if len(data) < 4 or data[:2] != HEADER[:2]:
-            raise ValueError(f'not little-endian plain CDR: header {bytes(data[:4])!r}')
-        return read(data, 4)[0]
-    return decode_one
+    return plan_decoder(plan(message_class))
 
 
 def decode(message_class: type, data: bytes) -> Dict[str, Any]:

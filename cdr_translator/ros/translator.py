@@ -17,7 +17,10 @@ one by one with the pose first (it is published before the others are built), en
 straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
 and the same bytes logged: every received wrench and every output goes to an MCAP file
 written by a child process (runtime.NodeLog), so that the writing takes no time from the
-solve. Only cdr_translator.ros imports rclpy or ROS message classes.
+solve. Measured end-disk poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``)
+give ``estimated_wrench`` and ``estimated_wrench_covariance`` through a mailbox and thread
+of their own (estimate_stream.EstimateStream, interface.pose_estimation), logged alike.
+Only cdr_translator.ros imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
@@ -34,6 +37,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from . import node_help, serialization
+from .estimate_stream import count_line, EstimateStream, TRANSLATOR_ESTIMATE_INPUTS
+from .estimate_stream import TRANSLATOR_ESTIMATE_OUTPUTS
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
@@ -41,6 +46,7 @@ from .runtime import OUTPUTS, run
 from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
+from ..interface.pose_estimation import PoseProcessor
 from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
 from ..interface.wrench_processing import solve_wrench
@@ -51,6 +57,9 @@ from ..solver import check_wrench
 
 #: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.
 WARM_UP_FORCES = (1.0, 1.5, 2.0, 2.5)
+
+#: Every topic the node publishes, and its message class.
+NODE_OUTPUTS = {**OUTPUTS, **TRANSLATOR_ESTIMATE_OUTPUTS}
 
 
 class TranslatorNode(Node):
@@ -76,20 +85,21 @@ class TranslatorNode(Node):
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)
         self.solver = node_solver(self._settings.params, self._settings)
+        self.estimator = PoseProcessor(self._settings.params, self._settings)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
         self.received = self.rejected = self.solved = self.failed = 0
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
                                                                   reliable)
-                                     for topic, message_class in OUTPUTS.items()}
+                                     for topic, message_class in NODE_OUTPUTS.items()}
         self._subscribers = SubscriberCounts(self._publishers_by_topic)
         self._encoders = {topic: serialization.encoder(message_class)
-                          for topic, message_class in OUTPUTS.items()}
+                          for topic, message_class in NODE_OUTPUTS.items()}
         # built now: reading the layout takes about 17 ms, which the first wrench would wait
         self._decode_wrench = serialization.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
-                            for topic, message_class in OUTPUTS.items()}
+                            for topic, message_class in NODE_OUTPUTS.items()}
         self._mailbox = LatestMailbox(self._settings.pending_wrenches)
         self._diagnostic_log = node_diagnostic_log(self.get_logger(), NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
@@ -99,11 +109,16 @@ class TranslatorNode(Node):
                            if self._log is not None else None)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
+        self._estimates = EstimateStream(
+            self, TRANSLATOR_ESTIMATE_INPUTS, self.estimator,
+            lambda built: self._publish_all(self._serialized(built)), self._log,
+            self._settings.wrench_queue_depth, self._settings.pending_wrenches)
         self._subscription = self.create_subscription(
             WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
             sensor_qos(self._settings.wrench_queue_depth), raw=True)
         self.get_logger().info(
-            f'ready: {self._subscription.topic_name} -> '
+            f'ready: {self._subscription.topic_name}, '
+            f'{", ".join(sub.topic_name for sub in self._estimates.subscriptions)} -> '
             f'{", ".join(pub.topic_name for pub in self._publishers_by_topic.values())}; '
             f'MCAP log {self.mcap_path or "off"}')
 
@@ -117,6 +132,8 @@ class TranslatorNode(Node):
         self._settings = self._settings.with_values(
             **{parameter.name: parameter.value for parameter in parameters})
         self.solver.time_limit_s = self._settings.solve_time_limit_s
+        self.estimator.settings = self._settings
+        self.estimator.solver.time_limit_s = self._settings.solve_time_limit_s
 
     # start-up --------------------------------------------------------------------------------
     def _warm_up(self) -> None:
@@ -124,7 +141,8 @@ class TranslatorNode(Node):
         Solve along a short path and build every output (compiles or loads the kernels).
 
         Four solves: the fourth is the usual warm solve of a stream (warm_step.py), whose
-        kernel would otherwise load while a wrench waits. Then the solver forgets them.
+        kernel would otherwise load while a wrench waits; then a wrench estimate from the
+        last pose. Then the solvers forget them.
         """
         for force in WARM_UP_FORCES[:-1]:
             self.solver.solve([force, 0.0, 0.0])
@@ -133,13 +151,20 @@ class TranslatorNode(Node):
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
                 backbones_params=self.solver.params, extra_values=self._counts()):
             self._encoders[topic](values)
+        pose = messages.pose_message(result, {'sec': 0, 'nanosec': 0}, '')
+        pose['pose'] = {'pose': pose['pose'], 'covariance': [0.0] * 36}
+        for topic, _, values in self.estimator.process(pose).outputs:
+            self._encoders[topic](values)
         self.solver.reset()
+        self.estimator.solver.reset()
+        self.estimator.counts.update(dict.fromkeys(self.estimator.counts, 0))
 
     def _open_log(self) -> Tuple[Optional[NodeLog], str]:
         """Open the MCAP log (unless disabled) and register the wrench and output topics."""
-        topics = [(self.resolve_topic_name(messages.WRENCH_TOPIC), type_name(WrenchStamped),
-                   'sensor_data')]
-        topics += [(publisher.topic_name, type_name(OUTPUTS[topic]), 'reliable')
+        inputs = {messages.WRENCH_TOPIC: WrenchStamped, **TRANSLATOR_ESTIMATE_INPUTS}
+        topics = [(self.resolve_topic_name(topic), type_name(message_class), 'sensor_data')
+                  for topic, message_class in inputs.items()]
+        topics += [(publisher.topic_name, type_name(NODE_OUTPUTS[topic]), 'reliable')
                    for topic, publisher in self._publishers_by_topic.items()]
         return open_log(self._settings, 'translator', topics)
 
@@ -295,6 +320,7 @@ class TranslatorNode(Node):
             f'wrenches: {counts["received"]} received, {counts["solved"]} solved, '
             f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
             f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
+        self.get_logger().info(count_line('measured poses', self._estimates.close(self)))
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)
         if self._log is not None:
@@ -317,8 +343,10 @@ def help_text() -> str:
     return node_help.help_text(
         NODE_NAME, __doc__.strip().splitlines()[0], SPECS,
         TranslatorSettings.from_params_file().values(),
-        {messages.WRENCH_TOPIC: type_name(WrenchStamped)},
-        {topic: type_name(message_class) for topic, message_class in OUTPUTS.items()})
+        {messages.WRENCH_TOPIC: type_name(WrenchStamped),
+         **{topic: type_name(message_class)
+            for topic, message_class in TRANSLATOR_ESTIMATE_INPUTS.items()}},
+        {topic: type_name(message_class) for topic, message_class in NODE_OUTPUTS.items()})
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:

@@ -5,7 +5,7 @@ import math
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator.fidelity import cc, equivalent_rod, FidelitySolver, level_kernels, newton
 from cdr_translator.fidelity.cc_derivatives import cc_system
-from cdr_translator.fidelity.equivalent_rod import rod_system
+from cdr_translator.fidelity.equivalent_rod_jacobian import rod_system
 from cdr_translator.fidelity.reduced import ReducedModel
 import numpy as np
 import pytest

@@ -112,6 +112,17 @@ def test_a_chunk_index_without_summary_crc_is_checked_against_the_chunks(tmp_pat
     assert source.data_crc == 'valid'
 
 
+def test_the_overview_of_a_damaged_file_is_read_once(tmp_path):
+    """A damaged summary: the overview reads the messages once and answers again from that."""
+    path = tmp_path / 'a.mcap'
+    write_chunked(path)
+    _flip(path, 'FOOTER')
+    source = McapSource(path)
+    first = source.channel_overview()
+    assert sum(first[2].values()) == 40
+    assert source.channel_overview() == first
+
+
 @pytest.mark.parametrize('command', ['info', 'replay'])
 def test_a_device_is_not_read_as_an_mcap(tmp_path, capsys, command):
     """/dev/zero is not a regular file: one line and exit 2, nothing read."""

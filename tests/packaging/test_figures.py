@@ -6,7 +6,12 @@ unit, short series have markers, legends name the physical case, and colour scal
 when a quantity hardly varies (figure_checks has the geometric checks).
 """
 
-from bench.speed_vs_error_figure import Measurement, non_dominated, speed_error_figure
+import json
+import math
+
+from bench.speed_vs_error import PAPER_SCENES, RESULTS, SEQUENCE_LENGTH
+from bench.speed_vs_error_figure import Measurement, measurements, non_dominated
+from bench.speed_vs_error_figure import speed_error_figure
 from cdr_translator.plotting import colour_scale, load_text
 from cdr_translator.robot.atlas_figures import AtlasBlock, stiffness_figure, workspace_figure
 from figure_checks import assert_readable, label_problems, text_problems
@@ -126,6 +131,19 @@ def test_speed_vs_error_figure_has_a_readable_robot_panel_with_its_front():
     front = [line for line in robot.get_lines() if line.get_drawstyle() == 'steps-post']
     assert [list(line.get_xdata()) for line in front] == [[pytest.approx(0.2),
                                                            pytest.approx(0.64)]]
+
+
+def test_speed_vs_error_figure_spans_three_decades_of_time():
+    """The stored numbers' per-answer times, and so the figure's time axes, span 10^3."""
+    report = json.loads((RESULTS / 'speed_vs_error.json').read_text())
+    measured = measurements(report['rows'], report['paper_baseline'], PAPER_SCENES)
+    batch = [value.batch_time_s for value in measured if math.isfinite(value.batch_time_s)]
+    assert max(batch) / min(batch) >= 1e3, (min(batch), max(batch))
+    figure = speed_error_figure(measured, SEQUENCE_LENGTH)
+    for axes in figure.axes[:2]:
+        low, high = axes.get_xlim()
+        assert axes.get_xscale() == 'log' and high / low >= 1e3, (low, high)
+        assert 'per answer (ms)' in axes.get_xlabel()
 
 
 def _block(margin_spread: float, grid: int = 3, stable: bool = True) -> AtlasBlock:

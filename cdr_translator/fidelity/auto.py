@@ -1,0 +1,482 @@
+"""
+The 'auto' fidelity: per wrench, the cheapest level that meets the error budget, checked.
+
+The candidates, tried in this order:
+
+* 'linear': the first-order expansion about the last full solution that made one
+  (fidelity.linear). Its first-order term is exact, so its error grows as the square of the
+  offset s = box_scale(w - w0) from that solution; it is estimated as kappa s^2, with a
+  curvature kappa (position and angle) learned from checks and started, before any, from
+  the validated errors of the level (config/fidelity_validation.yaml). An answer inside the
+  trust region -- offsets up to CHECK_GROWTH times the farthest one checked on this
+  expansion -- whose estimate uses at most LINEAR_TARGET of the budget is taken as it is.
+  Farther out, the answer is checked before it is taken: one shot of the full model at the
+  predicted unknowns gives their residual, the equations' own measure of how far the
+  prediction is from a solution, and its norm times a gain is the linear answer's error
+  (``check_prediction``). The gain (error per unit residual, position and angle) is
+  measured on each expansion at its first check, which is a full solve instead: the
+  prediction against the solution, the residual at the prediction. It varies along an
+  expansion by tens of per cent (more between expansions), so GAIN_MARGIN times it is used.
+  A check passes if its error, grown as the square of the offset to the edge of the trust
+  region it opens (CHECK_GROWTH times the offset), stays inside LINEAR_TARGET of the
+  budget; else the wrench escalates.
+* 'cc', 'rod': where their validated errors meet the budget, cheapest first by the cost
+  measured as the solver runs. With an expansion at hand the reduced answer is compared with
+  its prediction: a distance beyond the budget plus the prediction's estimated error proves
+  the reduced answer outside the budget (triangle inequality), and the next level is tried.
+* 'full', otherwise. A new expansion is made about its solution when the reuse it promises
+  pays for it: the answers it may serve (the offsets the last expansions served, over the
+  last wrench step) times the measured cost of the level that would answer instead against
+  the cost of a full solve after such a step and an expansion. The first expansion, with no
+  served offsets to go by, is made whenever it may serve MIN_EXPANSION_REUSE answers
+  inside the validated offset box: it is how the reach is learned.
+
+Costs are measured once per process and parameter set, when the first 'auto' solver with a
+budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
+busy machine), and kept: the choices then depend on the wrenches alone, so that a batch
+takes the levels its single solves take.
+
+Reduced levels and the expansion are used only inside the largest validated wrench box.
+"""
+
+import math
+import statistics
+from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
+
+import numpy as np
+
+from . import batch_rows
+from .validation import box_half_widths as validation_half_widths
+from .validation import box_scale, box_scales, frame_errors
+from .._linalg import norm
+from ..batch import BatchResult
+from ..result import FRAME_NAMES, SolveResult
+
+if TYPE_CHECKING:
+    from .solver import FidelitySolver
+
+#: Reduced levels, cheapest first (the order the validated choice tries them).
+LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
+
+#: Share of the budget a linear answer's estimated (or checked) error may use.
+LINEAR_TARGET = 0.7
+
+#: Unchecked linear answers may lie this many times farther out than the farthest check.
+CHECK_GROWTH = 1.15
+
+#: A new expansion trusts, unchecked, this fraction of the radius its curvature predicts.
+FIRST_CHECK = 0.5
+
+#: The trust radius may exceed the one the validated worst case gives by this factor at most.
+MAX_RADIUS_GROWTH = 4.0
+
+#: Rows a batch looks ahead at first for a run inside the trust region.
+TRUSTED_WINDOW = 16
+
+#: The check's error estimate is its measured gain times this.
+GAIN_MARGIN = 1.25
+
+#: Timings per level whose fastest is its cost; the wrench step an expansion is timed at,
+#: and the small step a warm full solve is timed at (box scales).
+CALIBRATION_REPEATS = 5
+CALIBRATION_STEP = 0.1
+CALIBRATION_SMALL_STEP = 0.005
+
+#: Offsets served by this many past expansions make the reach a new one is expected to have.
+REACH_MEMORY = 3
+
+#: Where the costs are timed: a load of this box scale along CALIBRATION_DIRECTION.
+CALIBRATION_SCALE = 0.2
+CALIBRATION_DIRECTION = np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
+
+#: Costs measured so far, per parameter set (``measure_costs``).
+_MEASURED_COSTS: Dict[str, Dict[str, float]] = {}
+
+#: An expansion must promise this many times its own cost in savings ...
+EXPANSION_MARGIN = 1.5
+
+#: ... and at least this many answers at the wrench's current pace.
+MIN_EXPANSION_REUSE = 4.0
+
+
+TRUSTED = 'inside the trust region of the expansion about the last full solution'
+OUTSIDE = 'wrench outside the validated range'
+
+
+def validated_curvature(validation) -> np.ndarray:
+    """Largest validated error of 'linear' per squared offset scale: (m, deg); inf: none."""
+    bound = None if validation is None else validation.levels.get('linear')
+    if bound is None:
+        return np.full(2, math.inf)
+    return np.array([max(error / scale ** 2 for error, scale in
+                         zip(errors, bound.scales))
+                     for errors in (bound.max_position_error_m, bound.max_angle_error_deg)])
+
+
+class AutoFidelity:
+    """The choices, checks, trust region and measured costs of one FidelitySolver's 'auto'."""
+
+    def __init__(self, solver: 'FidelitySolver') -> None:
+        """Bind ``solver`` (its budget, validation, levels and expansion)."""
+        self.solver = solver
+        #: each level's measured cost (s), and the expansion's ('expansion'); none until
+        #: ``measure_costs``
+        self.costs: Dict[str, float] = {}
+        #: how often each event happened: checks made and failed, reduced answers refuted,
+        #: expansions made
+        self.counts = dict.fromkeys(('checks', 'failed_checks', 'refuted', 'expansions'), 0)
+        self._reaches_for: Optional[tuple] = None
+        self._reach_by_level: Dict[str, float] = {}
+        self._reaches_served: List[float] = []  # farthest offset each past expansion served
+        self.reset()
+
+    def measure_costs(self) -> None:
+        """Measure the levels' costs (``measure_costs``) if the choices need them."""
+        solver = self.solver
+        if (solver.fidelity == 'auto' and solver.validation is not None
+                and solver.max_position_error > 0.0 and solver.max_angle_error_deg > 0.0):
+            self.costs = measure_costs(solver)
+
+    def reset(self) -> None:
+        """Forget the trust region (the solver forgot its expansion)."""
+        self.curvature = validated_curvature(self.solver.validation)
+        self.trusted = 0.0
+        self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
+        self._served = 0.0  # farthest offset a linear answer took on the expansion
+        self._gain: Optional[np.ndarray] = None  # the check's gain on this expansion
+
+    @property
+    def budget(self) -> np.ndarray:
+        """Return the largest position (m) and angle (deg) errors allowed."""
+        return np.array([self.solver.max_position_error, self.solver.max_angle_error_deg])
+
+    # the validated choice ---------------------------------------------------------------------
+    def validated_choice(self, wrench: np.ndarray) -> Tuple[str, str]:
+        """
+        Return (level, reason): the cheapest level whose validated error meets the budget.
+
+        For 'linear' the offset from the expansion's wrench must lie in a validated offset
+        box; ``solve`` widens that by checks.
+        """
+        solver = self.solver
+        if solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0:
+            return 'full', 'no error budget'
+        if solver.validation is None:
+            return 'full', 'no validation data for these parameters'
+        reaches = self._reaches()
+        scale = box_scale(wrench)
+        for level in LEVEL_COST_ORDER:
+            if level == 'linear' and not solver.tangent.ready:
+                continue
+            reach = reaches.get(level, -math.inf)
+            origin = solver.tangent.origin
+            if math.isnan(reach):  # bounds that do not grow: the box-by-box rule
+                admitted = solver.validation.admissible(
+                    level, wrench, solver.max_position_error, solver.max_angle_error_deg,
+                    origin=origin)
+            elif level == 'linear':
+                admitted = (origin is not None and box_scale(origin) <= 1.0
+                            and box_scale(wrench - origin) <= reach)
+            else:
+                admitted = scale <= reach
+            if admitted:
+                return level, 'the cheapest level whose validated error meets the budget'
+        if scale > 1.0:
+            return 'full', OUTSIDE
+        return 'full', 'no reduced level meets the budget here'
+
+    def _reaches(self) -> Dict[str, float]:
+        """Each level's validated reach under the budget (LevelBound.reach), made once."""
+        solver = self.solver
+        assert solver.validation is not None
+        key = (solver.max_position_error, solver.max_angle_error_deg, id(solver.validation))
+        if self._reaches_for != key:
+            self._reach_by_level = {
+                level: bound.reach(solver.max_position_error, solver.max_angle_error_deg)
+                for level, bound in solver.validation.levels.items()}
+            self._reaches_for = key
+        return self._reach_by_level
+
+    # the trust region of 'linear' -------------------------------------------------------------
+    def radius(self, curvature: np.ndarray) -> float:
+        """Offset scale at which ``curvature`` puts the linear error at LINEAR_TARGET."""
+        with np.errstate(divide='ignore'):
+            return float(np.sqrt(LINEAR_TARGET * self.budget / curvature).min())
+
+    def linear_verdict(self, wrench: np.ndarray) -> Optional[str]:
+        """'take' (inside the trust region), 'check', or None: 'linear' is not a candidate."""
+        origin = self.solver.tangent.origin
+        if origin is None or box_scale(wrench) > 1.0 or box_scale(origin) > 1.0:
+            return None
+        scale = box_scale(wrench - origin)
+        if (self.curvature * scale ** 2 > LINEAR_TARGET * self.budget).any():
+            return None
+        return 'take' if scale <= self.trusted else 'check'
+
+    def trusted_rows(self, wrenches: np.ndarray) -> int:
+        """
+        How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are.
+
+        Looked at in windows that double from TRUSTED_WINDOW rows, so that a batch whose runs
+        are short does not measure every later row at every run.
+        """
+        origin = self.solver.tangent.origin
+        if origin is None or box_scale(origin) > 1.0:
+            return 0
+        count, window = 0, TRUSTED_WINDOW
+        while count < len(wrenches):
+            part = wrenches[count:count + window]
+            scales = box_scales(part - origin)
+            estimates = self.curvature * scales[:, None] ** 2
+            taken = ((box_scales(part) <= 1.0) & (scales <= self.trusted)
+                     & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
+            if not taken.all():
+                return count + int(np.argmin(taken))
+            count, window = count + len(part), 2 * window
+        return count
+
+    @property
+    def gain(self) -> np.ndarray:
+        """Linear error (m, deg) per unit residual norm at the prediction; inf: not measured."""
+        if self._gain is None:
+            return np.full(2, math.inf)
+        return GAIN_MARGIN * self._gain
+
+    def prediction_residual(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
+        """Norm of the full model's nondimensional residual at predicted SI ``unknowns``."""
+        problem = self.solver.full.problem
+        return norm(problem.residual(unknowns / problem.x_scale, wrench))
+
+    def check_prediction(self, wrench: np.ndarray, unknowns: np.ndarray) -> np.ndarray:
+        """Estimated errors (m, deg) of the linear answer with SI ``unknowns`` at ``wrench``."""
+        with np.errstate(invalid='ignore'):
+            errors = self.gain * self.prediction_residual(wrench, unknowns)
+        return np.where(np.isnan(errors), math.inf, errors)
+
+    def _learn(self, scale: float, errors: np.ndarray) -> None:
+        """Fold errors measured at offset ``scale`` into the expansion's curvature."""
+        if scale <= 0.0 or not np.isfinite(errors).all():
+            return
+        measured = errors / scale ** 2
+        self._measured = (measured if self._measured is None
+                          else np.maximum(self._measured, measured))
+        self.curvature = self._measured
+
+    def _new_expansion(self) -> None:
+        """Start the trust region of a new expansion from the last one's curvature."""
+        floor = validated_curvature(self.solver.validation) / MAX_RADIUS_GROWTH ** 2
+        if self._measured is not None:
+            self.curvature = np.maximum(self._measured, floor)
+        self._measured = None
+        if self._served > 0.0:
+            self._reaches_served = (self._reaches_served + [self._served])[-REACH_MEMORY:]
+        self._served = 0.0
+        self._gain = None
+        self.trusted = FIRST_CHECK * self.radius(self.curvature)
+        self.counts['expansions'] += 1
+
+    # solving ----------------------------------------------------------------------------------
+    def solve(self, wrench: np.ndarray, compliance: bool, options: dict) -> SolveResult:
+        """Answer ``wrench`` at the cheapest level that meets the budget (module docstring)."""
+        solver = self.solver
+        level, reason = self.validated_choice(wrench)
+        if reason in ('no error budget', 'no validation data for these parameters'):
+            return solver._solve_at(level, reason, wrench, compliance, options)
+        verdict = self.linear_verdict(wrench)
+        if verdict == 'take':
+            self._served = max(self._served, box_scale(wrench - solver.tangent.origin))
+            return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
+        if verdict == 'check' and self._gain is None:
+            return self._first_check(wrench, compliance, options)
+        if verdict == 'check':
+            scale = box_scale(wrench - solver.tangent.origin)
+            errors = self.check_prediction(wrench, solver.tangent.unknowns(wrench))
+            self.counts['checks'] += 1
+            self._learn(scale, errors)
+            if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
+                self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+                self._served = max(self._served, scale)
+                return solver._solve_at(
+                    'linear', "checked by the full model's residual: error about "
+                    f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
+                    options)
+            self.counts['failed_checks'] += 1
+        levels = self._reduced_candidates(wrench)
+        if self._expansion_pays(wrench, self.costs[levels[0]] if levels else None):
+            return self._full(wrench, True, compliance, options, 'an expansion about it pays')
+        for level in levels:
+            result = solver._solve_at(level, 'validated error inside the budget here', wrench,
+                                      compliance, options)
+            if result.converged and not self._refuted(wrench, result):
+                return result
+        reason = OUTSIDE if box_scale(wrench) > 1.0 else 'no cheaper level meets the budget'
+        return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
+                          reason)
+
+    def _first_check(self, wrench: np.ndarray, compliance: bool,
+                     options: dict) -> SolveResult:
+        """Check an expansion the first time: a full solve, which measures the check's gain."""
+        solver = self.solver
+        origin = solver.tangent.origin
+        assert origin is not None
+        scale = box_scale(wrench - origin)
+        unknowns, frames = solver.tangent.unknowns(wrench), solver.tangent.frames(wrench)
+        residual = self._start_full_at(wrench, unknowns)
+        result = solver._solve_at('full', 'the first check of the expansion', wrench,
+                                  compliance, options)
+        self.counts['checks'] += 1
+        if not result.converged or residual <= 0.0:
+            self.counts['failed_checks'] += 1
+            return result
+        position, angle = frame_errors(frames, np.stack([result.frames[name]
+                                                         for name in FRAME_NAMES]))
+        errors = np.array([position, math.degrees(angle)])
+        self._gain = errors / residual
+        self._learn(scale, errors)
+        if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
+            self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+        else:
+            self.counts['failed_checks'] += 1
+        return result
+
+    def _start_full_at(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
+        """
+        Start the full model's next solve at the predicted SI ``unknowns``; their residual.
+
+        The prediction is a nearer start than the last full solution, and the expansion's
+        factorization serves its first chord steps.
+        """
+        solver, tangent = self.solver, self.solver.tangent
+        assert tangent.origin is not None
+        solver.full.start_at(unknowns / solver.full.problem.x_scale, wrench,
+                             (tangent.factorization, tangent.pose_jacobian, tangent.origin))
+        return self.prediction_residual(wrench, unknowns)
+
+    def solve_many(self, wrenches: np.ndarray, batch: BatchResult, compliance: bool) -> None:
+        """
+        Solve the rows of ``wrenches`` into ``batch`` as consecutive ``solve`` calls would.
+
+        Rows inside the trust region go to the expansion's compiled poses in one call each
+        run; every other row is one ``solve``.
+        """
+        row = 0
+        while row < len(wrenches):
+            end = row + self.trusted_rows(wrenches[row:])
+            if end > row:
+                origin = self.solver.tangent.origin
+                self._served = max(self._served,
+                                   float(box_scales(wrenches[row:end] - origin).max()))
+                batch_rows.solve_run(self.solver, 'linear', TRUSTED, wrenches, range(row, end),
+                                     batch, compliance)
+                row = end
+                continue
+            batch.run(row, self._row, wrenches[row], compliance)
+            row += 1
+
+    def _row(self, batch: BatchResult, row: int, wrench: np.ndarray, compliance: bool) -> float:
+        """One row by ``solve``."""
+        result = self.solve(wrench, compliance, {})
+        batch.record(row, result)
+        return result.solve_time_s
+
+    def _reduced_candidates(self, wrench: np.ndarray) -> List[str]:
+        """'cc' and 'rod' where their validated errors meet the budget, cheapest first."""
+        if box_scale(wrench) > 1.0:
+            return []
+        reaches = self._reaches()
+        scale = box_scale(wrench)
+        solver = self.solver
+        assert solver.validation is not None  # a budget without data answers 'full'
+        admitted = []
+        for level in ('cc', 'rod'):
+            reach = reaches.get(level, -math.inf)
+            if (scale <= reach if not math.isnan(reach) else solver.validation.admissible(
+                    level, wrench, solver.max_position_error, solver.max_angle_error_deg)):
+                admitted.append(level)
+        return sorted(admitted, key=self.costs.__getitem__)
+
+    def _refuted(self, wrench: np.ndarray, result: SolveResult) -> bool:
+        """Whether the expansion's prediction proves ``result`` outside the budget."""
+        tangent = self.solver.tangent
+        if not tangent.ready:
+            return False
+        scale = box_scale(wrench - tangent.origin)
+        frames = tangent.frames(wrench)
+        position, angle = frame_errors(np.stack([result.frames[name] for name in FRAME_NAMES]),
+                                       frames)
+        distance = np.array([position, math.degrees(angle)])
+        refuted = bool((distance > self.budget + self.curvature * scale ** 2).any())
+        self.counts['refuted'] += refuted
+        return refuted
+
+    def _expansion_pays(self, wrench: np.ndarray, alternative: Optional[float]) -> bool:
+        """
+        Whether to expand about a full solution at ``wrench`` (module docstring).
+
+        ``alternative``: the cost of the level that would answer instead (None: a warm full
+        solve's).
+        """
+        last = self.solver._last_wrench
+        if last is None or box_scale(wrench) > 1.0:
+            return False
+        step = max(box_scale(wrench - last), 1e-12)
+        if not self._reaches_served:  # the first expansion: learn what one serves
+            reuse = self.radius(validated_curvature(self.solver.validation)) / step
+            return reuse >= MIN_EXPANSION_REUSE
+        reuse = statistics.mean(self._reaches_served) / step
+        cost = self.costs['full step'] if alternative is None else alternative
+        return reuse >= MIN_EXPANSION_REUSE and reuse * cost > EXPANSION_MARGIN * (
+            self.costs['full'] + self.costs['expansion'])
+
+    def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
+              reason: str) -> SolveResult:
+        """Solve the full model at ``wrench``; expand about its solution when ``expand``."""
+        solver = self.solver
+        if not expand:
+            return solver._solve_at('full', reason, wrench, compliance, options)
+        tangent = solver.tangent
+        previous = None
+        if tangent.origin is not None:  # the old expansion's error here, measured
+            unknowns, frames = tangent.unknowns(wrench), tangent.frames(wrench)
+            self._start_full_at(wrench, unknowns)
+            previous = (box_scale(wrench - tangent.origin), frames)
+        result = solver.cache_full_solution(wrench, compliance, **options)
+        result.message += f' [full: {reason}]'
+        solver._last_wrench, solver._last_level = wrench, 'full'
+        if previous is not None and result.converged:
+            frames = np.stack([result.frames[name] for name in FRAME_NAMES])
+            position, angle = frame_errors(previous[1], frames)
+            self._learn(previous[0], np.array([position, math.degrees(angle)]))
+        self._new_expansion()
+        return result
+
+
+def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
+    """
+    Time each level of ``solver`` (s per answer; 'expansion': one expansion), once per process.
+
+    'full', 'cc' and 'rod' answer a step of CALIBRATION_STEP box scales from a solution at
+    CALIBRATION_SCALE; 'full step' a further step of CALIBRATION_SMALL_STEP (a warm solve
+    along a slow sequence); 'expansion' expands about the full solution. The fastest of
+    CALIBRATION_REPEATS; the solver is reset afterwards.
+    """
+    key = f'{solver.params!r} {solver.rod_steps} {solver.full.tolerance!r}'
+    if key not in _MEASURED_COSTS:
+        direction = CALIBRATION_DIRECTION * validation_half_widths()
+        start = CALIBRATION_SCALE * direction
+        end = start + CALIBRATION_STEP * direction
+        times: Dict[str, List[float]] = {level: [] for level in (
+            'full', 'full step', 'expansion', 'cc', 'rod')}
+        for _ in range(CALIBRATION_REPEATS):
+            solver.reset()
+            for level in ('full', 'cc', 'rod'):
+                solver._solve_at(level, '', start, False, {})
+                times[level].append(solver._solve_at(level, '', end, False, {}).solve_time_s)
+            further = end + CALIBRATION_SMALL_STEP * direction
+            result = solver._solve_at('full', '', further, False, {})
+            times['full step'].append(result.solve_time_s)
+            solver.tangent.build(result.unknowns / solver.full.problem.x_scale, further)
+            times['expansion'].append(solver.tangent.build_time_s)
+        _MEASURED_COSTS[key] = {level: min(values) for level, values in times.items()}
+        solver.reset()
+    return dict(_MEASURED_COSTS[key])

@@ -1,0 +1,96 @@
+"""
+The payload on the Continuum Delta Robot's platform from its measured pose and the sliders.
+
+Force sensing with a parallel continuum robot (Black, Till & Rucker, IEEE T-RO 34(1),
+2018): the payload is the one whose forward-statics solution puts the platform at the
+measured pose. The same search as the translator's (cdr_translator/estimation.py:
+Levenberg-Marquardt steps on the payload within a trust radius, warm along a stream),
+each iterate a forward solve with the compliance, whose ``input_sensitivity`` columns for
+the payload force and moment (d platform pose / d payload, in {w}: the twist convention of
+cdr_translator/compliance.py) are the exact derivative. With the platform orientation all
+six components are estimated; with its position only, the force under no moment.
+
+The estimate is flagged, never raised, when no payload matches (``converged`` False) or
+the matching equilibrium is not known to be stable (``accuracy_met`` False): the robot's
+verdict covers the platform stiffness and each leg held at both ends (robot/linearization.py).
+"""
+
+from dataclasses import dataclass, field, fields, replace
+import time
+from typing import Any, Dict, Optional, TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .params import check_sliders
+from .result import INPUT_NAMES
+from ..compliance import analyse
+from ..estimation import estimate_along, Evaluation, LOAD_LIMIT, measured_target
+from ..stability import load_scale
+from ..wrench_estimate import json_safe, WrenchEstimate
+
+if TYPE_CHECKING:
+    from .delta import DeltaRobot
+
+__all__ = ['estimate_payload', 'PayloadEstimate']
+
+#: Names of the payload components (force at the platform origin and moment, in {w}).
+PAYLOAD_LABELS = tuple(f'payload {name}' for name in INPUT_NAMES[3:9])
+
+
+@dataclass
+class PayloadEstimate(WrenchEstimate):
+    """
+    The payload [f; m] on the platform (N, N m; in {w}, force at the platform origin).
+
+    The fields of WrenchEstimate (cdr_translator/wrench_estimate.py), the measured body
+    being the platform: ``position`` and ``quaternion_xyzw`` are the solved platform pose,
+    ``solution`` the DeltaResult, ``stability_margin`` NaN (``stable`` is the robot's
+    verdict); plus the ``sliders`` (m) it was estimated at.
+    """
+
+    sliders: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+
+    def to_dict(self) -> Dict[str, Any]:
+        """JSON-ready form: WrenchEstimate's keys and 'sliders'."""
+        return {**super().to_dict(), 'sliders': json_safe(self.sliders)}
+
+
+def _evaluation(robot: 'DeltaRobot', sliders: np.ndarray, payload: np.ndarray,
+                deadline: float) -> Optional[Evaluation]:
+    """Solve the robot under ``payload`` with its linearization (None: failed)."""
+    limit = robot.time_limit_s
+    robot.time_limit_s = max(deadline - time.perf_counter(), 0.0)
+    try:
+        result = robot.solve(sliders, payload[:3], payload[3:], compliance=True)
+    finally:
+        robot.time_limit_s = limit
+    if not result.converged or result.input_sensitivity is None:
+        return None
+    frame = np.eye(4)
+    frame[:3, :3], frame[:3, 3] = result.platform_rotation, result.platform_position
+    sensitivity = result.input_sensitivity[:, 3:9].copy()
+    analysis = analyse(sensitivity, robot.params.stack_height)
+    return Evaluation(payload.copy(), frame, sensitivity, result.stable, float('nan'),
+                      True, result.message, analysis, result)
+
+
+def estimate_payload(robot: 'DeltaRobot', platform_position: ArrayLike, sliders: ArrayLike,
+                     platform_quaternion_xyzw: Optional[ArrayLike] = None, *,
+                     covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
+    """Return the payload matching a measured platform pose (DeltaRobot's method)."""
+    started = time.perf_counter()
+    sliders = check_sliders(sliders, robot.geometry.slider_stroke)
+    length = robot.params.stack_height
+    legs = len(robot.leg_solvers)
+    target = replace(measured_target(platform_position, platform_quaternion_xyzw, covariance,
+                                     None, None, length, PAYLOAD_LABELS,
+                                     ('platform_position', 'platform_quaternion_xyzw',
+                                      'covariance')),
+                     load_limit=legs * LOAD_LIMIT * load_scale(robot.leg_solvers[0]._origin()))
+    deadline = started + robot.time_limit_s
+    found = estimate_along(robot, lambda payload: _evaluation(robot, sliders, payload, deadline),
+                           target, started, deadline,
+                           robot._continuation.previous is not None, robot.reset)
+    values = {item.name: getattr(found, item.name) for item in fields(WrenchEstimate)}
+    return PayloadEstimate(**values, sliders=sliders)

@@ -1,0 +1,53 @@
+"""
+Measured end-disk poses in a replay: the wrench estimates translator_node would have published.
+
+Each pose is handled as the node does (``pose_estimation.PoseProcessor``: the same checks,
+the estimation solver warm-started along the stream, the same messages); both measured-pose
+topics of one namespace share one processor, as they share one in the node. The input
+and the outputs (``estimated_wrench``, ``estimated_wrench_covariance``, ``/diagnostics``,
+in the input's namespace) are written with the input's log time; a pose gets no CSV row.
+"""
+
+from typing import Dict, Sequence
+
+from cdr_translator.interface.pose_estimation import PoseProcessor
+from cdr_translator.interface.settings import TranslatorSettings
+from msg_tools.mcap_log import McapLog
+from msg_tools.reader import Decoders, RawMessage
+from msg_tools.replay_summary import ReplaySummary
+from msg_tools.replay_topics import output_topic, POSE_INPUTS
+
+
+def pose_processors(topics: Sequence[str], settings: TranslatorSettings
+                    ) -> Dict[str, PoseProcessor]:
+    """Return the processor of each measured-pose topic: one per namespace."""
+    by_namespace: Dict[str, PoseProcessor] = {}
+    return {topic: by_namespace.setdefault(output_topic(topic, ''),
+                                           PoseProcessor(settings.params, settings))
+            for topic in topics}
+
+
+def register_poses(log: McapLog, topics: Sequence[str]) -> None:
+    """Register the measured-pose input topics in the output, as the node logs them."""
+    for topic in topics:
+        log.register(topic, POSE_INPUTS[topic.rsplit('/', 1)[-1]], qos='sensor_data')
+
+
+def replay_pose(log: McapLog, raw: RawMessage, processor: PoseProcessor, decoders: Decoders,
+                summary: ReplaySummary, index: int) -> None:
+    """Write one measured pose and what the node publishes for it; count it in ``summary``."""
+    summary.poses += 1
+    log.write_serialized(raw.topic, POSE_INPUTS[raw.topic.rsplit('/', 1)[-1]], raw.data,
+                         raw.log_time_ns, raw.publish_time_ns)
+    try:
+        message = decoders.decode(raw)
+    except ValueError as error:
+        summary.undecodable += 1
+        summary.warn(f'message {index} on {raw.topic}: {error}')
+        return
+    outcome = processor.process(message)
+    if outcome.estimate is not None and outcome.estimate.converged:
+        summary.estimated += 1
+    for name, type_name, values in outcome.outputs:
+        log.write(output_topic(raw.topic, name), type_name, values, raw.log_time_ns,
+                  raw.log_time_ns)

@@ -1,0 +1,132 @@
+"""The 'auto' fidelity (cdr_translator.fidelity.auto): checks, escalation and the budget."""
+
+import math
+
+from batch_checks import assert_rows_equal, sequence
+from cdr_translator import TranslatorSolver
+from cdr_translator.fidelity import FidelitySolver, pose_errors
+from cdr_translator.fidelity.auto import CHECK_GROWTH
+from cdr_translator.fidelity.validation import box_half_widths
+import numpy as np
+import pytest
+
+BUDGET = (1e-3, 0.5)
+
+
+@pytest.fixture(scope='module')
+def full(params):
+    """Return the full model, the errors' reference (its own error far below the budget)."""
+    return TranslatorSolver(params)
+
+
+def budget_solver(params):
+    """Return 'auto' at 1 mm and 0.5 deg."""
+    return FidelitySolver(params, max_position_error=BUDGET[0], max_angle_error_deg=BUDGET[1])
+
+
+def errors(result, full, wrench):
+    """(position m, angle deg) of ``result`` against the full model at ``wrench``."""
+    position, angle = pose_errors(result, full.solve(wrench[:3], wrench[3:]))
+    return position, math.degrees(angle)
+
+
+def learned_solver(params):
+    """Return 'auto' after two expansions along a slow ramp, the check's gain measured."""
+    solver = budget_solver(params)
+    for step in range(200):
+        solver.solve([10.0 + 0.05 * step, 1.0, 0.0], [0.02, 0.0, 0.0])
+        if solver.auto.counts['expansions'] >= 2 and np.isfinite(solver.auto.gain).all():
+            return solver
+    raise AssertionError(f'no second expansion with a measured gain: {solver.auto.counts}')
+
+
+def test_check_measures_the_linear_error(params, full):
+    """The check's estimate is within a factor of two of the linear answer's true error."""
+    solver = learned_solver(params)
+    origin = solver.tangent.origin
+    for size in (0.02, 0.06, 0.12):
+        wrench = origin + size * box_half_widths() * np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
+        estimate = solver.auto.check_prediction(wrench, solver.tangent.unknowns(wrench))
+        linear = solver._solve_linear(wrench, False, {})
+        position, angle = errors(linear, full, wrench)
+        assert 0.5 < estimate[0] / position < 2.0, (size, estimate, position)
+        assert 0.3 < estimate[1] / angle < 3.0, (size, estimate, angle)
+
+
+def test_failed_check_escalates(params, full):
+    """A linear answer whose check fails is replaced by another level, inside the budget."""
+    solver = learned_solver(params)
+    solver.auto.curvature = solver.auto.curvature * 1e-3  # a trust region far too wide
+    origin = solver.tangent.origin
+    wrench = origin + 0.3 * box_half_widths() * np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
+    assert solver.auto.linear_verdict(wrench) == 'check'
+    linear = solver._solve_linear(wrench, False, {})
+    assert errors(linear, full, wrench)[0] > BUDGET[0]  # the linear answer would miss
+    failed = solver.auto.counts['failed_checks']
+    result = solver.solve(wrench[:3], wrench[3:])
+    assert solver.auto.counts['failed_checks'] == failed + 1
+    assert result.fidelity != 'linear' and result.converged, result.message
+    position, angle = errors(result, full, wrench)
+    assert position <= BUDGET[0] and angle <= BUDGET[1]
+
+
+def test_passed_checks_widen_the_trust_region(params):
+    """
+    A new expansion's first check is a full solve measuring the gain, the next answer 'linear'.
+
+    Each check that passes trusts offsets up to CHECK_GROWTH times its own.
+    """
+    solver = learned_solver(params)
+    origin = np.array([14.0, 1.0, 0.0, 0.02, 0.0, 0.0])
+    solver.auto._full(origin, True, False, {}, 'a new expansion')  # trusts half its radius
+    assert not np.isfinite(solver.auto.gain).any()
+    direction = box_half_widths() * np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    results = []
+    for _ in range(2):
+        scale = 1.1 * solver.auto.trusted
+        wrench = origin + scale * direction
+        assert solver.auto.linear_verdict(wrench) == 'check'
+        results.append(solver.solve(wrench[:3], wrench[3:]))
+        assert solver.auto.trusted == pytest.approx(CHECK_GROWTH * scale)
+    assert results[0].fidelity == 'full' and np.isfinite(solver.auto.gain).all()
+    assert results[1].fidelity == 'linear' and 'checked' in results[1].message
+
+
+def test_budget_holds_along_a_sequence(params, full):
+    """Along a smooth sequence every answer is inside the budget, many 'linear', checked."""
+    forces, moments = sequence(600)
+    solver = budget_solver(params)
+    levels = []
+    for force, moment in zip(forces, moments):
+        result = solver.solve(force, moment)
+        levels.append(result.fidelity)
+        position, angle = errors(result, full, np.r_[force, moment])
+        assert position <= BUDGET[0] and angle <= BUDGET[1], result.message
+    assert levels.count('linear') > len(levels) // 10, set(levels)
+    assert solver.auto.counts['checks'] > 0
+
+
+def test_budget_holds_on_random_wrenches(params, full):
+    """Seeded random wrenches of the validated box's sizes: every answer inside the budget."""
+    rng = np.random.default_rng(2718)
+    solver = budget_solver(params)
+    levels = set()
+    sizes = rng.uniform(0.0, 1.0, (40, 1))
+    for wrench in rng.uniform(-1.0, 1.0, (40, 6)) * sizes * box_half_widths():
+        result = solver.solve(wrench[:3], wrench[3:])
+        levels.add(result.fidelity)
+        position, angle = errors(result, full, wrench)
+        assert position <= BUDGET[0] and angle <= BUDGET[1], result.message
+    assert levels & {'cc', 'rod'}, levels
+
+
+def test_batch_equals_single_solves_with_checks(params):
+    """solve_many takes the same levels and answers as single solves, checks included."""
+    forces, moments = sequence(200)
+    single = budget_solver(params)
+    results = [single.solve(force, moment) for force, moment in zip(forces, moments)]
+    batched = budget_solver(params)
+    batch = batched.solve_many(forces, moments)
+    assert batch.fidelity.tolist() == [result.fidelity for result in results]
+    assert_rows_equal(batch, results)
+    assert batched.auto.counts['checks'] == single.auto.counts['checks'] > 0
