@@ -45,16 +45,20 @@ hard-cases: setup
 
 # Speed against error of every fidelity level, the paper baseline and the node's rate (about
 # 4 min): bench/results/speed_vs_error.{md,png,json} and config/fidelity_validation.yaml;
-# then issue 13's targets, exact vs forward-difference Jacobian: bench/results/targets.md;
+# then the speed targets, exact vs forward-difference Jacobian: bench/results/targets.md;
 # then what a pause costs the same work (about 30 s): bench/results/idle_penalty.md;
 # then the robot on every leg level (about 2 min): bench/results/robot_levels.{md,json};
-# then the figure again, its robot panel from this run's robot_levels.json.
+# then the figure again, its robot panel from this run's robot_levels.json; then each level's
+# kernel and the Python around a single solve against a batch: bench/results/level_kernels.md,
+# solve_many.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
 	$(VPY) -m bench.idle_penalty
 	$(VPY) -m bench.robot_levels
 	$(VPY) -m bench.speed_vs_error --redraw
+	$(VPY) -m bench.level_kernels
+	$(VPY) -m bench.solve_many --count 300
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
