@@ -40,7 +40,6 @@ Reduced levels and the expansion are used only inside the largest validated wren
 """
 
 import math
-import statistics
 from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
@@ -414,19 +413,24 @@ class AutoFidelity:
         Whether to expand about a full solution at ``wrench`` (module docstring).
 
         ``alternative``: the cost of the level that would answer instead (None: a warm full
-        solve's).
+        solve's). Each answer the expansion serves saves that cost less a linear answer's.
         """
         last = self.solver._last_wrench
         if last is None or box_scale(wrench) > 1.0:
             return False
+        cost = self.costs['full step'] if alternative is None else alternative
+        saving = cost - self.costs['linear']
+        if saving <= 0.0:
+            return False
         step = max(box_scale(wrench - last), 1e-12)
+        pays = EXPANSION_MARGIN * (self.costs['full'] + self.costs['expansion'])
         if not self._reaches_served:  # the first expansion: learn what one serves
             reuse = self.radius(validated_curvature(self.solver.validation)) / step
-            return reuse >= MIN_EXPANSION_REUSE
-        reuse = statistics.mean(self._reaches_served) / step
-        cost = self.costs['full step'] if alternative is None else alternative
-        return reuse >= MIN_EXPANSION_REUSE and reuse * cost > EXPANSION_MARGIN * (
-            self.costs['full'] + self.costs['expansion'])
+            # instead of full solves it is made to learn the reach; instead of a reduced
+            # level, which answers without one, only when it pays
+            return reuse >= MIN_EXPANSION_REUSE and (alternative is None or reuse * saving > pays)
+        reuse = sum(self._reaches_served) / len(self._reaches_served) / step
+        return reuse >= MIN_EXPANSION_REUSE and reuse * saving > pays
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
               reason: str) -> SolveResult:
@@ -457,7 +461,8 @@ def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
 
     'full', 'cc' and 'rod' answer a step of CALIBRATION_STEP box scales from a solution at
     CALIBRATION_SCALE; 'full step' a further step of CALIBRATION_SMALL_STEP (a warm solve
-    along a slow sequence); 'expansion' expands about the full solution. The fastest of
+    along a slow sequence); 'expansion' expands about the full solution, and 'linear'
+    answers one more such step from it. The fastest of
     CALIBRATION_REPEATS; the solver is reset afterwards.
     """
     key = f'{solver.params!r} {solver.rod_steps} {solver.full.tolerance!r}'
@@ -466,7 +471,7 @@ def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
         start = CALIBRATION_SCALE * direction
         end = start + CALIBRATION_STEP * direction
         times: Dict[str, List[float]] = {level: [] for level in (
-            'full', 'full step', 'expansion', 'cc', 'rod')}
+            'full', 'full step', 'expansion', 'linear', 'cc', 'rod')}
         for _ in range(CALIBRATION_REPEATS):
             solver.reset()
             for level in ('full', 'cc', 'rod'):
@@ -477,6 +482,8 @@ def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
             times['full step'].append(result.solve_time_s)
             solver.tangent.build(result.unknowns / solver.full.problem.x_scale, further)
             times['expansion'].append(solver.tangent.build_time_s)
+            nearby = further + CALIBRATION_SMALL_STEP * direction
+            times['linear'].append(solver._solve_at('linear', '', nearby, False, {}).solve_time_s)
         _MEASURED_COSTS[key] = {level: min(values) for level, values in times.items()}
         solver.reset()
     return dict(_MEASURED_COSTS[key])
