@@ -83,7 +83,7 @@ def measurements(rows: Sequence[dict], paper: Dict[str, dict],
             sequence['max_angle_deg'], sequence.get('batch_per_answer_s', math.nan)))
     for name, value in paper.items():
         result.append(Measurement(
-            'paper', f"paper's numerics, {name} case, cold (method='paper': "
+            'paper', f"paper's numerics, {name} case, cold\n(method='paper': "
             'Levenberg-Marquardt, finite-difference Jacobian)',
             value['time_s'], value['position_m'], value['angle_deg']))
     return result
