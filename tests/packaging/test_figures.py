@@ -134,11 +134,18 @@ def test_speed_vs_error_figure_has_a_readable_robot_panel_with_its_front():
 
 
 def test_speed_vs_error_figure_spans_three_decades_of_time():
-    """The stored numbers' per-answer times, and so the figure's time axes, span 10^3."""
+    """
+    The project's own levels' per-answer times, and so the figure's time axes, span 10^3.
+
+    Cold static scenes, the warm sequence and its batch, the paper's numerics aside: what a
+    user picks between, from the cheapest batch answer to the costliest cold solve.
+    """
     report = json.loads((RESULTS / 'speed_vs_error.json').read_text())
     measured = measurements(report['rows'], report['paper_baseline'], PAPER_SCENES)
-    batch = [value.batch_time_s for value in measured if math.isfinite(value.batch_time_s)]
-    assert max(batch) / min(batch) >= 1e3, (min(batch), max(batch))
+    times = [time for value in measured if value.level != 'paper'
+             for time in (value.static_time_s, value.sequence_time_s, value.batch_time_s)
+             if math.isfinite(time)]
+    assert max(times) / min(times) >= 1e3, (min(times), max(times))
     figure = speed_error_figure(measured, SEQUENCE_LENGTH)
     for axes in figure.axes[:2]:
         low, high = axes.get_xlim()
