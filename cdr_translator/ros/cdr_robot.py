@@ -36,7 +36,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from . import node_help, serialization
-from .estimate_stream import count_line, EstimateStream
+from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .parameters import descriptor, ros_parameter_sources
 from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, open_log, OUTPUTS, run
@@ -339,10 +339,7 @@ class CdrNode(Node):
         self._worker.join(SHUTDOWN_JOIN_S)
         self._mailbox.discard()
         counts = self._counts()
-        self.get_logger().info(
-            f'inputs: {counts["received"]} received, {counts["solved"]} solved, '
-            f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
-            f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
+        self.get_logger().info(count_line('inputs', counts, 'solved', SKIPPED_INPUT))
         self.get_logger().info(count_line('measured platform poses', self._estimates.close(self)))
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)

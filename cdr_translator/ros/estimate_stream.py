@@ -26,7 +26,7 @@ from .runtime import LatestMailbox, NodeLog, sensor_qos, SHUTDOWN_JOIN_S, type_n
 from ..interface import messages, pose_estimation
 from ..interface.pose_estimation import MeasuredPoseProcessor
 
-__all__ = ['count_line', 'EstimateStream', 'TRANSLATOR_ESTIMATE_INPUTS',
+__all__ = ['count_line', 'SKIPPED_INPUT', 'EstimateStream', 'TRANSLATOR_ESTIMATE_INPUTS',
            'TRANSLATOR_ESTIMATE_OUTPUTS']
 
 Built = List[Tuple[str, str, dict]]
@@ -122,8 +122,17 @@ class EstimateStream:
         return dict(self.processor.counts)
 
 
-def count_line(what: str, counts: Mapping[str, int]) -> str:
-    """Return the closing log line of an input stream's counts."""
-    return (f'{what}: {counts["received"]} received, {counts["solved"]} estimated, '
+def count_line(what: str, counts: Mapping[str, int], solved: str = 'estimated',
+               skipped: str = '') -> str:
+    """
+    Return the closing log line of an input stream's counts.
+
+    ``solved`` names what became of the inputs answered; ``skipped`` explains the skipped.
+    """
+    return (f'{what}: {counts["received"]} received, {counts["solved"]} {solved}, '
             f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
-            f'{counts["skipped"]} skipped')
+            f'{counts["skipped"]} skipped{skipped}')
+
+
+#: Why a node's own input (a wrench, sliders, a target) is skipped.
+SKIPPED_INPUT = ' (a newer one arrived, or still waiting at shutdown)'

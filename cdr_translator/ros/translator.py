@@ -37,8 +37,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from . import node_help, serialization
-from .estimate_stream import count_line, EstimateStream, TRANSLATOR_ESTIMATE_INPUTS
-from .estimate_stream import TRANSLATOR_ESTIMATE_OUTPUTS
+from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
+from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
 from .parameters import descriptor, ros_parameter_sources, SPECS
 from .runtime import check_parameters, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
@@ -316,10 +316,7 @@ class TranslatorNode(Node):
         self._worker.join(SHUTDOWN_JOIN_S)
         self._mailbox.discard()
         counts = self._counts()
-        self.get_logger().info(
-            f'wrenches: {counts["received"]} received, {counts["solved"]} solved, '
-            f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
-            f'{counts["skipped"]} skipped (a newer one arrived, or still waiting at shutdown)')
+        self.get_logger().info(count_line('wrenches', counts, 'solved', SKIPPED_INPUT))
         self.get_logger().info(count_line('measured poses', self._estimates.close(self)))
         if self._log_timer is not None:
             self.destroy_timer(self._log_timer)
