@@ -7,6 +7,7 @@ from typing import Optional
 from cdr_translator.interface import messages
 from cdr_translator.ros.client import diagnostic_values, MODULE_COMMAND, NodeProcess
 from cdr_translator.ros.client import TranslatorClient
+from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import serialize_message
 
 #: The first solve may compile the kernels (cached on disk after), DDS discovery takes
@@ -63,6 +64,15 @@ class Running:
     def last_diagnostic(self):
         """Return the key/values of the last diagnostic received."""
         return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])
+
+
+def stamped_wrenches(count: int, axis: str, first: float) -> list:
+    """Return ``count`` WrenchStamped stamped 1, 2, ... s, force ``axis`` first, first + 1 ..."""
+    wrenches = [WrenchStamped() for _ in range(count)]
+    for index, wrench in enumerate(wrenches):
+        wrench.header.stamp.sec = index + 1
+        setattr(wrench.wrench.force, axis, first + (1.0 if first >= 0.0 else -1.0) * index)
+    return wrenches
 
 
 def send_behind_a_slow_first_solve(node, wrenches) -> None:

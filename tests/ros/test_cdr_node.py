@@ -14,7 +14,7 @@ from cdr_translator.ros.client import isolated_ros_env, NodeProcess
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, WrenchStamped
 from mcap.reader import make_reader
-from nodes import send_behind_a_slow_first_solve
+from nodes import send_behind_a_slow_first_solve, stamped_wrenches
 import numpy as np
 import pytest
 import rclpy
@@ -394,11 +394,7 @@ def test_inputs_waiting_at_shutdown_are_answered_or_counted(tmp_path):
 
         node.robot.solve = slow
         try:
-            wrenches = [WrenchStamped() for _ in range(3)]
-            for index, wrench in enumerate(wrenches):
-                wrench.header.stamp.sec = index + 1
-                wrench.wrench.force.z = -1.0 - index
-            send_behind_a_slow_first_solve(node, wrenches)
+            send_behind_a_slow_first_solve(node, stamped_wrenches(3, 'z', -1.0))
         finally:
             node.close()
             node.destroy_node()

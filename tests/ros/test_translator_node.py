@@ -20,13 +20,12 @@ from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
 from cdr_translator.ros.translator import TranslatorNode
-from geometry_msgs.msg import WrenchStamped
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running
-from nodes import send_behind_a_slow_first_solve, START_TIMEOUT_S
+from nodes import send_behind_a_slow_first_solve, stamped_wrenches, START_TIMEOUT_S
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -323,11 +322,7 @@ def test_wrenches_waiting_at_shutdown_are_answered_and_counted(tmp_path):
 
         node._process = slow
         try:
-            wrenches = [WrenchStamped() for _ in range(3)]
-            for index, wrench in enumerate(wrenches):
-                wrench.header.stamp.sec = index + 1
-                wrench.wrench.force.x = 1.0 + index
-            send_behind_a_slow_first_solve(node, wrenches)
+            send_behind_a_slow_first_solve(node, stamped_wrenches(3, 'x', 1.0))
         finally:
             node.close()
             node.destroy_node()
