@@ -44,7 +44,8 @@ from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
-from . import batch_rows
+from . import auto_batch
+from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, OUTSIDE, TRUSTED
 from .validation import box_half_widths as validation_half_widths
 from .validation import box_scale, box_scales, frame_errors
 from .._linalg import norm
@@ -68,9 +69,6 @@ FIRST_CHECK = 0.5
 
 #: The trust radius may exceed the one the validated worst case gives by this factor at most.
 MAX_RADIUS_GROWTH = 4.0
-
-#: Rows a batch looks ahead at first for a run inside the trust region.
-TRUSTED_WINDOW = 16
 
 #: The check's error estimate is its measured gain times this.
 GAIN_MARGIN = 1.25
@@ -97,9 +95,6 @@ EXPANSION_MARGIN = 1.5
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
 
-
-TRUSTED = 'inside the trust region of the expansion about the last full solution'
-OUTSIDE = 'wrench outside the validated range'
 
 
 def validated_curvature(validation) -> np.ndarray:
@@ -159,10 +154,10 @@ class AutoFidelity:
         """
         solver = self.solver
         if solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0:
-            return 'full', 'no error budget'
+            return 'full', NO_BUDGET
         if solver.validation is None:
-            return 'full', 'no validation data for these parameters'
-        reaches = self._reaches()
+            return 'full', NO_DATA
+        reaches = self.reaches()
         scale = box_scale(wrench)
         for level in LEVEL_COST_ORDER:
             if level == 'linear' and not solver.tangent.ready:
@@ -184,7 +179,7 @@ class AutoFidelity:
             return 'full', OUTSIDE
         return 'full', 'no reduced level meets the budget here'
 
-    def _reaches(self) -> Dict[str, float]:
+    def reaches(self) -> Dict[str, float]:
         """Each level's validated reach under the budget (LevelBound.reach), made once."""
         solver = self.solver
         assert solver.validation is not None
@@ -208,31 +203,18 @@ class AutoFidelity:
         if origin is None or box_scale(wrench) > 1.0 or box_scale(origin) > 1.0:
             return None
         scale = box_scale(wrench - origin)
-        if (self.curvature * scale ** 2 > LINEAR_TARGET * self.budget).any():
+        if not self.within_linear_target(scale):
             return None
         return 'take' if scale <= self.trusted else 'check'
 
-    def trusted_rows(self, wrenches: np.ndarray) -> int:
-        """
-        How many leading rows of ``wrenches`` ``linear_verdict`` takes as they are.
+    def within_linear_target(self, scales: np.ndarray) -> np.ndarray:
+        """Per offset scale: whether the curvature puts its linear error inside the target."""
+        estimates = self.curvature * np.asarray(scales)[..., None] ** 2
+        return (estimates <= LINEAR_TARGET * self.budget).all(axis=-1)
 
-        Looked at in windows that double from TRUSTED_WINDOW rows, so that a batch whose runs
-        are short does not measure every later row at every run.
-        """
-        origin = self.solver.tangent.origin
-        if origin is None or box_scale(origin) > 1.0:
-            return 0
-        count, window = 0, TRUSTED_WINDOW
-        while count < len(wrenches):
-            part = wrenches[count:count + window]
-            scales = box_scales(part - origin)
-            estimates = self.curvature * scales[:, None] ** 2
-            taken = ((box_scales(part) <= 1.0) & (scales <= self.trusted)
-                     & (estimates <= LINEAR_TARGET * self.budget).all(axis=1))
-            if not taken.all():
-                return count + int(np.argmin(taken))
-            count, window = count + len(part), 2 * window
-        return count
+    def served(self, scale: float) -> None:
+        """Note a linear answer at offset ``scale`` from the expansion."""
+        self._served = max(self._served, scale)
 
     @property
     def gain(self) -> np.ndarray:
@@ -279,11 +261,11 @@ class AutoFidelity:
         """Answer ``wrench`` at the cheapest level that meets the budget (module docstring)."""
         solver = self.solver
         level, reason = self.validated_choice(wrench)
-        if reason in ('no error budget', 'no validation data for these parameters'):
+        if reason in (NO_BUDGET, NO_DATA):
             return solver._solve_at(level, reason, wrench, compliance, options)
         verdict = self.linear_verdict(wrench)
         if verdict == 'take':
-            self._served = max(self._served, box_scale(wrench - solver.tangent.origin))
+            self.served(box_scale(wrench - solver.tangent.origin))
             return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
         if verdict == 'check' and self._gain is None:
             return self._first_check(wrench, compliance, options)
@@ -294,7 +276,7 @@ class AutoFidelity:
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
                 self.trusted = max(self.trusted, CHECK_GROWTH * scale)
-                self._served = max(self._served, scale)
+                self.served(scale)
                 return solver._solve_at(
                     'linear', "checked by the full model's residual: error about "
                     f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
@@ -308,7 +290,7 @@ class AutoFidelity:
                                       compliance, options)
             if result.converged and not self._refuted(wrench, result):
                 return result
-        reason = OUTSIDE if box_scale(wrench) > 1.0 else 'no cheaper level meets the budget'
+        reason = OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER
         return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
                           reason)
 
@@ -352,37 +334,14 @@ class AutoFidelity:
         return self.prediction_residual(wrench, unknowns)
 
     def solve_many(self, wrenches: np.ndarray, batch: BatchResult, compliance: bool) -> None:
-        """
-        Solve the rows of ``wrenches`` into ``batch`` as consecutive ``solve`` calls would.
-
-        Rows inside the trust region go to the expansion's compiled poses in one call each
-        run; every other row is one ``solve``.
-        """
-        row = 0
-        while row < len(wrenches):
-            end = row + self.trusted_rows(wrenches[row:])
-            if end > row:
-                origin = self.solver.tangent.origin
-                self._served = max(self._served,
-                                   float(box_scales(wrenches[row:end] - origin).max()))
-                batch_rows.solve_run(self.solver, 'linear', TRUSTED, wrenches, range(row, end),
-                                     batch, compliance)
-                row = end
-                continue
-            batch.run(row, self._row, wrenches[row], compliance)
-            row += 1
-
-    def _row(self, batch: BatchResult, row: int, wrench: np.ndarray, compliance: bool) -> float:
-        """One row by ``solve``."""
-        result = self.solve(wrench, compliance, {})
-        batch.record(row, result)
-        return result.solve_time_s
+        """Solve the rows of ``wrenches`` into ``batch`` as consecutive ``solve`` calls would."""
+        auto_batch.solve_many(self, wrenches, batch, compliance)
 
     def _reduced_candidates(self, wrench: np.ndarray) -> List[str]:
         """'cc' and 'rod' where their validated errors meet the budget, cheapest first."""
         if box_scale(wrench) > 1.0:
             return []
-        reaches = self._reaches()
+        reaches = self.reaches()
         scale = box_scale(wrench)
         solver = self.solver
         assert solver.validation is not None  # a budget without data answers 'full'
@@ -418,19 +377,24 @@ class AutoFidelity:
         last = self.solver._last_wrench
         if last is None or box_scale(wrench) > 1.0:
             return False
+        return bool(self.expansion_pays_at(np.array([box_scale(wrench - last)]),
+                                           alternative)[0])
+
+    def expansion_pays_at(self, steps: np.ndarray, alternative: Optional[float]) -> np.ndarray:
+        """``_expansion_pays`` for wrenches inside the box that come after ``steps`` (scales)."""
         cost = self.costs['full step'] if alternative is None else alternative
         saving = cost - self.costs['linear']
         if saving <= 0.0:
-            return False
-        step = max(box_scale(wrench - last), 1e-12)
+            return np.zeros(len(steps), bool)
+        steps = np.maximum(steps, 1e-12)
         pays = EXPANSION_MARGIN * (self.costs['full'] + self.costs['expansion'])
         if not self._reaches_served:  # the first expansion: learn what one serves
-            reuse = self.radius(validated_curvature(self.solver.validation)) / step
+            reuse = self.radius(validated_curvature(self.solver.validation)) / steps
             # instead of full solves it is made to learn the reach; instead of a reduced
             # level, which answers without one, only when it pays
-            return reuse >= MIN_EXPANSION_REUSE and (alternative is None or reuse * saving > pays)
-        reuse = sum(self._reaches_served) / len(self._reaches_served) / step
-        return reuse >= MIN_EXPANSION_REUSE and reuse * saving > pays
+            return (reuse >= MIN_EXPANSION_REUSE) & (alternative is None or reuse * saving > pays)
+        reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
+        return (reuse >= MIN_EXPANSION_REUSE) & (reuse * saving > pays)
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
               reason: str) -> SolveResult:

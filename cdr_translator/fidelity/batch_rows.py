@@ -29,11 +29,15 @@ if TYPE_CHECKING:
 COMPILED_RUN_MIN_TIME_LIMIT_S = 1e-3
 
 
+def compiled_runs(solver: 'FidelitySolver') -> bool:
+    """Whether runs at a reduced level go through its compiled sequence (see the constant)."""
+    return solver.time_limit_s >= COMPILED_RUN_MIN_TIME_LIMIT_S
+
+
 def solve_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
               rows: range, batch: BatchResult, compliance: bool) -> None:
     """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
-    compiled = solver.time_limit_s >= COMPILED_RUN_MIN_TIME_LIMIT_S
-    if level in solver.reduced and not compliance and compiled:
+    if level in solver.reduced and not compliance and compiled_runs(solver):
         _reduced_run(solver, level, reason, wrenches, rows, batch)
     elif level == 'linear' and solver.tangent.ready:
         _linear_run(solver, reason, wrenches, rows, batch, compliance)
@@ -66,15 +70,27 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
         solver._last_level = str(batch.fidelity[row])
 
 
+def reduced_run_to_failure(solver: 'FidelitySolver', level: str, wrenches: np.ndarray,
+                           rows: range, batch: BatchResult) -> int:
+    """
+    Solve the rows of a run at a reduced level up to the first that fails; how many.
+
+    That row is left unsolved, the solver as the rows before it left it: 'auto' tries the
+    next level there. Without compliance, the level's compiled run (``compiled_runs``).
+    """
+    return _reduced_run(solver, level, '', wrenches, rows, batch, stop_at_failure=True)
+
+
 def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
-                 rows: range, batch: BatchResult) -> None:
+                 rows: range, batch: BatchResult, stop_at_failure: bool = False) -> int:
     """
     Solve a run at a reduced level in compiled sequences, as row-by-row solves would.
 
     A single solve starts from the unloaded state where that is nearer than the last
     solution (``FidelitySolver._reduced_outcome``): each such row begins a new sequence. A
     row that fails ends its sequence and is solved again by the row function, from the
-    state the rows before it left, for its message.
+    state the rows before it left, for its message; with ``stop_at_failure`` the run ends
+    there instead. Returns the number of rows solved.
     """
     model = solver.reduced[level]
     run = wrenches[rows.start:rows.stop]
@@ -100,10 +116,13 @@ def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np
             solver._previous[level] = (unknowns[converged - 1].copy(), run[last].copy())
             solver._last_wrench, solver._last_level = run[last], level
         first += converged
+        if first < stop and stop_at_failure:
+            return first
         if first < stop:  # this row failed: its own solve gives its message
             row = rows.start + first
             _rows(solver, level, reason, wrenches, range(row, row + 1), batch, False)
             first += 1
+    return first
 
 
 def _linear_run(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
