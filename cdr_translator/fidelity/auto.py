@@ -26,10 +26,13 @@ The candidates, tried in this order:
   the reduced answer outside the budget (triangle inequality), and the next level is tried.
 * 'full', otherwise. A new expansion is made about its solution when the reuse it promises
   pays for it: the answers it may serve (the offsets the last expansions served, over the
-  last wrench step) times the measured cost of the level that would answer instead against
-  the cost of a full solve after such a step and an expansion. The first expansion, with no
-  served offsets to go by, is made whenever it may serve MIN_EXPANSION_REUSE answers
-  inside the validated offset box: it is how the reach is learned.
+  last wrench step) times what each saves (the measured cost of the level that would
+  answer instead, less a linear answer's) against the expansion's cost: the expansion
+  alone where the alternative is a full solve, which is made either way, and a full solve
+  after such a step besides where a reduced level would answer. The first expansion, with
+  no served offsets to go by, counts on the validated offset radius. Either must serve at
+  least MIN_EXPANSION_REUSE answers: at a budget so tight, or wrench steps so large, that
+  no expansion pays, every answer is a plain full solve.
 
 Costs are measured once per process and parameter set, when the first 'auto' solver with a
 budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
@@ -122,6 +125,10 @@ class AutoFidelity:
         self._reaches_for: Optional[tuple] = None
         self._reach_by_level: Dict[str, float] = {}
         self._reaches_served: List[float] = []  # farthest offset each past expansion served
+        self._origin: Optional[np.ndarray] = None  # the expansion's wrench last looked at
+        self._origin_inside = False  # and whether it lies inside the validated box
+        self._target = LINEAR_TARGET * self.budget  # (m, deg) a linear answer may use ...
+        self._target_for = (solver.max_position_error, solver.max_angle_error_deg)  # ... here
         self.reset()
 
     def measure_costs(self) -> None:
@@ -199,13 +206,27 @@ class AutoFidelity:
 
     def linear_verdict(self, wrench: np.ndarray) -> Optional[str]:
         """'take' (inside the trust region), 'check', or None: 'linear' is not a candidate."""
+        return self._verdict(wrench)[0]
+
+    def _verdict(self, wrench: np.ndarray) -> Tuple[Optional[str], float]:
+        """(``linear_verdict``, the offset scale from the expansion's wrench; NaN: none)."""
         origin = self.solver.tangent.origin
-        if origin is None or box_scale(wrench) > 1.0 or box_scale(origin) > 1.0:
-            return None
+        if origin is None:
+            return None, math.nan
+        if origin is not self._origin:  # a new expansion (TangentModel.build copies w0)
+            self._origin, self._origin_inside = origin, box_scale(origin) <= 1.0
+        if not self._origin_inside or box_scale(wrench) > 1.0:
+            return None, math.nan
         scale = box_scale(wrench - origin)
-        if not self.within_linear_target(scale):
-            return None
-        return 'take' if scale <= self.trusted else 'check'
+        solver = self.solver
+        if self._target_for != (solver.max_position_error, solver.max_angle_error_deg):
+            self._target_for = (solver.max_position_error, solver.max_angle_error_deg)
+            self._target = LINEAR_TARGET * self.budget
+        # as within_linear_target computes it, in floats
+        square, curvature, target = scale * scale, self.curvature, self._target
+        if curvature[0] * square > target[0] or curvature[1] * square > target[1]:
+            return None, scale
+        return ('take' if scale <= self.trusted else 'check'), scale
 
     def within_linear_target(self, scales: np.ndarray) -> np.ndarray:
         """Per offset scale: whether the curvature puts its linear error inside the target."""
@@ -260,17 +281,17 @@ class AutoFidelity:
     def solve(self, wrench: np.ndarray, compliance: bool, options: dict) -> SolveResult:
         """Answer ``wrench`` at the cheapest level that meets the budget (module docstring)."""
         solver = self.solver
-        level, reason = self.validated_choice(wrench)
-        if reason in (NO_BUDGET, NO_DATA):
+        if (solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0
+                or solver.validation is None):
+            level, reason = self.validated_choice(wrench)
             return solver._solve_at(level, reason, wrench, compliance, options)
-        verdict = self.linear_verdict(wrench)
+        verdict, scale = self._verdict(wrench)
         if verdict == 'take':
-            self.served(box_scale(wrench - solver.tangent.origin))
+            self.served(scale)
             return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
         if verdict == 'check' and self._gain is None:
             return self._first_check(wrench, compliance, options)
         if verdict == 'check':
-            scale = box_scale(wrench - solver.tangent.origin)
             errors = self.check_prediction(wrench, solver.tangent.unknowns(wrench))
             self.counts['checks'] += 1
             self._learn(scale, errors)
@@ -387,13 +408,13 @@ class AutoFidelity:
         if saving <= 0.0:
             return np.zeros(len(steps), bool)
         steps = np.maximum(steps, 1e-12)
-        pays = EXPANSION_MARGIN * (self.costs['full'] + self.costs['expansion'])
-        if not self._reaches_served:  # the first expansion: learn what one serves
+        # instead of a full answer the full solve is made anyway: the expansion is the cost
+        pays = EXPANSION_MARGIN * (self.costs['expansion'] if alternative is None
+                                   else self.costs['full'] + self.costs['expansion'])
+        if not self._reaches_served:  # the first expansion: the validated radius's reuse
             reuse = self.radius(validated_curvature(self.solver.validation)) / steps
-            # instead of full solves it is made to learn the reach; instead of a reduced
-            # level, which answers without one, only when it pays
-            return (reuse >= MIN_EXPANSION_REUSE) & (alternative is None or reuse * saving > pays)
-        reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
+        else:
+            reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
         return (reuse >= MIN_EXPANSION_REUSE) & (reuse * saving > pays)
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
