@@ -27,12 +27,12 @@ The candidates, tried in this order:
 * 'full', otherwise. A new expansion is made about its solution when the reuse it promises
   pays for it: the answers it may serve (the offsets the last expansions served, over the
   last wrench step) times what each saves (the measured cost of the level that would
-  answer instead, less a linear answer's) against the expansion's cost: the expansion
-  alone where the alternative is a full solve, which is made either way, and a full solve
-  after such a step besides where a reduced level would answer. The first expansion, with
-  no served offsets to go by, counts on the validated offset radius. Either must serve at
-  least MIN_EXPANSION_REUSE answers: at a budget so tight, or wrench steps so large, that
-  no expansion pays, every answer is a plain full solve.
+  answer instead, less a linear answer's) against the cost of two full solves after a
+  long step (at the expansion and at its first check) and the expansion. The first expansion, with no served offsets to go by, is made
+  where it may serve MIN_EXPANSION_REUSE answers inside the validated offset box and the
+  largest trust region it may open (MAX_RADIUS_GROWTH times that box) would pay: it is how
+  the reach is learned. At a budget so tight, or wrench steps so large, that no expansion
+  pays, the answers are plain full solves.
 
 Costs are measured once per process and parameter set, when the first 'auto' solver with a
 budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
@@ -92,8 +92,9 @@ CALIBRATION_DIRECTION = np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
 #: Costs measured so far, per parameter set (``measure_costs``).
 _MEASURED_COSTS: Dict[str, Dict[str, float]] = {}
 
-#: An expansion must promise this many times its own cost in savings ...
-EXPANSION_MARGIN = 1.5
+#: An expansion must promise this many times its own cost in savings (counted at the
+#: fastest warm full step: along a sequence the full level's periodic checks cost more) ...
+EXPANSION_MARGIN = 1.0
 
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
@@ -306,6 +307,9 @@ class AutoFidelity:
         levels = self._reduced_candidates(wrench)
         if self._expansion_pays(wrench, self.costs[levels[0]] if levels else None):
             return self._full(wrench, True, compliance, options, 'an expansion about it pays')
+        if not levels:  # the same question as just answered
+            return solver._solve_at('full', OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER,
+                                    wrench, compliance, options)
         for level in levels:
             result = solver._solve_at(level, 'validated error inside the budget here', wrench,
                                       compliance, options)
@@ -408,13 +412,14 @@ class AutoFidelity:
         if saving <= 0.0:
             return np.zeros(len(steps), bool)
         steps = np.maximum(steps, 1e-12)
-        # instead of a full answer the full solve is made anyway: the expansion is the cost
-        pays = EXPANSION_MARGIN * (self.costs['expansion'] if alternative is None
-                                   else self.costs['full'] + self.costs['expansion'])
-        if not self._reaches_served:  # the first expansion: the validated radius's reuse
-            reuse = self.radius(validated_curvature(self.solver.validation)) / steps
-        else:
-            reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
+        # two full solves after a long step (at the expansion and at its first check)
+        pays = EXPANSION_MARGIN * (2.0 * self.costs['full'] + self.costs['expansion'])
+        if not self._reaches_served:  # the first expansion: learn what one serves
+            validated = self.radius(validated_curvature(self.solver.validation))
+            # made to learn the reach if the largest trust radius it may open would pay
+            return ((validated / steps >= MIN_EXPANSION_REUSE)
+                    & (MAX_RADIUS_GROWTH * validated / steps * saving > pays))
+        reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
         return (reuse >= MIN_EXPANSION_REUSE) & (reuse * saving > pays)
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
@@ -427,7 +432,8 @@ class AutoFidelity:
         previous = None
         if tangent.origin is not None:  # the old expansion's error here, measured
             unknowns, frames = tangent.unknowns(wrench), tangent.frames(wrench)
-            self._start_full_at(wrench, unknowns)
+            if solver._last_level != 'full':  # else the last full solution is one step away
+                self._start_full_at(wrench, unknowns)
             previous = (box_scale(wrench - tangent.origin), frames)
         result = solver.cache_full_solution(wrench, compliance, **options)
         result.message += f' [full: {reason}]'
