@@ -28,11 +28,15 @@ The candidates, tried in this order:
   pays for it: the answers it may serve (the offsets the last expansions served, over the
   last wrench step) times what each saves (the measured cost of the level that would
   answer instead, less a linear answer's) against the cost of two full solves after a
-  long step (at the expansion and at its first check) and the expansion. The first expansion, with no served offsets to go by, is made
-  where it may serve MIN_EXPANSION_REUSE answers inside the validated offset box and the
-  largest trust region it may open (MAX_RADIUS_GROWTH times that box) would pay: it is how
-  the reach is learned. At a budget so tight, or wrench steps so large, that no expansion
-  pays, the answers are plain full solves.
+  long step (at the expansion and at its first check) and the expansion. The first
+  expansion, with no served offsets to go by, is made where it may serve
+  MIN_EXPANSION_REUSE answers inside the validated offset box and the largest trust region
+  it may open (MAX_RADIUS_GROWTH times that box) would pay: it is how the reach is
+  learned. At a budget so tight, or wrench steps so large, that no expansion pays, the
+  answers are plain full solves. A full solve one wrench step after the last full answer
+  starts from that; after other answers, from the expansion's prediction.
+
+Batches: ``auto_batch``.
 
 Costs are measured once per process and parameter set, when the first 'auto' solver with a
 budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
@@ -50,7 +54,7 @@ import numpy as np
 from . import auto_batch
 from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, OUTSIDE, TRUSTED
 from .validation import box_half_widths as validation_half_widths
-from .validation import box_scale, box_scales, frame_errors
+from .validation import box_scale, frame_errors
 from .._linalg import norm
 from ..batch import BatchResult
 from ..result import FRAME_NAMES, SolveResult
@@ -98,7 +102,6 @@ EXPANSION_MARGIN = 1.0
 
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
-
 
 
 def validated_curvature(validation) -> np.ndarray:
