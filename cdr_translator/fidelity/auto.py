@@ -30,9 +30,10 @@ The candidates, tried in this order:
   answer instead, less a linear answer's) against the cost of two full solves after a
   long step (at the expansion and at its first check) and the expansion. The first
   expansion, with no served offsets to go by, is made where it may serve
-  MIN_EXPANSION_REUSE answers inside the validated offset box and the largest trust region
-  it may open (MAX_RADIUS_GROWTH times that box) would pay: it is how the reach is
-  learned. At a budget so tight, or wrench steps so large, that no expansion pays, the
+  MIN_EXPANSION_REUSE answers inside the validated offset box and, in place of full
+  answers, the largest trust region it may open (MAX_RADIUS_GROWTH times that box) would
+  pay: it is how the reach is learned; in place of a reduced level, the validated box must
+  pay. At a budget so tight, or wrench steps so large, that no expansion pays, the
   answers are plain full solves. A full solve one wrench step after the last full answer
   starts from that; after other answers, from the expansion's prediction.
 
@@ -418,10 +419,12 @@ class AutoFidelity:
         # two full solves after a long step (at the expansion and at its first check)
         pays = EXPANSION_MARGIN * (2.0 * self.costs['full'] + self.costs['expansion'])
         if not self._reaches_served:  # the first expansion: learn what one serves
-            validated = self.radius(validated_curvature(self.solver.validation))
-            # made to learn the reach if the largest trust radius it may open would pay
-            return ((validated / steps >= MIN_EXPANSION_REUSE)
-                    & (MAX_RADIUS_GROWTH * validated / steps * saving > pays))
+            reuse = self.radius(validated_curvature(self.solver.validation)) / steps
+            # instead of full solves it is made to learn the reach if the largest trust
+            # region it may open would pay; instead of a reduced level, which answers
+            # without one, only if the validated one pays
+            growth = MAX_RADIUS_GROWTH if alternative is None else 1.0
+            return (reuse >= MIN_EXPANSION_REUSE) & (growth * reuse * saving > pays)
         reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
         return (reuse >= MIN_EXPANSION_REUSE) & (reuse * saving > pays)
 
