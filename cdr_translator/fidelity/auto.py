@@ -134,6 +134,7 @@ class AutoFidelity:
         self._origin_inside = False  # and whether it lies inside the validated box
         self._target = LINEAR_TARGET * self.budget  # (m, deg) a linear answer may use ...
         self._target_for = (solver.max_position_error, solver.max_angle_error_deg)  # ... here
+        self._validated_radius: Tuple[tuple, float] = ((), math.nan)  # (budget, radius)
         self.reset()
 
     def measure_costs(self) -> None:
@@ -406,27 +407,38 @@ class AutoFidelity:
         last = self.solver._last_wrench
         if last is None or box_scale(wrench) > 1.0:
             return False
-        return bool(self.expansion_pays_at(np.array([box_scale(wrench - last)]),
-                                           alternative)[0])
+        reach, growth, saving, pays = self._expansion_terms(alternative)
+        if saving <= 0.0:
+            return False
+        reuse = reach / max(box_scale(wrench - last), 1e-12)
+        return reuse >= MIN_EXPANSION_REUSE and growth * reuse * saving > pays
 
     def expansion_pays_at(self, steps: np.ndarray, alternative: Optional[float]) -> np.ndarray:
         """``_expansion_pays`` for wrenches inside the box that come after ``steps`` (scales)."""
-        cost = self.costs['full step'] if alternative is None else alternative
-        saving = cost - self.costs['linear']
+        reach, growth, saving, pays = self._expansion_terms(alternative)
         if saving <= 0.0:
             return np.zeros(len(steps), bool)
-        steps = np.maximum(steps, 1e-12)
+        reuse = reach / np.maximum(steps, 1e-12)
+        return (reuse >= MIN_EXPANSION_REUSE) & (growth * reuse * saving > pays)
+
+    def _expansion_terms(self, alternative: Optional[float]
+                         ) -> Tuple[float, float, float, float]:
+        """(Offset an expansion may serve, its growth, saving per answer, cost to beat)."""
+        cost = self.costs['full step'] if alternative is None else alternative
+        saving = cost - self.costs['linear']
         # two full solves after a long step (at the expansion and at its first check)
         pays = EXPANSION_MARGIN * (2.0 * self.costs['full'] + self.costs['expansion'])
-        if not self._reaches_served:  # the first expansion: learn what one serves
-            reuse = self.radius(validated_curvature(self.solver.validation)) / steps
-            # instead of full solves it is made to learn the reach if the largest trust
-            # region it may open would pay; instead of a reduced level, which answers
-            # without one, only if the validated one pays
-            growth = MAX_RADIUS_GROWTH if alternative is None else 1.0
-            return (reuse >= MIN_EXPANSION_REUSE) & (growth * reuse * saving > pays)
-        reuse = sum(self._reaches_served) / len(self._reaches_served) / steps
-        return (reuse >= MIN_EXPANSION_REUSE) & (reuse * saving > pays)
+        if self._reaches_served:
+            return sum(self._reaches_served) / len(self._reaches_served), 1.0, saving, pays
+        # the first expansion, to learn what one serves: in place of full solves if the
+        # largest trust region it may open pays, of a reduced level if the validated one does
+        key = (self.solver.max_position_error, self.solver.max_angle_error_deg,
+               id(self.solver.validation))
+        if self._validated_radius[0] != key:
+            self._validated_radius = (key, self.radius(
+                validated_curvature(self.solver.validation)))
+        growth = MAX_RADIUS_GROWTH if alternative is None else 1.0
+        return self._validated_radius[1], growth, saving, pays
 
     def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
               reason: str) -> SolveResult:

@@ -130,3 +130,24 @@ def test_batch_equals_single_solves_with_checks(params):
     assert batch.fidelity.tolist() == [result.fidelity for result in results]
     assert_rows_equal(batch, results)
     assert batched.auto.counts['checks'] == single.auto.counts['checks'] > 0
+
+
+@pytest.mark.parametrize('budget, levels', [((1e-5, 0.01), {'full'}), ((1e-2, 3.0), {'cc'})])
+def test_batch_equals_single_solves_in_runs(params, budget, levels):
+    """
+    Rows run at full (a tight budget) or at one reduced level (a wide one) in a batch.
+
+    Each run is one call of that level's batch path; the rows still equal single solves,
+    and the solver is left as they leave it.
+    """
+    forces, moments = sequence(60)
+    single, batched = (FidelitySolver(params, max_position_error=budget[0],
+                                      max_angle_error_deg=budget[1]) for _ in range(2))
+    results = [single.solve(force, moment) for force, moment in zip(forces, moments)]
+    batch = batched.solve_many(forces, moments)
+    assert set(batch.fidelity.tolist()) == levels
+    assert batch.fidelity.tolist() == [result.fidelity for result in results]
+    assert_rows_equal(batch, results)
+    assert batched._last_level == single._last_level
+    assert np.array_equal(batched._last_wrench, single._last_wrench)
+    assert batched.auto.counts == single.auto.counts
