@@ -213,12 +213,12 @@ class McapLog:
     # writing with failures as events ---------------------------------------------------------
     def _guarded(self, method: str, *arguments: Any) -> bool:
         """
-        Call the writer's ``method`` with ``arguments``; on OSError cut the file back and
-        count the loss.
+        Call the writer's ``method`` with ``arguments``; on OSError cut the file back.
 
-        Whatever reaches the file ends with complete records; when the file grew, every
-        accepted message is in a complete chunk on disk (metadata is written only after a
-        flush). Returns whether the action succeeded (caller holds the lock).
+        The records lost are counted. Whatever reaches the file ends with complete records;
+        when the file grew, every accepted message is in a complete chunk on disk (metadata
+        is written only after a flush). Returns whether the call succeeded (caller holds
+        the lock).
         """
         if self._writer is None or self._sink is None:
             return False
