@@ -194,6 +194,11 @@ class McapLog:
         with self._lock:
             return dict(self._sequences)
 
+    @property
+    def ok(self) -> bool:
+        """Whether writing works: ``status().ok`` without building the status."""
+        return not self._failing
+
     def status(self) -> LogStatus:
         """Return what has been written and lost so far, and whether writing works."""
         with self._lock:
@@ -206,18 +211,19 @@ class McapLog:
                          errors=self._errors, message=self._message)
 
     # writing with failures as events ---------------------------------------------------------
-    def _guarded(self, action: Callable[[Writer], Any]) -> bool:
+    def _guarded(self, method: str, *arguments: Any) -> bool:
         """
-        Run ``action(writer)``; on OSError cut the file back and count the loss.
+        Call the writer's ``method`` with ``arguments``; on OSError cut the file back.
 
-        Whatever reaches the file ends with complete records; when the file grew, every
-        accepted message is in a complete chunk on disk (metadata is written only after a
-        flush). Returns whether the action succeeded (caller holds the lock).
+        The records lost are counted. Whatever reaches the file ends with complete records;
+        when the file grew, every accepted message is in a complete chunk on disk (metadata
+        is written only after a flush). Returns whether the call succeeded (caller holds
+        the lock).
         """
         if self._writer is None or self._sink is None:
             return False
         try:
-            action(self._writer)
+            getattr(self._writer, method)(*arguments)
         except OSError as error:
             self._fail(error)
             return False
@@ -390,16 +396,17 @@ class McapLog:
         with self._lock:
             self._check_open()
             self._resume()
-            channel_id = self._register_guarded(topic, type_name, 'reliable')
+            channel = (self._channels.get(topic)   # a registered topic: no checks again
+                       if self._writer is not None else None)
+            channel_id = (channel[0] if channel is not None and channel[1] == type_name
+                          else self._register_guarded(topic, type_name, 'reliable'))
             self._sequences[topic] += 1
             if channel_id is None:
                 self._lost += 1
                 return
-            sequence = self._sequences[topic] & 0xFFFFFFFF
             self._pending += 1
-            if not self._guarded(lambda writer: writer.add_message(
-                    channel_id, log_time=log_time, data=bytes(data),
-                    publish_time=publish_time, sequence=sequence)):
+            if not self._guarded('add_message', channel_id, log_time, bytes(data),
+                                 publish_time, self._sequences[topic] & 0xFFFFFFFF):
                 return
             self._unflushed += 1
             if self._flush_every_messages and self._unflushed >= self._flush_every_messages:
@@ -413,11 +420,11 @@ class McapLog:
             self._metadata.append(record)   # repeated in a file started after an error
             self._resume()
             self._flush_locked()   # so that a grown file means the messages are on disk
-            self._guarded(lambda writer: writer.add_metadata(*record))
+            self._guarded('add_metadata', *record)
 
     def _flush_locked(self) -> None:
         """Finish the chunk in progress and push it to the file (caller holds the lock)."""
-        self._guarded(lambda writer: writer.flush())
+        self._guarded('flush')
         self._unflushed = 0
 
     def flush(self) -> None:
@@ -454,7 +461,7 @@ class McapLog:
             self._closed = True
             if self._writer is not None:
                 self._flush_locked()
-            if self._writer is not None and self._guarded(lambda writer: writer.finish()):
+            if self._writer is not None and self._guarded('finish'):
                 assert self._fd is not None
                 os.close(self._fd)
                 self._fd = self._sink = self._writer = None

@@ -223,7 +223,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                                                 stamp_ns, outcome))
                     if bar:
                         bar.update(summary.messages)
-                    if not log.status().ok:
+                    if not log.ok:
                         summary.output_error = f'output MCAP: {log.status().message}'
                         break
             except KeyboardInterrupt:
@@ -231,6 +231,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             except OSError as error:   # the CSV (the MCAP writer reports through its status)
                 summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
+            summary.settle()
             summary.output_status = log.close()
             if csv_file:
                 try:

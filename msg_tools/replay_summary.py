@@ -19,6 +19,11 @@ from msg_tools.log_status import LogStatus
 from msg_tools.reader import ReadReport
 import numpy as np
 
+#: Converged messages whose joint angles and position are counted together, as one block
+#: of arrays (``ReplaySummary.settle``): per message the numpy calls cost more than a solve's
+#: Python.
+SETTLE_EVERY = 256
+
 #: Exit codes of ``python -m msg_tools replay`` (docs/replay.md).
 EXIT_OK = 0
 EXIT_DAMAGED_INPUT = 1
@@ -166,6 +171,8 @@ class ReplaySummary:
     total: Optional[int] = None
     #: Header stamp (ns) of the first converged message: time zero of ``series``.
     first_stamp_ns: Optional[int] = None
+    #: Joint angles and positions of converged messages not counted yet (``settle``).
+    pending: List[List[float]] = field(default_factory=list, repr=False)
 
     @property
     def stopped_early(self) -> bool:
@@ -192,9 +199,24 @@ class ReplaySummary:
             self.warnings_dropped += 1
 
     def converged(self, joints: List[float], position: List[float]) -> None:
-        """Count a converged message's joint angles (rad); widen the position (m) range."""
-        self.joints.add(joints)
-        self.converged_range(np.atleast_2d(position))
+        """
+        Count a converged message's joint angles (rad); widen the position (m) range.
+
+        Counted by blocks of ``SETTLE_EVERY``: ``settle`` counts the rest (the replay does
+        when it ends, ``merge`` and ``table`` before they read).
+        """
+        self.pending.append(joints + position)
+        if len(self.pending) >= SETTLE_EVERY:
+            self.settle()
+
+    def settle(self) -> None:
+        """Count the pending converged messages in ``joints`` and ``position_range``."""
+        if not self.pending:
+            return
+        block = np.array(self.pending, dtype=float)
+        self.pending.clear()
+        self.joints.add(block[:, :-3])
+        self.converged_range(block[:, -3:])
 
     def merge(self, later: 'ReplaySummary') -> None:
         """
@@ -203,6 +225,8 @@ class ReplaySummary:
         Counts add, statistics combine, warnings append up to ``WARNING_LIMIT``; the read
         report becomes ``later``'s (each window reads the whole input).
         """
+        self.settle()
+        later.settle()
         for name in ('messages', 'solved', 'not_converged', 'rejected', 'undecodable',
                      'warnings_dropped', 'poses', 'estimated'):
             setattr(self, name, getattr(self, name) + getattr(later, name))
@@ -243,6 +267,7 @@ class ReplaySummary:
 
     def table(self) -> str:
         """Return the summary table printed at the end of a replay."""
+        self.settle()
         read = self.input_report.describe()
         if self.stopped_early:
             read += ' up to where the replay stopped'
