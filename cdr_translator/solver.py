@@ -20,7 +20,7 @@ estimation.py (the wrench from a measured pose).
 from contextlib import nullcontext
 import math
 import time
-from typing import Optional, Tuple
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -235,7 +235,6 @@ class TranslatorSolver:
         return given_unknowns.result_at(self, xs, check_wrench(wrench[:3], wrench[3:]),
                                         factorization)
 
-    @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
@@ -253,6 +252,27 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
+        if warm_start and not (compliance or verify) and self._refinements.kept is None:
+            # a usual warm row in one compiled call (no BLAS in it: no thread limit to
+            # set); else the warm step it took is where the general solve's goes on from
+            usual, undo = self._usual_solve(wrench, started)
+            if usual is not None:
+                return usual
+            if undo is not None:
+                try:
+                    return self._solve(wrench, started, warm_start, compliance, verify,
+                                       compliance_options)
+                finally:  # a solve that did not go on from the step: as if never taken
+                    if self._state.handed_over is not None:
+                        undo()
+                    self._state.handed_over = None
+        return self._solve(wrench, started, warm_start, compliance, verify,
+                           compliance_options)
+
+    @one_blas_thread
+    def _solve(self, wrench: np.ndarray, started: float, warm_start: bool, compliance: bool,
+               verify: bool, compliance_options: dict) -> SolveResult:
+        """Solve at ``wrench`` by the general path (``solve``), BLAS on one thread."""
         refinements = self._refinements
         if refinements.kept is not None and not warm_start:
             refinements.kept = None  # a cold solve starts over at this solver's steps
@@ -438,6 +458,11 @@ class TranslatorSolver:
     def _solve_newton(self, wrench: np.ndarray, warm_start: bool, deadline: float) -> Outcome:
         """Continue to ``wrench`` with Newton as the corrector (the stable-branch search)."""
         return self._continuation(wrench, warm_start, deadline, self._newton)
+
+    def _usual_solve(self, wrench: np.ndarray, started: float
+                     ) -> Tuple[Optional[SolveResult], Optional[Callable[[], None]]]:
+        """Solve a usual warm row in one compiled call (lean_rows.usual_solve)."""
+        return lean_rows.usual_solve(self, wrench, started)
 
     def _warm_step(self, wrench: np.ndarray, deadline: float) -> Tuple[Optional[Outcome], int]:
         """Solve the usual warm case in one compiled call (continuation.warm_step)."""
