@@ -123,6 +123,25 @@ def usual_run(solver: 'TranslatorSolver', wrenches: np.ndarray) -> Optional[Run]
     return run
 
 
+def solve_warm(solver: 'TranslatorSolver', wrench: np.ndarray, started: float,
+               compliance_options: dict) -> SolveResult:
+    """
+    Return ``solver.solve``'s warm result at ``wrench`` (no compliance, no verification).
+
+    A usual warm row is one compiled call (``usual_solve``, the batch's row; no BLAS in it,
+    so no thread limit to set); any other goes on from the warm step that call took.
+    """
+    usual, undo = solver._usual_solve(wrench, started)
+    if usual is not None:
+        return usual
+    try:
+        return solver._solve(wrench, started, True, False, False, compliance_options)
+    finally:
+        if undo is not None and solver._state.handed_over is not None:
+            undo()  # the solve did not go on from the step: as if never taken
+        solver._state.handed_over = None
+
+
 def usual_solve(solver: 'TranslatorSolver', wrench: np.ndarray, started: float
                 ) -> Tuple[Optional[SolveResult], Optional[Callable[[], None]]]:
     """
