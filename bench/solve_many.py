@@ -20,11 +20,11 @@ from pathlib import Path
 import platform
 import statistics
 import time
-from typing import Any, Dict, Iterator, List
+from typing import Any, Callable, Dict, Iterator, List
 
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams
-from cdr_translator import warm_step
+from cdr_translator import warm_rows, warm_step
 from cdr_translator.fidelity import FidelitySolver, reduced
 from cdr_translator.fidelity.linear import TangentModel
 import numpy as np
@@ -38,29 +38,35 @@ LEVELS: Dict[str, Dict[str, Any]] = {
     'linear': {'fidelity': 'linear'},
     'auto': {'fidelity': 'auto', 'max_position_error': 1e-3, 'max_angle_error_deg': 0.5}}
 
-#: Where each level's kernel lives: (object, attribute) timed while the sequence runs.
-KERNELS = {'full': (warm_step, '_warm_step'), 'cc': (reduced.newton, 'continue_to'),
-           'rod': (reduced.newton, 'continue_to'), 'linear': (TangentModel, 'frames')}
+#: Where each level's kernels live: (object, attribute) pairs timed while the sequence runs
+#: (the full model's usual warm row is the batch's compiled row, any other its warm step).
+KERNELS = {'full': ((warm_rows, '_warm_rows'), (warm_step, '_warm_step')),
+           'cc': ((reduced.newton, 'continue_to'),), 'rod': ((reduced.newton, 'continue_to'),),
+           'linear': ((TangentModel, 'frames'),)}
 
 
 @contextmanager
 def timed_kernel(level: str, spent: List[float]) -> Iterator[None]:
-    """Add the time of each call of ``level``'s kernel to ``spent[0]`` while inside."""
-    owner, name = KERNELS[level]
-    kernel = getattr(owner, name)
+    """Add the time of each call of ``level``'s kernels to ``spent[0]`` while inside."""
+    kernels = [(owner, name, getattr(owner, name)) for owner, name in KERNELS[level]]
 
-    def timed(*args, **kwargs):
-        started = time.perf_counter()
-        try:
-            return kernel(*args, **kwargs)
-        finally:
-            spent[0] += time.perf_counter() - started
+    def timing(kernel: Callable) -> Callable:
+        """Return ``kernel`` adding its time to ``spent[0]``."""
+        def timed(*args, **kwargs):
+            started = time.perf_counter()
+            try:
+                return kernel(*args, **kwargs)
+            finally:
+                spent[0] += time.perf_counter() - started
+        return timed
 
-    setattr(owner, name, timed)
+    for owner, name, kernel in kernels:
+        setattr(owner, name, timing(kernel))
     try:
         yield
     finally:
-        setattr(owner, name, kernel)
+        for owner, name, kernel in kernels:
+            setattr(owner, name, kernel)
 
 
 def per_answer(params: TranslatorParams, options: dict, wrenches: np.ndarray,

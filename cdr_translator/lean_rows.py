@@ -17,15 +17,18 @@ from typing import Callable, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
+from ._linalg import residual_norm
 from .accuracy import ErrorEstimate, meets
 from .batch import BatchResult
 from .branch import LOAD_FLOOR, RECHECK_MARGIN, STALE_WRENCH
 from .compliance import compliance_analysis, ComplianceAnalysis
 from .continuation import warm_settings
 from .correctors import Outcome
+from .result import SolveResult
 from .stability import load_scale
 from .warm_rows import Checks, DJ, ERROR_DEG, ERROR_M, ERROR_RAD, PJ, POSITION, QUATERNION
-from .warm_rows import warm_rows
+from .warm_rows import Run, warm_rows
+from .warm_step import residual_by_kind
 
 if TYPE_CHECKING:
     from .solver import TranslatorSolver
@@ -60,13 +63,35 @@ def solve_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
 def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndarray,
                rows: range) -> Tuple[int, Optional[Callable[[], None]]]:
     """
-    Solve the usual warm rows at the head of ``rows`` in one compiled call.
+    Solve the usual warm rows at the head of ``rows`` in one compiled call (``usual_run``).
 
     Returns how many, and the ``warm_rows.Run.undo`` of the warm step handed to the next
-    row's solve (``PathState.handed_over``). None (0) when the solver's state is not that
-    of a usual warm row: a fast, judged solver on the default path, not at kept refined
-    steps, with a stored factorization whose stable verdict (margin at least
-    branch.RECHECK_MARGIN) the next solve would keep.
+    row's solve (``PathState.handed_over``); (0, None) when the solver's state is not that
+    of a usual warm row.
+    """
+    started = time.perf_counter()
+    run = usual_run(solver, wrenches[rows.start:rows.stop])
+    if run is None or run.rows == 0:
+        return 0, None if run is None else run.undo
+    answers = run.answers
+    batch.record_poses(slice(rows.start, rows.start + run.rows),
+                       answers[:, POSITION:QUATERNION + 4],
+                       answers[:, [PJ, PJ + 1, DJ, DJ + 1]], 'full',
+                       (time.perf_counter() - started) / run.rows, stable=True,
+                       estimate=answers[:, [ERROR_M, ERROR_DEG]])
+    return run.rows, run.undo
+
+
+def usual_run(solver: 'TranslatorSolver', wrenches: np.ndarray) -> Optional[Run]:
+    """
+    Solve the usual warm rows at the head of ``wrenches`` (n, 6) in one compiled call.
+
+    The solver is left as that many ``solve`` calls leave it; the warm step taken at the
+    row that stopped the run is handed to that row's solve (``PathState.handed_over``).
+    None (nothing done) when the solver's state is not that of a usual warm row: a fast,
+    judged solver on the default path, not at kept refined steps, with a stored
+    factorization whose stable verdict (margin at least branch.RECHECK_MARGIN) the next
+    solve would keep.
     """
     state, verdicts, problem = solver._state, solver._verdicts, solver.problem
     verdict, previous, pose = verdicts.verdict, state.previous, state.pose
@@ -75,20 +100,19 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
             or pose[0] is None or previous is None or verdicts.origin is None
             or not solver.judge or solver.method != 'fast' or solver.path != 'default'
             or solver._refinements.kept is not None):
-        return 0, None
-    started = time.perf_counter()
+        return None
     count = state.path_count if state.path_last is previous[0] else 0
     target = solver.accuracy
     checks = Checks(pose[1], verdicts.origin.length, LOAD_FLOOR * load_scale(verdicts.origin),
                     min(STALE_WRENCH, 0.5 * verdict.margin), target.position_m,
                     target.angle_deg)
     run = warm_rows(problem, previous, (state.path_xs, state.path_wrenches, count),
-                    wrenches[rows.start:rows.stop], state.lu, pose[0],
+                    wrenches, state.lu, pose[0],
                     warm_settings(state, solver.tolerance, solver.max_iterations, True), checks)
     if run.stopped_at is not None:  # the solve of the row that stopped it goes on from there
-        state.handed_over = (wrenches[rows.start + run.rows], *run.stopped_at)
+        state.handed_over = (wrenches[run.rows], *run.stopped_at)
     if run.rows == 0:
-        return 0, run.undo
+        return run
     state.previous = run.previous
     state.path_count, state.path_last = run.path_count, run.previous[0]
     state.exact_at = None
@@ -96,13 +120,54 @@ def usual_rows(solver: 'TranslatorSolver', batch: BatchResult, wrenches: np.ndar
     solver._refinements.last_estimate = ErrorEstimate(
         float(last[ERROR_M]), float(last[ERROR_RAD]), problem.params.steps_per_segment,
         run.coarse_steps)
-    answers = run.answers
-    batch.record_poses(slice(rows.start, rows.start + run.rows),
-                       answers[:, POSITION:QUATERNION + 4],
-                       answers[:, [PJ, PJ + 1, DJ, DJ + 1]], 'full',
-                       (time.perf_counter() - started) / run.rows, stable=True,
-                       estimate=answers[:, [ERROR_M, ERROR_DEG]])
-    return run.rows, run.undo
+    return run
+
+
+def solve_warm(solver: 'TranslatorSolver', wrench: np.ndarray, started: float,
+               compliance_options: dict) -> SolveResult:
+    """
+    Return ``solver.solve``'s warm result at ``wrench`` (no compliance, no verification).
+
+    A usual warm row is one compiled call (``usual_solve``, the batch's row; no BLAS in it,
+    so no thread limit to set); any other goes on from the warm step that call took.
+    """
+    usual, undo = solver._usual_solve(wrench, started)
+    if usual is not None:
+        return usual
+    try:
+        return solver._solve(wrench, started, True, False, False, compliance_options)
+    finally:
+        if undo is not None and solver._state.handed_over is not None:
+            undo()  # the solve did not go on from the step: as if never taken
+        solver._state.handed_over = None
+
+
+def usual_solve(solver: 'TranslatorSolver', wrench: np.ndarray, started: float
+                ) -> Tuple[Optional[SolveResult], Optional[Callable[[], None]]]:
+    """
+    Return ``solver.solve``'s result at ``wrench`` when it is a usual warm row.
+
+    The row is one compiled call (``usual_run``); its result is the one the whole solve
+    gives (the same step, kept verdict and estimate). Else (None, undo): the general
+    solve goes on from the warm step taken (``PathState.handed_over``), and ``undo``
+    (when a step was taken) puts the Broyden updates back if that solve does not.
+    """
+    run = usual_run(solver, wrench.reshape(1, 6))
+    if run is None or run.rows == 0:
+        return None, None if run is None else run.undo
+    problem = solver.problem
+    iterations, slot, residual, report = run.last_step
+    points, frames = problem.recorded_shape(slot)
+    verdict, estimate = solver._verdicts.verdict, solver._refinements.last_estimate
+    assert verdict is not None and estimate is not None  # usual_run's conditions
+    return SolveResult(
+        True, 'converged', iterations, residual_norm(residual), residual_by_kind(report),
+        wrench[:3].copy(), wrench[3:].copy(),
+        {'pe': frames[0], 'pm': frames[1], 'dm': frames[2], 'de': frames[3]}, points,
+        time.perf_counter() - started, solver.method, run.previous[0] * problem.x_scale,
+        stable=verdict.stable, stability_margin=verdict.margin,
+        error_estimate_m=estimate.position_m, error_estimate_deg=estimate.angle_deg,
+        accuracy_met=True, steps_per_segment=problem.params.steps_per_segment), None
 
 
 def solve_row(solver: 'TranslatorSolver', batch: BatchResult, row: int, wrench: np.ndarray,

@@ -18,6 +18,7 @@ estimation.py (the wrench from a measured pose).
 """
 
 from contextlib import nullcontext
+from functools import partial
 import math
 import time
 from typing import Optional, Tuple
@@ -235,7 +236,6 @@ class TranslatorSolver:
         return given_unknowns.result_at(self, xs, check_wrench(wrench[:3], wrench[3:]),
                                         factorization)
 
-    @one_blas_thread
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
               **compliance_options: float) -> SolveResult:
@@ -253,6 +253,15 @@ class TranslatorSolver:
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
+        if warm_start and not (compliance or verify) and self._refinements.kept is None:
+            return lean_rows.solve_warm(self, wrench, started, compliance_options)
+        return self._solve(wrench, started, warm_start, compliance, verify,
+                           compliance_options)
+
+    @one_blas_thread
+    def _solve(self, wrench: np.ndarray, started: float, warm_start: bool, compliance: bool,
+               verify: bool, compliance_options: dict) -> SolveResult:
+        """Solve at ``wrench`` by the general path (``solve``), BLAS on one thread."""
         refinements = self._refinements
         if refinements.kept is not None and not warm_start:
             refinements.kept = None  # a cold solve starts over at this solver's steps
@@ -290,12 +299,9 @@ class TranslatorSolver:
         """
         Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
-        The rows equal N consecutive ``solve`` calls (warm-started along the sequence): a
-        run of usual warm rows is one compiled loop (warm step, kept verdict, estimate,
-        pose columns: lean_rows.solve_rows) without a SolveResult; other rows
-        (refinement, continuation, failures) go through the whole solve. A row that fails
-        is flagged (``converged`` False, ``message``), never raised; InputError (a
-        ValueError) names a bad input row.
+        The rows equal N consecutive ``solve`` calls (runs of usual warm rows: one compiled
+        loop, lean_rows.solve_rows). A failing row is flagged (``converged`` False,
+        ``message``), never raised; InputError (a ValueError) names a bad input row.
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
@@ -361,8 +367,9 @@ class TranslatorSolver:
         if verdict is not None:
             if (not verdict.stable and self.follow_stable_branch
                     and time.perf_counter() < deadline):
-                stable, verdict = branch.follow_stable_branch(
-                    state, self.params.stack_height, self._solve_newton, self._stability,
+                stable, verdict = branch.follow_stable_branch(  # Newton as the corrector
+                    state, self.params.stack_height,
+                    partial(self._continuation, corrector=self._newton), self._stability,
                     outcome, verdict, wrench, deadline)
                 if stable is not outcome:
                     outcome, result = stable, stable.result(self.problem, wrench, self.method)
@@ -435,9 +442,9 @@ class TranslatorSolver:
             self.problem, self._state, self._limits(), self.max_iterations, wrench,
             warm_start, deadline, corrector, self._lifted_newton if lifting else None)
 
-    def _solve_newton(self, wrench: np.ndarray, warm_start: bool, deadline: float) -> Outcome:
-        """Continue to ``wrench`` with Newton as the corrector (the stable-branch search)."""
-        return self._continuation(wrench, warm_start, deadline, self._newton)
+    def _usual_solve(self, wrench: np.ndarray, started: float) -> tuple:
+        """Solve a usual warm row in one compiled call (lean_rows.usual_solve)."""
+        return lean_rows.usual_solve(self, wrench, started)
 
     def _warm_step(self, wrench: np.ndarray, deadline: float) -> Tuple[Optional[Outcome], int]:
         """Solve the usual warm case in one compiled call (continuation.warm_step)."""

@@ -190,6 +190,9 @@ class Run(NamedTuple):
     #: puts the Broyden updates back as they were before that step, for a solve of the row
     #: that does not go on from it (None with ``stopped_at``)
     undo: Optional[Callable[[], None]]
+    #: the last warm step taken (that of the last row solved when no row stopped the run):
+    #: its iterations, shape slot, residual and ``warm_step`` report
+    last_step: Tuple[int, int, np.ndarray, np.ndarray]
 
 
 def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
@@ -244,4 +247,5 @@ def warm_rows(problem: Problem, previous: Tuple[np.ndarray, np.ndarray],
     else:
         problem.keep_secant_count(lu, before)
     return Run(done, out[:done], (last[0], last[1, :6].copy()), int(counts[_PATH_COUNT]),
-               int(counts[_OTHER]), stopped_at, undo)
+               int(counts[_OTHER]), stopped_at, undo,
+               (int(counts[_STEP_ITERATIONS]), int(counts[_STEP_SLOT]), state[1], report))

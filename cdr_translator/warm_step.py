@@ -153,6 +153,11 @@ def described(problem: Problem, status: int, done: int, slot: int, report: np.nd
     return WarmStep(int(status), int(done), int(slot), values[_NORM], estimate, by_kind)
 
 
+def residual_by_kind(report: np.ndarray) -> dict:
+    """Return the largest residual of each of RESIDUAL_KINDS (SI) a converged step reported."""
+    return dict(zip(RESIDUAL_KINDS, report[_BY_KIND:].tolist()))
+
+
 def settings_array(tolerance: float, max_iterations: int, chord_rate: float,
                    miss_limit: float, reach: float, estimate: bool = True) -> np.ndarray:
     """

@@ -77,13 +77,19 @@ def test_solver_results_match_the_general_path(params, noise):
     fused, general = TranslatorSolver(params), TranslatorSolver(params)
     calls = []
     general._warm_step = lambda wrench, deadline: (None, 0)
-    fused_step = fused._warm_step
+    general._usual_solve = lambda wrench, started: (None, None)
+    fused_step, fused_usual = fused._warm_step, fused._usual_solve
 
     def counted(wrench, deadline):
         outcome, spent = fused_step(wrench, deadline)
         calls.append(outcome is not None)
         return outcome, spent
-    fused._warm_step = counted
+
+    def counted_usual(wrench, started):
+        result, undo = fused_usual(wrench, started)
+        calls.append(result is not None)
+        return result, undo
+    fused._warm_step, fused._usual_solve = counted, counted_usual
     rng = np.random.default_rng(11)
     for t in np.linspace(0.0, 1.0, 40):
         wrench = np.array([10.0 + 4.0 * np.sin(3 * t), 3.0 * t, -2.0, 0.1 * t, 0.0, 0.05])
