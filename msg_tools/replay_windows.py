@@ -6,7 +6,8 @@ Replay a long recording on a Dask cluster: log-time windows solved in parallel, 
 Dask task, ``replay_window``: a whole ``replay.replay`` of the input restricted to that
 window, written into its own part (MCAP, and CSV when asked) in a temporary folder beside
 the output. This process merges the parts into the output in window order, so in log-time
-order, as they complete, and combines the windows' summaries (``ReplaySummary.merge``).
+order, each as soon as it and the ones before it are done (``part_merge``: records copied
+as stored), and combines the windows' summaries (``ReplaySummary.merge``).
 
 The cluster is the atlas's (``cdr_translator.robot.atlas.dask_client``): a LocalCluster of
 single-threaded worker processes that ignore Ctrl-C, or a running scheduler whose workers
@@ -14,7 +15,8 @@ can read the input and the output's folder (a shared file system). The output eq
 one-process replay within the solver's accuracy: a window's first solves start from the
 warm-up's state, not from the exact state the sequential replay reaches there. The
 per-topic counters of /diagnostics (received, solved, ...) count from the start of the
-input, as in a one-process replay: the merge adds the earlier windows' counts to them.
+input, as in a one-process replay: the merge adds the earlier windows' counts to them
+(``part_merge.continue_counters``).
 """
 
 import csv
@@ -22,7 +24,7 @@ from pathlib import Path
 import shutil
 import tempfile
 import time
-from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
+from typing import Any, Collection, IO, List, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.robot.atlas import dask_client
