@@ -26,7 +26,7 @@ import platform
 import sys
 import tempfile
 import time
-from typing import Callable, List, Tuple
+from typing import Callable, Dict, List, Tuple
 
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import node_solver
@@ -47,6 +47,13 @@ TARGET_RATES = {False: 10_000.0, True: 3_000.0}
 
 #: Timed repetitions of each one-process measure (the best counts).
 REPEATS = 3
+
+#: The kernel switch that shares CPU time between sessions rather than processes.
+AUTOGROUP_SWITCH = Path('/proc/sys/kernel/sched_autogroup_enabled')
+
+#: Rounds of the Dask measures, 1 and 2 workers in turn (the fastest of each counts), so a
+#: change in the shared machine's load does not fall on one worker count only.
+DASK_ROUNDS = 2
 
 
 def warm_worker(bag: str) -> int:
@@ -161,7 +168,8 @@ def report(rows: List[dict], count: int, compliance: bool, single: List[dict],
               f'({WINDOWS_PER_WORKER} per worker, at least {MIN_WINDOW_MESSAGES} messages '
               'each), each warmed up, replayed into its own part by one worker and merged '
               'here in order. Workers warmed up first; wall time from the submission to the '
-              'finished output. CPU time per message of the input: of each worker, and of '
+              f'finished output, the fastest of {DASK_ROUNDS} rounds of 1 and 2 workers in '
+              'turn. CPU time per message of the input: of each worker, and of '
               'this process (the merge and the Dask client); on cores of their own the '
               'wall time would follow the largest of them.', '',
               '| workers | messages | solved | wall time s | msg/s | worker CPU us/msg '
@@ -173,8 +181,28 @@ def report(rows: List[dict], count: int, compliance: bool, single: List[dict],
               f'{row["merge_cpu_us"]:.0f} |' for row in rows]
     verdict = 'met' if ratio >= TARGET_RATIO else 'missed'
     lines += ['', f'2 workers against 1: **{ratio:.2f}x** (target >= {TARGET_RATIO}x: '
-              f'{verdict}).', '']
+              f'{verdict}).', '',
+              'From the CPU times alone, on the two cores free of other work (the wall time '
+              "per message at least the largest process's CPU time and half of all of it): "
+              f'{projected_us(rows[0]) / projected_us(rows[1]):.2f}x.'
+              + (' The kernel here shares the cores between sessions first (autogroups), '
+                 "then between a session's processes: a second worker gets CPU only where "
+                 'the other sessions leave some.' if autogroups() else ''), '']
     return '\n'.join(lines)
+
+
+def autogroups() -> bool:
+    """Tell whether the kernel schedules sessions as groups (sched_autogroup_enabled)."""
+    try:
+        return AUTOGROUP_SWITCH.read_text().strip() == '1'
+    except OSError:
+        return False
+
+
+def projected_us(row: dict) -> float:
+    """Return the wall time per message (us) of ``row``'s CPU times on 2 free cores."""
+    spent = [*row['worker_cpu_us'], row['merge_cpu_us']]
+    return max(max(spent), sum(spent) / 2)
 
 
 def main() -> int:
@@ -203,10 +231,15 @@ def main() -> int:
         synth.write_wrenches(bag, synth.generate('random-walk', count=args.count,
                                                  rate_hz=1000.0, force=(20.0, 5.0, 0.0)))
         synth.write_wrenches(warm_bag, synth.generate('ramp', count=20))
-        for workers in (1, 2):
-            rows.append(measure(bag, warm_bag, workers, not args.no_compliance, folder))
-            print(f'{workers} worker(s): {rows[-1]["rate"]:.0f} msg/s '
-                  f'({rows[-1]["wall_s"]:.2f} s)', flush=True)
+        best: Dict[int, dict] = {}
+        for _ in range(DASK_ROUNDS):
+            for workers in (1, 2):
+                row = measure(bag, warm_bag, workers, not args.no_compliance, folder)
+                print(f'{workers} worker(s): {row["rate"]:.0f} msg/s ({row["wall_s"]:.2f} s)',
+                      flush=True)
+                if workers not in best or row['rate'] > best[workers]['rate']:
+                    best[workers] = row
+        rows = [best[1], best[2]]
     print(f'ratio 2 / 1 workers: {rows[1]["rate"] / rows[0]["rate"]:.2f}x')
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'replay_scale.md').write_text(report(rows, args.count, not args.no_compliance,

@@ -6,7 +6,8 @@ Replay a long recording on a Dask cluster: log-time windows solved in parallel, 
 Dask task, ``replay_window``: a whole ``replay.replay`` of the input restricted to that
 window, written into its own part (MCAP, and CSV when asked) in a temporary folder beside
 the output. This process merges the parts into the output in window order, so in log-time
-order, as they complete, and combines the windows' summaries (``ReplaySummary.merge``).
+order, each as soon as it and the ones before it are done (``part_merge``: records copied
+as stored), and combines the windows' summaries (``ReplaySummary.merge``).
 
 The cluster is the atlas's (``cdr_translator.robot.atlas.dask_client``): a LocalCluster of
 single-threaded worker processes that ignore Ctrl-C, or a running scheduler whose workers
@@ -14,7 +15,8 @@ can read the input and the output's folder (a shared file system). The output eq
 one-process replay within the solver's accuracy: a window's first solves start from the
 warm-up's state, not from the exact state the sequential replay reaches there. The
 per-topic counters of /diagnostics (received, solved, ...) count from the start of the
-input, as in a one-process replay: the merge adds the earlier windows' counts to them.
+input, as in a one-process replay: the merge adds the earlier windows' counts to them
+(``part_merge.continue_counters``).
 """
 
 import csv
@@ -22,17 +24,18 @@ from pathlib import Path
 import shutil
 import tempfile
 import time
-from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
+from typing import Any, Collection, IO, List, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.robot.atlas import dask_client
-from msg_tools.cdr_codecs import decoder, encoder
+from msg_tools.cdr_codecs import encoder
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
 from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
-from msg_tools.reader import McapSource, RawMessage
+from msg_tools.part_merge import PartMerger
+from msg_tools.reader import McapSource
 from msg_tools.replay import CSV_COLUMNS, Progress, replay
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import select_topics
@@ -42,9 +45,6 @@ MIN_WINDOW_MESSAGES = 2000
 
 #: Windows per worker: a little slack to even out windows that solve slower.
 WINDOWS_PER_WORKER = 2
-
-#: The /diagnostics values that count messages since the start (WrenchProcessor.counts).
-COUNTERS = ('received', 'rejected', 'solved', 'not_converged', 'skipped')
 
 #: How often the wait for windows looks for a Ctrl-C (s).
 POLL_S = 0.05
@@ -74,49 +74,6 @@ def replay_window(input_path: str, part_path: str, csv_path: Optional[str],
                   compliance=compliance, backbones=backbones, csv_path=csv_path,
                   flush_every_messages=0, flush_every_s=0.0, plot_samples=plot_samples,
                   window=window)
-
-
-class PartMerger:
-    """Copies window parts into the output in order, continuing the diagnostics counters."""
-
-    def __init__(self, log: McapLog, table: Optional[IO[str]]) -> None:
-        """Merge into ``log`` and (rows without header) into the open CSV ``table``."""
-        self.log, self.table = log, table
-        #: Counters of each input topic at the end of the windows merged so far.
-        self.counts: Dict[str, Dict[str, int]] = {}
-
-    def merge(self, part: Path, csv_part: Optional[Path]) -> None:
-        """Append the records of ``part`` (and the rows of ``csv_part``)."""
-        offsets = {topic: dict(counts) for topic, counts in self.counts.items()}
-        topic = ''
-        for raw in McapSource(part, check_data_crc=False).messages():
-            if raw.schema_name == messages.WRENCH_TYPE:
-                topic = raw.topic
-            elif raw.schema_name == messages.DIAGNOSTIC_ARRAY_TYPE:
-                self._diagnostics(raw, offsets.get(topic, {}), topic)
-                continue
-            self.log.write_serialized(raw.topic, raw.schema_name, raw.data, raw.log_time_ns,
-                                      raw.publish_time_ns)
-        if csv_part is not None and self.table is not None:
-            with open(csv_part, newline='') as rows:
-                rows.readline()
-                shutil.copyfileobj(rows, self.table)
-
-    def _diagnostics(self, raw: RawMessage, offsets: Dict[str, int], topic: str) -> None:
-        """Write a diagnostics record, its counters continued from the earlier windows."""
-        message = decoder(messages.DIAGNOSTIC_ARRAY_TYPE)(raw.data)
-        counts = self.counts.setdefault(topic, {})
-        for value in message['status'][0]['values']:
-            if value['key'] in COUNTERS:
-                count = int(value['value']) + offsets.get(value['key'], 0)
-                value['value'] = str(count)
-                counts[value['key']] = count
-        if any(offsets.values()):
-            self.log.write(raw.topic, raw.schema_name, message, raw.log_time_ns,
-                           raw.publish_time_ns)
-        else:
-            self.log.write_serialized(raw.topic, raw.schema_name, raw.data, raw.log_time_ns,
-                                      raw.publish_time_ns)
 
 
 def _check_outputs(input_path: Union[str, Path],
