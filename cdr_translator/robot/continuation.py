@@ -3,10 +3,11 @@ The chain's continuation: from the previous solution to the requested sliders an
 
 Predictor-corrector, as the leg solver walks one translator along its load: each step
 predicts the solution (to first order with the stored factorization, by extrapolating a
-steadily followed path, or, along equal input steps from solutions linearized exactly, by
-the cubic Hermite polynomial through the last two solutions and their tangents) and the
-coupled Newton corrects it; a failed step is halved, a good one doubled. ``ChainContinuation`` keeps the path state between solves: the previous
-solution, the last factorization and the last solves' steps.
+steadily followed path, or, along equal input steps from solutions linearized exactly, from
+the tangents and curvatures of the solves before: robot/grid_predictor.py) and the coupled
+Newton corrects it; a failed step is halved, a good one doubled. ``ChainContinuation`` keeps
+the path state between solves: the previous solution, the last factorization and the last
+solves' steps.
 """
 
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ import numpy as np
 
 from .chain import ChainState, difference
 from .coupled_newton import CoupledNewton, Outcome
+from .grid_predictor import GridPredictor
 from .linearization import Factorization
 from ..continuation import MIN_CONTINUATION_STEP
 
@@ -37,10 +39,6 @@ EXTRAPOLATE_WITHIN = 0.5
 #: solves converge to about 1e-8, and its weights (sum 15, against 7) amplify that.
 PREDICTOR_DEGREE = 3
 
-#: Two input changes are the same step (the Hermite predictor applies) when they differ by
-#: at most this fraction of their size: grid steps from np.linspace differ by rounding.
-SAME_STEP = 1e-9
-
 #: A solve whose input change makes at most this fraction of the residual change of the
 #: path's last step refines that step's end rather than starting a step (``_recorded``).
 REFINEMENT = 0.01
@@ -56,15 +54,6 @@ class PathStep:
     step: np.ndarray  # end - start, flat and scaled (chain.difference)
 
 
-@dataclass
-class Tangent:
-    """The first-order step dx/du du at ``start`` from its exact factorization."""
-
-    start: ChainState
-    inputs_change: np.ndarray  # du (12)
-    step: np.ndarray  # flat and scaled, as CoupledNewton.correction gives it
-
-
 class ChainContinuation:
     """Walks the chain to new inputs with ``newton``, warm-started by the solves before."""
 
@@ -78,15 +67,15 @@ class ChainContinuation:
         #: the last (up to PREDICTOR_DEGREE) coupled solves' steps, latest last
         #: (extrapolate); emptied by a solve that is not one
         self.path: List[PathStep] = []
-        #: the last walk's tangent at its start, when it started at an exact factorization
-        self.tangent: Optional[Tangent] = None
+        #: the tangents of the solves that started at an exact factorization
+        self.grid = GridPredictor(newton.chain.x_scale)
 
     def reset(self) -> None:
         """Forget the previous solution, its factorization and the path."""
         self.previous = None
         self.factorization = None
         self.path = []
-        self.tangent = None
+        self.grid.reset()
 
     def walk(self, inputs: np.ndarray, coupled: bool) -> Outcome:
         """
@@ -117,17 +106,20 @@ class ChainContinuation:
             if factorization is not None:
                 sensitivity = first if done == 0.0 else chain.input_sensitivity(state, current)
                 change = sensitivity @ (goal - current)
-                predicted, hermite = None, False
+                predicted, along_grid = None, False
                 if coupled and target == 1.0 and done == 0.0:
-                    predicted = self.hermite(state, inputs - start, change, factorization)
-                    hermite = predicted is not None
-                    if not hermite:
+                    if factorization.state is state:  # exact there: its tangent is kept
+                        predicted = self.grid.predict(
+                            state, start, inputs - start,
+                            newton.correction(change, None, factorization, True))
+                    along_grid = predicted is not None
+                    if not along_grid:
                         predicted = self.extrapolate(state, inputs - start, first,
                                                      factorization)
                 if predicted is None:
                     predicted = newton.correction(change, None, factorization, coupled)
                 reach = float(np.abs(predicted).max())
-                if coupled and reach > PREDICTOR_REACH and not hermite:
+                if coupled and reach > PREDICTOR_REACH and not along_grid:
                     # beyond the linear regime of the legs' shooting: a shorter step
                     fraction = max(PREDICTOR_REACH / reach,
                                    MIN_CONTINUATION_STEP / (target - done))
@@ -145,6 +137,7 @@ class ChainContinuation:
                 continue
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or newton.legs.out_of_time():
+                self.grid.abandon()
                 if not outcome.state.leg_error <= newton.limits.leg_tolerance:
                     outcome.state = state  # the last solution every leg converged at
                     outcome.factorization = factorization
@@ -158,39 +151,11 @@ class ChainContinuation:
             raise RuntimeError('continuation made no step')
         if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
             self.path = self._recorded(outcome.state, inputs - start)
+            self.grid.reached(outcome.state)
         else:
             self.path = []
         outcome.iterations = iterations
         return outcome
-
-    def hermite(self, state: ChainState, inputs_change: np.ndarray, change: np.ndarray,
-                factorization: Factorization) -> Optional[np.ndarray]:
-        """
-        Cubic Hermite predictor (flat, scaled) along equal input steps; records the tangent.
-
-        With ``factorization`` exact at ``state`` (made at the solution, as a solve with
-        the compliance leaves it) the tangent t_k = dx/du du there is the first-order step
-        for the residual ``change`` (dr/du du), and is kept for the next walk. When the last
-        solve took the same input step du from a solution whose tangent t_(k-1) was kept,
-        the cubic through x_(k-1), x_k with those tangents gives, one step on,
-        x_k + t_k + 5 (x_(k-1) - x_k + t_k) + 2 (t_(k-1) - t_k): an error of fourth order
-        in the step where the first-order predictor's is of second (an atlas's grid lines;
-        its steps reach beyond PREDICTOR_REACH, which this predictor is not held to). None
-        otherwise.
-        """
-        before = self.tangent
-        self.tangent = None
-        if factorization.state is not state:
-            return None
-        tangent = self.newton.correction(change, None, factorization, True)
-        self.tangent = Tangent(state, inputs_change.copy(), tangent)
-        if (before is None or not self.path or self.path[-1].end is not state
-                or self.path[-1].start is not before.start
-                or np.linalg.norm(before.inputs_change - inputs_change)
-                > SAME_STEP * np.linalg.norm(inputs_change)):
-            return None
-        back = difference(before.start, state, self.newton.chain.x_scale) + tangent
-        return tangent + 5.0 * back + 2.0 * (before.step - tangent)
 
     def _recorded(self, end: ChainState, inputs_change: np.ndarray) -> List[PathStep]:
         """
