@@ -81,17 +81,19 @@ class GridPredictor:
                                                                  inputs_change):
             back = difference(last.start, state, self.x_scale) + tangent
             return tangent + 5.0 * back + 2.0 * (last.step - tangent)
-        size = float(np.linalg.norm(inputs_change))
-        nearest, curvature = NEAR * size, None
-        for kept in self.tangents[:-1]:
-            if kept.end is None or not (same_step(kept.inputs_change, inputs_change)
-                                        or same_step(-kept.inputs_change, inputs_change)):
-                continue
-            distance = float(np.linalg.norm(kept.inputs - inputs))
-            if distance <= nearest:
-                nearest, curvature = distance, kept
-        if curvature is None:
+        ended = [kept for kept in self.tangents[:-1] if kept.end is not None]
+        if not ended:
             return None
+        changes = np.array([kept.inputs_change for kept in ended])
+        size = float(np.linalg.norm(inputs_change))
+        same = np.minimum(np.linalg.norm(changes - inputs_change, axis=1),
+                          np.linalg.norm(changes + inputs_change, axis=1)) <= SAME_STEP * size
+        distances = np.where(same, np.linalg.norm(
+            np.array([kept.inputs for kept in ended]) - inputs, axis=1), np.inf)
+        nearest = int(np.argmin(distances))
+        if not distances[nearest] <= NEAR * size:
+            return None
+        curvature = ended[nearest]
         assert curvature.end is not None  # chosen for it
         return (tangent + difference(curvature.end, curvature.start, self.x_scale)
                 - curvature.step)
