@@ -77,8 +77,8 @@ class GridPredictor:
         last = self.tangents[-1] if self.tangents else None
         self._current = Tangent(state, inputs.copy(), inputs_change.copy(), tangent)
         self.tangents = [*self.tangents[1 - KEPT:], self._current]
-        if last is not None and last.end is state and same_step(last.inputs_change,
-                                                                 inputs_change):
+        if (last is not None and last.end is state
+                and same_step(last.inputs_change, inputs_change)):
             back = difference(last.start, state, self.x_scale) + tangent
             return tangent + 5.0 * back + 2.0 * (last.step - tangent)
         ended = [kept for kept in self.tangents[:-1] if kept.end is not None]
@@ -105,5 +105,5 @@ class GridPredictor:
             self._current = None
 
     def abandon(self) -> None:
-        """The solve whose tangent ``predict`` kept did not converge: it leaves no curvature."""
+        """Forget the solve whose tangent ``predict`` kept: it did not converge."""
         self._current = None

@@ -17,8 +17,8 @@ import numpy as np
 
 from .chain import Chain, ChainState, distance, SIZE, skew
 from .kernels import secant_update
-from .reduced_kernels import platform_jacobian as compiled_platform_jacobian
 from .legs import ChainLegs, Deadline
+from .reduced_kernels import platform_jacobian as compiled_platform_jacobian
 from .result import DeltaResult
 from .._linalg import factorize as factorize_matrix, solve_lu
 from ..held import held_verdict, HeldReference, HeldVerdict
