@@ -12,14 +12,14 @@ X_SCALE = np.concatenate([np.full(3, 0.1), np.ones(3), np.full(18, 2.0)])
 
 
 def _state(flat: np.ndarray) -> ChainState:
-    """A chain state at flat unknowns (platform times X_SCALE, then legs), not turned."""
+    """Return a chain state at flat unknowns (platform times X_SCALE, then legs), not turned."""
     platform = flat[:24] * X_SCALE
     return ChainState(platform[:3].copy(), np.eye(3), platform[6:24].reshape(3, 6).copy(),
                       flat[24:].reshape(3, LEG_UNKNOWNS).copy())
 
 
 def _reached(state: ChainState, step: np.ndarray) -> np.ndarray:
-    """The flat unknowns of ``state`` moved by a predicted ``step``."""
+    """Return the flat unknowns of ``state`` moved by a predicted ``step``."""
     return difference(state.moved(step, X_SCALE), _state(np.zeros(24 + 3 * LEG_UNKNOWNS)),
                       X_SCALE)
 
