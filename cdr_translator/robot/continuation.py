@@ -2,10 +2,12 @@
 The chain's continuation: from the previous solution to the requested sliders and payload.
 
 Predictor-corrector, as the leg solver walks one translator along its load: each step
-predicts the solution (to first order with the stored factorization, or by extrapolating
-a steadily followed path) and the coupled Newton corrects it; a failed step is halved, a
-good one doubled. ``ChainContinuation`` keeps the path state between solves: the previous
-solution, the last factorization and the last solves' steps.
+predicts the solution (to first order with the stored factorization, by extrapolating a
+steadily followed path, or, along equal input steps from solutions linearized exactly, from
+the tangents and curvatures of the solves before: robot/grid_predictor.py) and the coupled
+Newton corrects it; a failed step is halved, a good one doubled. ``ChainContinuation`` keeps
+the path state between solves: the previous solution, the last factorization and the last
+solves' steps.
 """
 
 from dataclasses import dataclass
@@ -16,6 +18,7 @@ import numpy as np
 
 from .chain import ChainState, difference
 from .coupled_newton import CoupledNewton, Outcome
+from .grid_predictor import GridPredictor
 from .linearization import Factorization
 from ..continuation import MIN_CONTINUATION_STEP
 
@@ -64,12 +67,15 @@ class ChainContinuation:
         #: the last (up to PREDICTOR_DEGREE) coupled solves' steps, latest last
         #: (extrapolate); emptied by a solve that is not one
         self.path: List[PathStep] = []
+        #: the tangents of the solves that started at an exact factorization
+        self.grid = GridPredictor(newton.chain.x_scale)
 
     def reset(self) -> None:
         """Forget the previous solution, its factorization and the path."""
         self.previous = None
         self.factorization = None
         self.path = []
+        self.grid.reset()
 
     def walk(self, inputs: np.ndarray, coupled: bool) -> Outcome:
         """
@@ -96,17 +102,24 @@ class ChainContinuation:
         while done < 1.0:
             target = min(1.0, done + step)
             goal = start + target * (inputs - start)
-            guess = state
+            guess, along_grid = state, False
             if factorization is not None:
                 sensitivity = first if done == 0.0 else chain.input_sensitivity(state, current)
                 change = sensitivity @ (goal - current)
                 predicted = None
                 if coupled and target == 1.0 and done == 0.0:
-                    predicted = self.extrapolate(state, inputs - start, first, factorization)
+                    if factorization.state is state:  # exact there: its tangent is kept
+                        predicted = self.grid.predict(
+                            state, start, inputs - start,
+                            newton.correction(change, None, factorization, True))
+                    along_grid = predicted is not None
+                    if not along_grid:
+                        predicted = self.extrapolate(state, inputs - start, first,
+                                                     factorization)
                 if predicted is None:
                     predicted = newton.correction(change, None, factorization, coupled)
                 reach = float(np.abs(predicted).max())
-                if coupled and reach > PREDICTOR_REACH:
+                if coupled and reach > PREDICTOR_REACH and not along_grid:
                     # beyond the linear regime of the legs' shooting: a shorter step
                     fraction = max(PREDICTOR_REACH / reach,
                                    MIN_CONTINUATION_STEP / (target - done))
@@ -115,7 +128,11 @@ class ChainContinuation:
                     predicted = fraction * newton.correction(change, None, factorization,
                                                              coupled)
                 guess = state.moved(predicted, chain.x_scale)
-            outcome = newton.correct(guess, goal, factorization, coupled)
+            # along the grid the legs' Jacobians at the last solution are too far off for
+            # chord steps (at 12 mm steps the first contracted by 0.4, then a rebuild; at
+            # 20 mm it failed its line search, thirty leg shots): made at the guess at once
+            outcome = newton.correct(guess, goal, None if along_grid else factorization,
+                                     coupled)
             iterations += outcome.iterations
             if outcome.converged:
                 done, state, current = target, outcome.state, goal
@@ -124,6 +141,7 @@ class ChainContinuation:
                 continue
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or newton.legs.out_of_time():
+                self.grid.abandon()
                 if not outcome.state.leg_error <= newton.limits.leg_tolerance:
                     outcome.state = state  # the last solution every leg converged at
                     outcome.factorization = factorization
@@ -137,6 +155,7 @@ class ChainContinuation:
             raise RuntimeError('continuation made no step')
         if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
             self.path = self._recorded(outcome.state, inputs - start)
+            self.grid.reached(outcome.state)
         else:
             self.path = []
         outcome.iterations = iterations

@@ -82,6 +82,26 @@ def shoot_legs(unknowns, wrenches, x_scale, residual_scale, model_args, residual
 
 
 @jit
+def leg_frames(unknowns, wrenches, x_scale, model_args, frames):
+    """
+    Each leg's frames {pe}, {pm}, {dm}, {de} (3, 4, 4, 4) from one shot at its unknowns.
+
+    The same shot as ``shoot_legs`` (and as a leg's SolveResult made there), for the joints'
+    bending angles without building the legs' results.
+    """
+    pitch_radius, spacing, tube_length, spacers, steps, inv_kse, inv_kbt = model_args
+    size = unknowns.shape[1]
+    scaled = np.empty(size)
+    out = np.empty(size)
+    no_points = np.empty((N_RODS, 0, 3))
+    for k in range(unknowns.shape[0]):
+        for i in range(size):
+            scaled[i] = unknowns[k, i] * x_scale[i]
+        translator_residual(scaled, wrenches[k], pitch_radius, spacing, tube_length, spacers,
+                            steps, inv_kse, inv_kbt, out, no_points, frames[k])
+
+
+@jit
 def platform_residual(position, rotation, wrenches, frames, inputs, leg_rotations,
                       attachments, home_bases, slider_axes, out):
     """

@@ -14,8 +14,9 @@ from typing import Dict, List, Optional, Sequence, Tuple, TYPE_CHECKING
 import numpy as np
 
 from .chain import ChainState
-from .kernels import shoot_legs
+from .kernels import leg_frames, shoot_legs
 from .result import DeltaResult, LegResults
+from ..geometry import bending_between
 from ..params import Accuracy, TranslatorParams
 from ..result import SolveResult
 from ..solver import TranslatorSolver
@@ -150,5 +151,14 @@ class ChainLegs:
                            None if leg is None else (leg.lu, leg.pose, leg.wrench)))
         if coupled:
             self.starts = tuple(starts)
-        return LegResults(functools.partial(solver.result_at, *start)
-                          for solver, start in zip(self.solvers, starts))
+        return LegResults((functools.partial(solver.result_at, *start)
+                           for solver, start in zip(self.solvers, starts)),
+                          functools.partial(self.bending, state.unknowns.copy(),
+                                            state.wrenches.copy()))
+
+    def bending(self, unknowns: np.ndarray, wrenches: np.ndarray) -> np.ndarray:
+        """(3, 2): the legs' PJ and DJ bending angles at ``unknowns`` under ``wrenches``."""
+        frames = np.empty((3, 4, 4, 4))
+        leg_frames(unknowns, wrenches, self.scales[0], self.scales[2], frames)
+        return np.array([[bending_between(leg[0], leg[1])[0], bending_between(leg[2], leg[3])[0]]
+                         for leg in frames])

@@ -18,6 +18,7 @@ import numpy as np
 from .chain import Chain, ChainState, distance, SIZE, skew
 from .kernels import secant_update
 from .legs import ChainLegs, Deadline
+from .reduced_kernels import platform_jacobian as compiled_platform_jacobian
 from .result import DeltaResult
 from .._linalg import factorize as factorize_matrix, solve_lu
 from ..held import held_verdict, HeldReference, HeldVerdict
@@ -156,27 +157,22 @@ def factorize(chain: Chain, legs: ChainLegs, state: ChainState,
 
 def platform_jacobian(chain: Chain, state: ChainState, inputs: np.ndarray,
                       compliances: List[np.ndarray]) -> np.ndarray:
-    """d(residual)/d(platform unknowns), each leg entering through its ``compliances``."""
-    force, offset = inputs[3:6], inputs[9:]
-    jacobian = np.zeros((SIZE, SIZE))
-    forces, arms = chain.reactions(state)
-    residual = chain.residual(state, inputs)
-    jacobian[21:24, 3:6] = skew(force) @ skew(state.rotation @ offset)
-    for k, leg in enumerate(chain.legs):
-        columns = slice(6 + 6 * k, 12 + 6 * k)
-        compliance = compliances[k]
-        # the rotation error log(R_de R_target^T): the end disk turns it from the left,
-        # the platform from the right
-        inverse = inverse_left_jacobian(residual[6 * k + 3:6 * k + 6])
-        jacobian[6 * k:6 * k + 3, columns] = compliance[:3]
-        jacobian[6 * k + 3:6 * k + 6, columns] = inverse @ compliance[3:]
-        jacobian[6 * k:6 * k + 3, 0:3] = -leg.rotation.T
-        jacobian[6 * k:6 * k + 3, 3:6] = leg.rotation.T @ skew(arms[k])
-        jacobian[6 * k + 3:6 * k + 6, 3:6] = -inverse.T @ leg.rotation.T
-        jacobian[18:21, 6 + 6 * k:9 + 6 * k] = -leg.rotation
-        jacobian[21:24, 6 + 6 * k:9 + 6 * k] = -skew(arms[k]) @ leg.rotation
-        jacobian[21:24, 9 + 6 * k:12 + 6 * k] = -leg.rotation
-        jacobian[21:24, 3:6] += skew(forces[k]) @ skew(arms[k])
+    """
+    d(residual)/d(platform unknowns), each leg entering through its ``compliances``.
+
+    Per leg k (columns 6 + 6k.. its wrench; rows 6k.. its compatibility): the compliance
+    C_k, its rotation rows through the inverse left Jacobian G_k of the rotation error
+    log(R_de R_target^T) (the end disk turns it from the left, the platform from the
+    right); -R_k^T and R_k^T [R a_k]x for the platform's position and turn, -G_k^T R_k^T
+    for the turn of the target. Equilibrium: -R_k and -[R a_k]x R_k on the leg forces, -R_k
+    on its moments, [f_k]x [R a_k]x and [payload]x [R offset]x on the platform's turn.
+    One compiled call (reduced_kernels.platform_jacobian, which the reduced legs' chain
+    assembles too).
+    """
+    jacobian = np.empty((SIZE, SIZE))
+    compiled_platform_jacobian(state.rotation, state.wrenches, chain.residual(state, inputs),
+                               inputs, chain.leg_rotations, chain.attachments,
+                               np.ascontiguousarray(np.stack(compliances)), jacobian)
     return jacobian
 
 

@@ -45,10 +45,23 @@ class LegResults(Sequence[SolveResult]):
     equal to the tuple of its results.
     """
 
-    def __init__(self, builders: Iterable[Callable[[], SolveResult]]) -> None:
-        """Keep one builder per leg (each called at most once, on first access)."""
+    def __init__(self, builders: Iterable[Callable[[], SolveResult]],
+                 bending: Optional[Callable[[], np.ndarray]] = None) -> None:
+        """
+        Keep one builder per leg (each called at most once, on first access).
+
+        ``bending``, when given, returns the legs' PJ and DJ bending angles (n, 2) as their
+        results would, without building them (one shot per leg, not the verdicts).
+        """
         self._builders = tuple(builders)
         self._results: List[Optional[SolveResult]] = [None] * len(self._builders)
+        self._bending = bending
+
+    def bending(self) -> np.ndarray:
+        """(n, 2): PJ and DJ bending angle of each leg (rad), building no result for it."""
+        if self._bending is None or None not in self._results:
+            return np.array([[leg.pj_bending[0], leg.dj_bending[0]] for leg in self])
+        return self._bending()
 
     def __len__(self) -> int:
         """Return the number of legs."""
@@ -207,6 +220,8 @@ class DeltaResult:
     @property
     def leg_bending(self) -> np.ndarray:
         """(3, 2): PJ and DJ bending angle of each leg (rad)."""
+        if isinstance(self.leg_results, LegResults):
+            return self.leg_results.bending()
         return np.array([[leg.pj_bending[0], leg.dj_bending[0]] for leg in self.leg_results])
 
     @property

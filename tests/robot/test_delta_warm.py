@@ -255,3 +255,14 @@ def test_compiled_coupled_iterations_take_the_python_loops_steps(monkeypatch):
                       - np.asarray(slow.platform_position)).max() <= 1e-12
         rebuilt.add(fast.leg_jacobians > 0)
     assert rebuilt == {True, False}  # both kinds of warm solve were compared
+
+
+def test_leg_bending_without_the_leg_results_equals_theirs(robot):
+    """The bending angles read before the legs' results are built equal the built ones'."""
+    result = _warm_result(robot)
+    assert isinstance(result.leg_results, LegResults)
+    unbuilt = result.leg_bending
+    assert 'deferred' in repr(result.leg_results)  # reading the angles built no result
+    built = np.array([[leg.pj_bending[0], leg.dj_bending[0]] for leg in result.leg_results])
+    assert np.array_equal(unbuilt, built)
+    assert np.array_equal(result.leg_bending, built)
