@@ -279,9 +279,14 @@ def coupled_newton(model, data, leg_tolerance, leg_x, wrenches, position, rotati
 def follow(model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, inputs,
            platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
            compliances, factors, factor_pivots, residual_now, points, seen, count,
-           input_scale):
+           input_scale, predict):
     """
     Warm solve along a path: ``coupled_newton`` from the path's predictor, else its last point.
+
+    ``predict``: try the predictor. Not when the kept Jacobians were made at the last
+    point: from there Newton's first step is the first-order predictor with an exact
+    Jacobian, and the chord steps that follow contract faster than from the polynomial's
+    start (along the atlas's grid lines 5 iterations a sample against 7).
 
     The state arrays are overwritten, from the latest point of ``points`` (chain_path.py;
     ``seen`` their inputs, ``count`` (1) how many) or its polynomial predictor at
@@ -290,8 +295,8 @@ def follow(model, data, leg_tolerance, leg_x, wrenches, position, rotation, fram
     (outcome, iterations, legs linearized anew), the iterations and legs of both tries.
     """
     restore(points, count, position, rotation, wrenches, leg_x, frames)
-    predicted = extrapolate(points, seen, count, inputs, input_scale, position, rotation,
-                            wrenches, leg_x)
+    predicted = predict and extrapolate(points, seen, count, inputs, input_scale, position,
+                                        rotation, wrenches, leg_x)
     code, iterations, refreshes = coupled_newton(
         model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames,
         not predicted, inputs, platform, tolerances, max_iterations, leg_lu, leg_pivots,
@@ -392,7 +397,7 @@ def solve_samples(model, data, leg_tolerance, rows, start, leg_x, wrenches, posi
             model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, inputs,
             platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
             compliances, factors, factor_pivots, residual_now, points, seen, count,
-            input_scale)
+            input_scale, False)
         if code != SOLVED:
             restore(points, count, position, rotation, wrenches, leg_x, frames)
             leg_pivots[:, -1] = 0

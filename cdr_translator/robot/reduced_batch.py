@@ -68,6 +68,7 @@ def solve_rows(chain: ReducedChain, rows: np.ndarray, tolerances: np.ndarray,
             _columns(chain, loop, slice(row, stop), share, critical_load_n, table, out)
             chain.previous = (previous, rows[stop - 1])
             chain.previous_frames = frames
+            chain.kept_at_last = True  # each row was linearized at its solution
         if stop < count:
             store(out, stop, fallback(stop))
         row = stop + 1

@@ -117,6 +117,8 @@ class ReducedChain:
         self.points = np.zeros((DEGREE + 1, point_width(size)))
         self.seen = np.zeros((DEGREE + 1, SIZE // 2))
         self.count = np.zeros(1, dtype=np.int64)
+        #: whether ``kept`` was made at the last point (a coupled solve linearized there)
+        self.kept_at_last = False
         r_scale, x_scale = chain.platform[4], chain.platform[5]
         #: the inputs' scales for the predictor: sliders and offset as positions, payload
         #: force and moment as the equilibrium residual's
@@ -131,12 +133,14 @@ class ReducedChain:
         self.kept[1][:, -1] = 0
         self.kept[5][-1] = 0
         self.count[0] = 0
+        self.kept_at_last = False
 
     def accept(self, outcome: 'ReducedOutcome', inputs: np.ndarray) -> None:
         """Keep a converged outcome as the next solve's start."""
         self.previous = (outcome.state, inputs)
         self.previous_frames = outcome.frames
         if not outcome.on_path:
+            self.kept_at_last = False
             state = outcome.state
             push(self.points, self.seen, self.count, state.position, state.rotation,
                  state.wrenches, state.leg_x, outcome.frames, inputs)
@@ -160,7 +164,8 @@ class ReducedChain:
             self.model.code, self.data, self.model.tolerance, state.leg_x, state.wrenches,
             state.position, state.rotation, frames, inputs, self.chain.platform, tolerances,
             self.max_iterations, *self.kept, residual, self.points, self.seen, self.count,
-            self.input_scale)
+            self.input_scale, not self.kept_at_last)
+        self.kept_at_last = False
         if code != COUPLED_SOLVED:  # what it kept may be made far off: make it anew next time
             self.kept[1][:, -1] = 0
             self.kept[5][-1] = 0
@@ -173,6 +178,7 @@ class ReducedChain:
         linearize_solution(self.model.code, self.data, state.leg_x, state.wrenches,
                            state.rotation, inputs, self.chain.platform, residual, *self.kept,
                            np.zeros(3, dtype=np.int64), jacobian)
+        self.kept_at_last = True
         return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
                               self.kept[3].copy(), refreshes + 3, True)
 
