@@ -64,9 +64,9 @@ def extrapolate(points, seen, count, inputs, input_scale, position, rotation, wr
     The polynomial of degree m through the last m + 1 points, one step on: the weights
     (-1)^j C(m + 1, j + 1) on the latest-but-j point (m = 1: 2, -1). The degree, 1 to
     DEGREE, is the one whose inputs so extrapolated leave the smallest rest against
-    ``inputs`` (scaled by ``input_scale``; the highest among equals); none applies when
-    there are fewer than two points or the rest is above EXTRAPOLATE_WITHIN of the input
-    change from the latest point. The rotation is extrapolated by its entries and made
+    ``inputs`` (scaled by ``input_scale``; the highest among equals: within 1e-9 of the
+    input change); none applies when there are fewer than two points or the rest is above
+    EXTRAPOLATE_WITHIN of the input change from the latest point. The rotation is extrapolated by its entries and made
     orthonormal again (Gram-Schmidt on its rows).
     """
     stored = count[0]
@@ -85,7 +85,7 @@ def extrapolate(points, seen, count, inputs, input_scale, position, rotation, wr
         for j in range(degree + 1):
             extrapolated += weights[j] * seen[stored - 1 - j]
         rest = _scaled_distance(inputs, extrapolated, input_scale)
-        if rest <= best * (1.0 + 1e-9):
+        if rest <= best + 1e-9 * change:  # equal within rounding: the higher degree
             chosen = degree
         best = min(best, rest)
     if best > EXTRAPOLATE_WITHIN * change:
