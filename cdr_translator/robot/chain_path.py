@@ -66,8 +66,8 @@ def extrapolate(points, seen, count, inputs, input_scale, position, rotation, wr
     DEGREE, is the one whose inputs so extrapolated leave the smallest rest against
     ``inputs`` (scaled by ``input_scale``; the highest among equals: within 1e-9 of the
     input change); none applies when there are fewer than two points or the rest is above
-    EXTRAPOLATE_WITHIN of the input change from the latest point. The rotation is extrapolated by its entries and made
-    orthonormal again (Gram-Schmidt on its rows).
+    EXTRAPOLATE_WITHIN of the input change from the latest point. The rotation is
+    extrapolated by its entries and made orthonormal again (Gram-Schmidt on its rows).
     """
     stored = count[0]
     if stored < 2:

@@ -198,7 +198,7 @@ def _inverse_left_jacobian(vector, out):
 
 @jit
 def _block(left, right, transpose_left, transpose_right, factor, out, row, column, add):
-    """out[row:row+3, column:column+3] (+)= factor op(left) op(right), 3x3, no BLAS call."""
+    """Set (``add``: add to) out[row:row+3, column:column+3] factor op(left) op(right)."""
     for i in range(3):
         for j in range(3):
             total = 0.0
@@ -213,7 +213,7 @@ def _block(left, right, transpose_left, transpose_right, factor, out, row, colum
 
 @jit
 def _turn(rotation, vector, factor, out):
-    """out = factor R v (3)."""
+    """Set ``out`` (3) to factor R v."""
     for i in range(3):
         out[i] = factor * (rotation[i, 0] * vector[0] + rotation[i, 1] * vector[1]
                            + rotation[i, 2] * vector[2])
