@@ -11,7 +11,7 @@ SIZE = 8  # a 'cc' leg's reduced unknowns
 
 
 def _state(t: float) -> tuple:
-    """Return the state at t on a path cubic in t (rotation: about a fixed axis by an angle linear in t)."""
+    """Return the state at t on a path cubic in t (the rotation: by an angle linear in t)."""
     position = np.array([1.0, -2.0, 0.5]) * t + np.array([0.3, 0.0, -1.0]) * t ** 3
     rotation = Rotation.from_rotvec(np.array([0.1, 0.2, -0.05]) * t).as_matrix()
     wrenches = np.arange(18.0).reshape(3, 6) * t ** 2
