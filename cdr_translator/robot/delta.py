@@ -46,7 +46,7 @@ from dataclasses import fields
 import math
 from pathlib import Path
 import time
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, cast, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -316,10 +316,10 @@ class DeltaRobot:
         """
         stroke = self.geometry.slider_stroke
         try:
-            if len(sliders) == len(payload_force) == len(payload_moment) \
-                    == len(payload_offset) == 3:  # type: ignore[arg-type]
-                inputs = np.array((*sliders, *payload_force, *payload_moment,  # type: ignore
-                                   *payload_offset), dtype=float)
+            parts = cast(Tuple[Sequence[float], ...],
+                         (sliders, payload_force, payload_moment, payload_offset))
+            if len(parts[0]) == len(parts[1]) == len(parts[2]) == len(parts[3]) == 3:
+                inputs = np.array((*parts[0], *parts[1], *parts[2], *parts[3]), dtype=float)
                 first, second, third = inputs[:3].tolist()
                 if inputs.shape == (12,) and math.isfinite(inputs.dot(inputs)) \
                         and max(abs(first), abs(second), abs(third)) <= stroke:
