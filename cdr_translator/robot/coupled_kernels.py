@@ -31,12 +31,13 @@ import math
 
 import numpy as np
 
+from .chain_path import extrapolate, push, restore
 from .kernels import platform_residual, small_rotation_vector, within
 from .reduced_kernels import (determinant_sign, leg_compliance, leg_frames, move_platform,
                               platform_jacobian, scaled_norm)
 from .._jit import jit
 from ..fidelity.cc import BENDING_STIFFNESS, JOINT_LENGTH, TUBE_LENGTH
-from ..fidelity.cc_derivatives import joint_derivatives, JOINT_UNKNOWNS
+from ..fidelity.cc_derivatives import _joint_twists
 from ..fidelity.level_kernels import frames_pose
 from ..fidelity.newton import CC, lu_factor, lu_solve, residual, system
 
@@ -62,61 +63,49 @@ def cc_twist(x, data, twist):
 
     Column c: [dp/dx_c; vee(dR/dx_c R^T)].
 
-    From each joint's closed-form derivatives (cc_derivatives.joint_derivatives): the end
-    disk is at p = p1 + R1 (L_m e_z + p2) with R = R1 R2 (fidelity.cc's kinematics).
+    From each joint's first derivatives as twists (cc_derivatives._joint_twists): the end
+    disk is at p = p1 + R1 (L_m e_z + p2) with R = R1 R2 (fidelity.cc's kinematics), so a
+    proximal unknown with tip velocity v and angular velocity w moves it by v + w x r
+    (r = R1 (L_m e_z + p2)) and turns it by w; a distal one by R1 v and R1 w.
     """
-    rot = np.empty((2, 3, 3))
-    pos = np.empty((2, 3))
-    d_rot = np.empty((2, 4, 3, 3))
-    d_pos = np.empty((2, 4, 3))
-    for j in range(2):
-        _joint(x, data[JOINT_LENGTH], j, rot[j], pos[j], d_rot[j], d_pos[j])
-    lever = pos[1].copy()
-    lever[2] += data[TUBE_LENGTH]
-    end_rot = np.zeros((3, 3))
-    _multiply(rot[0], rot[1], end_rot)
-    turned = np.empty((3, 3))
-    for a in range(4):
-        first, second = JOINT_UNKNOWNS[0][a], JOINT_UNKNOWNS[1][a]
-        for i in range(3):
-            twist[i, first] = d_pos[0, a, i]
-            twist[i, second] = 0.0
-            for m in range(3):
-                twist[i, first] += d_rot[0, a, i, m] * lever[m]
-                twist[i, second] += rot[0, i, m] * d_pos[1, a, m]
-        _multiply(d_rot[0, a], rot[1], turned)  # dR / dx of the proximal joint's unknown
-        _vee_times(turned, end_rot, twist[3:, first])
-        _multiply(rot[0], d_rot[1, a], turned)
-        _vee_times(turned, end_rot, twist[3:, second])
+    length = data[JOINT_LENGTH]
+    rot1, _, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = _joint_twists(
+        x[0], x[1], x[4], length * (1.0 + x[6]), length)
+    _, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = _joint_twists(
+        x[2], x[3], x[5], length * (1.0 + x[7]), length)
+    lever = (tip2[0], tip2[1], tip2[2] + data[TUBE_LENGTH])
+    r = (rot1[0] * lever[0] + rot1[1] * lever[1] + rot1[2] * lever[2],
+         rot1[3] * lever[0] + rot1[4] * lever[1] + rot1[5] * lever[2],
+         rot1[6] * lever[0] + rot1[7] * lever[1] + rot1[8] * lever[2])
+    still = (0.0, 0.0, 0.0)
+    _proximal_column(twist, 0, d_bx1, turn_bx1, r)
+    _proximal_column(twist, 1, d_by1, turn_by1, r)
+    _proximal_column(twist, 4, still, turn_psi1, r)
+    _proximal_column(twist, 6, d_e1, still, r)
+    _distal_column(twist, 2, d_bx2, turn_bx2, rot1)
+    _distal_column(twist, 3, d_by2, turn_by2, rot1)
+    _distal_column(twist, 5, still, turn_psi2, rot1)
+    _distal_column(twist, 7, d_e2, still, rot1)
 
 
 @jit
-def _joint(x, length, j, rot, pos, d_rot, d_pos):
-    """Joint j's rotation, tip and their first derivatives (joint_derivatives' local ones)."""
-    joint_derivatives(x[2 * j], x[2 * j + 1], x[4 + j], length * (1.0 + x[6 + j]), length, rot,
-                      pos, d_rot, np.empty((4, 4, 3, 3)), d_pos, np.empty((4, 4, 3)))
-
-
-@jit
-def _multiply(left, right, out):
-    """3x3 product without a BLAS call."""
+def _proximal_column(twist, column, velocity, angular, lever):
+    """Twist column of a proximal joint's unknown: [v + w x r; w]."""
+    twist[0, column] = velocity[0] + angular[1] * lever[2] - angular[2] * lever[1]
+    twist[1, column] = velocity[1] + angular[2] * lever[0] - angular[0] * lever[2]
+    twist[2, column] = velocity[2] + angular[0] * lever[1] - angular[1] * lever[0]
     for i in range(3):
-        for j in range(3):
-            out[i, j] = left[i, 0] * right[0, j] + left[i, 1] * right[1, j] \
-                + left[i, 2] * right[2, j]
+        twist[3 + i, column] = angular[i]
 
 
 @jit
-def _vee_times(derivative, rotation, out):
-    """vee(dR R^T) of a rotation's derivative dR (skew for a true derivative)."""
-    turned = np.empty((3, 3))
+def _distal_column(twist, column, velocity, angular, rot1):
+    """Twist column of a distal joint's unknown: [R1 v; R1 w] (rot1 row-major, 9)."""
     for i in range(3):
-        for j in range(3):
-            turned[i, j] = derivative[i, 0] * rotation[j, 0] + derivative[i, 1] * rotation[j, 1] \
-                + derivative[i, 2] * rotation[j, 2]
-    out[0] = 0.5 * (turned[2, 1] - turned[1, 2])
-    out[1] = 0.5 * (turned[0, 2] - turned[2, 0])
-    out[2] = 0.5 * (turned[1, 0] - turned[0, 1])
+        twist[i, column] = rot1[3 * i] * velocity[0] + rot1[3 * i + 1] * velocity[1] \
+            + rot1[3 * i + 2] * velocity[2]
+        twist[3 + i, column] = rot1[3 * i] * angular[0] + rot1[3 * i + 1] * angular[1] \
+            + rot1[3 * i + 2] * angular[2]
 
 
 @jit
@@ -287,6 +276,47 @@ def coupled_newton(model, data, leg_tolerance, leg_x, wrenches, position, rotati
 
 
 @jit
+def follow(model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, inputs,
+           platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
+           compliances, factors, factor_pivots, residual_now, points, seen, count,
+           input_scale, predict):
+    """
+    Warm solve along a path: ``coupled_newton`` from the path's predictor, else its last point.
+
+    ``predict``: try the predictor. Not when the kept Jacobians were made at the last
+    point: from there Newton's first step is the first-order predictor with an exact
+    Jacobian, and the chord steps that follow contract faster than from the polynomial's
+    start (along the atlas's grid lines 5 iterations a sample against 7).
+
+    The state arrays are overwritten, from the latest point of ``points`` (chain_path.py;
+    ``seen`` their inputs, ``count`` (1) how many) or its polynomial predictor at
+    ``inputs`` (chain_path.extrapolate); a predicted start that does not converge is
+    solved again from the latest point. A solution joins the points. Returns
+    (outcome, iterations, legs linearized anew), the iterations and legs of both tries.
+    """
+    restore(points, count, position, rotation, wrenches, leg_x, frames)
+    predicted = predict and extrapolate(points, seen, count, inputs, input_scale, position,
+                                        rotation, wrenches, leg_x)
+    code, iterations, refreshes = coupled_newton(
+        model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames,
+        not predicted, inputs, platform, tolerances, max_iterations, leg_lu, leg_pivots,
+        sensitivities, compliances, factors, factor_pivots, residual_now)
+    if code != SOLVED and predicted:
+        restore(points, count, position, rotation, wrenches, leg_x, frames)
+        leg_pivots[:, -1] = 0
+        factor_pivots[PLATFORM] = 0
+        code, more, made = coupled_newton(
+            model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, True,
+            inputs, platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
+            compliances, factors, factor_pivots, residual_now)
+        iterations += more
+        refreshes += made
+    if code == SOLVED:
+        push(points, seen, count, position, rotation, wrenches, leg_x, frames, inputs)
+    return code, iterations, refreshes
+
+
+@jit
 def linearize_solution(model, data, leg_x, wrenches, rotation, inputs, platform, residual_now,
                        leg_lu, leg_pivots, sensitivities, compliances, factors, factor_pivots,
                        signs, jacobian):
@@ -336,21 +366,23 @@ def platform_linearization(factors, factor_pivots, r_scale, x_scale, slider_colu
 @jit
 def solve_samples(model, data, leg_tolerance, rows, start, leg_x, wrenches, position, rotation,
                   frames, platform, tolerances, max_iterations, leg_lu, leg_pivots,
-                  sensitivities, compliances, factors, factor_pivots, slider_columns, out_x,
-                  out_wrenches, out_position, out_rotation, out_rotation_vector, out_bending,
-                  out_signs, out_leg_compliances, out_compliance, out_sliders, out_iterations):
+                  sensitivities, compliances, factors, factor_pivots, points, seen, count,
+                  input_scale, slider_columns, out_x, out_wrenches, out_position,
+                  out_rotation, out_rotation_vector, out_bending, out_signs,
+                  out_leg_compliances, out_compliance, out_sliders, out_iterations):
     """
-    Solve rows ``start:`` of ``rows`` (N, 12 inputs) warm from the solved state given.
+    Solve rows ``start:`` of ``rows`` (N, 12 inputs) along the path of solved ``points``.
 
-    Each row is solved by ``coupled_newton`` from the previous one and linearized there
-    (``linearize_solution``, ``platform_linearization``); its outputs go into row i of the
-    ``out_`` arrays: leg unknowns, leg wrenches, platform position and rotation, rotation
-    vector (NaN beyond 90 degrees: kernels.small_rotation_vector), each leg's PJ and DJ
-    bending angle (3, 2), each leg's sign of det H, the leg compliances (3, 6, 6), the
-    platform compliance (6, 6; NaN if the Jacobian is singular), the slider Jacobian and
-    the iterations. Stops at the first row that does not converge and returns its index
-    (its outputs unset, the state and kept Jacobians put back as the last solution left
-    them), else N.
+    Each row is solved by ``follow`` (from the path's predictor or its last point; its
+    solution joins the path) and linearized there (``linearize_solution``,
+    ``platform_linearization``); its outputs go into row i of the ``out_`` arrays: leg
+    unknowns, leg wrenches, platform position and rotation, rotation vector (NaN beyond 90
+    degrees: kernels.small_rotation_vector), each leg's PJ and DJ bending angle (3, 2),
+    each leg's sign of det H, the leg compliances (3, 6, 6), the platform compliance (6,
+    6; NaN if the Jacobian is singular), the slider Jacobian and the iterations. The state
+    arrays (``leg_x`` ... ``frames``) are scratch, left at the path's last point. Stops at
+    the first row that does not converge and returns its index (its outputs unset, the
+    kept Jacobians to be made anew), else N.
     """
     r_scale, x_scale = platform[4], platform[5]
     residual_now = np.empty(PLATFORM)
@@ -359,19 +391,15 @@ def solve_samples(model, data, leg_tolerance, rows, start, leg_x, wrenches, posi
     pose = np.empty(7)
     bending = np.empty(4)
     signs = np.empty(3, dtype=np.int64)
-    saved = (leg_x.copy(), wrenches.copy(), position.copy(), rotation.copy(), frames.copy())
     for row in range(start, rows.shape[0]):
         inputs = rows[row]
-        code, iterations, _ = coupled_newton(
-            model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, True,
-            inputs, platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
-            compliances, factors, factor_pivots, residual_now)
+        code, iterations, _ = follow(
+            model, data, leg_tolerance, leg_x, wrenches, position, rotation, frames, inputs,
+            platform, tolerances, max_iterations, leg_lu, leg_pivots, sensitivities,
+            compliances, factors, factor_pivots, residual_now, points, seen, count,
+            input_scale, False)
         if code != SOLVED:
-            leg_x[:, :] = saved[0]
-            wrenches[:, :] = saved[1]
-            position[:] = saved[2]
-            rotation[:, :] = saved[3]
-            frames[:, :, :] = saved[4]
+            restore(points, count, position, rotation, wrenches, leg_x, frames)
             leg_pivots[:, -1] = 0
             factor_pivots[PLATFORM] = 0
             return row
@@ -398,9 +426,4 @@ def solve_samples(model, data, leg_tolerance, rows, start, leg_x, wrenches, posi
             out_sliders[row] = math.nan
         out_signs[row] = signs
         out_leg_compliances[row] = compliances
-        saved[0][:, :] = leg_x
-        saved[1][:, :] = wrenches
-        saved[2][:] = position
-        saved[3][:, :] = rotation
-        saved[4][:, :, :] = frames
     return rows.shape[0]

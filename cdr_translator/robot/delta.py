@@ -43,9 +43,10 @@ linearization at the solution on request (robot/linearization.py).
 """
 
 from dataclasses import fields
+import math
 from pathlib import Path
 import time
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, cast, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -168,17 +169,13 @@ class DeltaRobot:
         buckling load (held.held_critical_load, not in ``solve_time_s``). Bad input raises
         ValueError; non-convergence is a result.
         """
-        offset = np.asarray(payload_offset, dtype=float)
-        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
-        inputs = np.concatenate([check_sliders(sliders, self.geometry.slider_stroke),
-                                 check_wrench(payload_force, payload_moment), offset])
+        inputs = self._inputs(sliders, payload_force, payload_moment, payload_offset)
         # made once, apart from the solve's time (the legs' held buckling load)
         held = self._held_reference() if compliance else None
         started = time.perf_counter()
         if self._reduced:
-            tolerances = np.array([self.equilibrium_tolerance, self.position_tolerance,
-                                   self.rotation_tolerance])
+            tolerances = np.array((self.equilibrium_tolerance, self.position_tolerance,
+                                   self.rotation_tolerance))
             reduced = self._reduced.solve(inputs, warm_start, tolerances, held, started,
                                           self.time_limit_s)
             if reduced is not None:
@@ -308,6 +305,33 @@ class DeltaRobot:
                                 covariance=covariance)
 
     # private ---------------------------------------------------------------------------------
+    def _inputs(self, sliders: ArrayLike, payload_force: ArrayLike, payload_moment: ArrayLike,
+                payload_offset: ArrayLike) -> np.ndarray:
+        """
+        Return ``solve``'s 12 inputs checked; ValueError naming a bad one.
+
+        Three numbers each, finite, the sliders within the stroke, pass in one array
+        conversion (about a microsecond); anything else goes through the checks that name
+        what is wrong.
+        """
+        stroke = self.geometry.slider_stroke
+        try:
+            parts = cast(Tuple[Sequence[float], ...],
+                         (sliders, payload_force, payload_moment, payload_offset))
+            if len(parts[0]) == len(parts[1]) == len(parts[2]) == len(parts[3]) == 3:
+                inputs = np.array((*parts[0], *parts[1], *parts[2], *parts[3]), dtype=float)
+                first, second, third = inputs[:3].tolist()
+                if inputs.shape == (12,) and math.isfinite(inputs.dot(inputs)) \
+                        and max(abs(first), abs(second), abs(third)) <= stroke:
+                    return inputs
+        except (TypeError, ValueError):
+            pass
+        offset = np.asarray(payload_offset, dtype=float)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f'payload offset must be 3 finite coordinates (m), got {offset}')
+        return np.concatenate([check_sliders(sliders, stroke),
+                               check_wrench(payload_force, payload_moment), offset])
+
     def _held_reference(self) -> HeldReference:
         """
         Return the unloaded leg and its held buckling load, which the held verdicts compare with.

@@ -61,13 +61,14 @@ def solve_rows(chain: ReducedChain, rows: np.ndarray, tolerances: np.ndarray,
         stop = solve_samples(
             chain.model.code, chain.data, chain.model.tolerance, rows, row, previous.leg_x,
             previous.wrenches, previous.position, previous.rotation, frames,
-            chain.chain.platform, tolerances, chain.max_iterations, *chain.kept,
-            slider_columns, *loop.values())
+            chain.chain.platform, tolerances, chain.max_iterations, *chain.kept, chain.points,
+            chain.seen, chain.count, chain.input_scale, slider_columns, *loop.values())
         if stop > row:
             share = (time.perf_counter() - started) / (stop - row)
             _columns(chain, loop, slice(row, stop), share, critical_load_n, table, out)
             chain.previous = (previous, rows[stop - 1])
             chain.previous_frames = frames
+            chain.kept_at_last = True  # each row was linearized at its solution
         if stop < count:
             store(out, stop, fallback(stop))
         row = stop + 1

@@ -14,12 +14,14 @@ verdicts held at both ends) and the legs' SolveResults.
 """
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable, Optional, Tuple
 
 import numpy as np
 
 from .chain import Chain, ChainState, SIZE
-from .coupled_kernels import coupled_newton, linearize_solution, SOLVED as COUPLED_SOLVED
+from .chain_path import DEGREE, point_width, push
+from .coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
 from .linearization import chain_verdict
 from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
 from .result import DeltaResult, LegResults
@@ -67,6 +69,7 @@ class ReducedOutcome:
     frames: np.ndarray  # (3, 4, 4) end disks in {pe_i}
     compliances: np.ndarray  # (3, 6, 6)
     leg_jacobians: int = 0  # legs linearized anew by a coupled Newton
+    on_path: bool = False  # already among the path's points (a coupled solve's)
 
 
 def model_data(params: TranslatorParams, level: str) -> np.ndarray:
@@ -110,6 +113,17 @@ class ReducedChain:
         #: an outcome's Jacobian and compliances when not linearized (NaN, never written)
         self._not_linearized = (np.full((SIZE, SIZE), np.nan), np.full((3, 6, 6), np.nan))
         self._held: Optional[HeldReference] = None
+        #: the last solutions, which a warm coupled solve starts from (chain_path.py)
+        self.points = np.zeros((DEGREE + 1, point_width(size)))
+        self.seen = np.zeros((DEGREE + 1, SIZE // 2))
+        self.count = np.zeros(1, dtype=np.int64)
+        #: whether ``kept`` was made at the last point (a coupled solve linearized there)
+        self.kept_at_last = False
+        r_scale, x_scale = chain.platform[4], chain.platform[5]
+        #: the inputs' scales for the predictor: sliders and offset as positions, payload
+        #: force and moment as the equilibrium residual's
+        self.input_scale = np.concatenate([np.full(3, x_scale[0]), r_scale[18:24],
+                                           np.full(3, x_scale[0])])
 
     def reset(self) -> None:
         """Forget the previous solution and the legs' factorizations."""
@@ -118,11 +132,18 @@ class ReducedChain:
         self.factor_pivots[-1] = 0
         self.kept[1][:, -1] = 0
         self.kept[5][-1] = 0
+        self.count[0] = 0
+        self.kept_at_last = False
 
     def accept(self, outcome: 'ReducedOutcome', inputs: np.ndarray) -> None:
         """Keep a converged outcome as the next solve's start."""
         self.previous = (outcome.state, inputs)
         self.previous_frames = outcome.frames
+        if not outcome.on_path:
+            self.kept_at_last = False
+            state = outcome.state
+            push(self.points, self.seen, self.count, state.position, state.rotation,
+                 state.wrenches, state.leg_x, outcome.frames, inputs)
 
     def coupled(self, inputs: np.ndarray, tolerances: np.ndarray,
                 linearized: bool) -> Optional['ReducedOutcome']:
@@ -132,15 +153,19 @@ class ReducedChain:
         ``linearized``: the legs' compliances and the platform Jacobian at the solution too
         (made exact there, the next solve's chord steps start from them).
         """
-        if self.previous is None or not self.couples:
+        if self.count[0] == 0 or not self.couples:
             return None
-        state = self.previous[0].copy()
-        frames = self.previous_frames.copy()
+        size = self.model.size
+        state = ReducedState(np.empty(3), np.empty((3, 3)), np.empty((3, 6)),
+                             np.empty((3, size)))
+        frames = np.empty((3, 4, 4))
         residual = np.empty(SIZE)
-        code, iterations, refreshes = coupled_newton(
+        code, iterations, refreshes = follow(
             self.model.code, self.data, self.model.tolerance, state.leg_x, state.wrenches,
-            state.position, state.rotation, frames, True, inputs, self.chain.platform,
-            tolerances, self.max_iterations, *self.kept, residual)
+            state.position, state.rotation, frames, inputs, self.chain.platform, tolerances,
+            self.max_iterations, *self.kept, residual, self.points, self.seen, self.count,
+            self.input_scale, not self.kept_at_last)
+        self.kept_at_last = False
         if code != COUPLED_SOLVED:  # what it kept may be made far off: make it anew next time
             self.kept[1][:, -1] = 0
             self.kept[5][-1] = 0
@@ -148,13 +173,14 @@ class ReducedChain:
         if not linearized:
             return ReducedOutcome(state, True, 'converged', iterations, residual,
                                   self._not_linearized[0], frames, self._not_linearized[1],
-                                  refreshes)
+                                  refreshes, True)
         jacobian = np.full((SIZE, SIZE), np.nan)
         linearize_solution(self.model.code, self.data, state.leg_x, state.wrenches,
                            state.rotation, inputs, self.chain.platform, residual, *self.kept,
                            np.zeros(3, dtype=np.int64), jacobian)
+        self.kept_at_last = True
         return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
-                              self.kept[3].copy(), refreshes + 3)
+                              self.kept[3].copy(), refreshes + 3, True)
 
     def home(self, position: np.ndarray) -> ReducedState:
         """Straight legs, no load, platform at ``position``."""
@@ -238,24 +264,27 @@ class ReducedChain:
         return frame, compliance, (lu, pivots)
 
     def leg_results(self, outcome: ReducedOutcome) -> LegResults:
-        """Return the legs' SolveResults at the outcome's state, each built when first read."""
-        return LegResults(self._leg_builder(outcome.state.leg_x[k].copy(),
-                                            outcome.state.wrenches[k].copy())
-                          for k in range(3))
+        """
+        Return the legs' SolveResults at the outcome's state, each built when first read.
 
-    def _leg_builder(self, x: np.ndarray, wrench: np.ndarray) -> Callable[[], SolveResult]:
-        model, level = self.model, self.level
+        The builders read the outcome's own arrays (made for it, not changed afterwards).
+        """
+        state = outcome.state
+        return LegResults((partial(self._leg_result, state.leg_x[0], state.wrenches[0]),
+                           partial(self._leg_result, state.leg_x[1], state.wrenches[1]),
+                           partial(self._leg_result, state.leg_x[2], state.wrenches[2])))
 
-        def build() -> SolveResult:
-            frames = model.frames(x, wrench)
-            return SolveResult(
-                converged=True, message='converged (a leg of the chain)', iterations=0,
-                residual_norm=0.0, residual_by_type=model.residual_by_kind(np.zeros(model.size)),
-                force=wrench[:3].copy(), moment=wrench[3:].copy(),
-                frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
-                backbones=model.points(x, wrench), solve_time_s=0.0, method='fast',
-                unknowns=x * model.unknown_scale, fidelity=level)
-        return build
+    def _leg_result(self, x: np.ndarray, wrench: np.ndarray) -> SolveResult:
+        """Return the SolveResult of one leg of the chain at its unknowns ``x`` and ``wrench``."""
+        model = self.model
+        frames = model.frames(x, wrench)
+        return SolveResult(
+            converged=True, message='converged (a leg of the chain)', iterations=0,
+            residual_norm=0.0, residual_by_type=model.residual_by_kind(np.zeros(model.size)),
+            force=wrench[:3].copy(), moment=wrench[3:].copy(),
+            frames={name: frames[k].copy() for k, name in enumerate(FRAME_NAMES)},
+            backbones=model.points(x, wrench), solve_time_s=0.0, method='fast',
+            unknowns=x * model.unknown_scale, fidelity=self.level)
 
     def linearize(self, result: DeltaResult, outcome: ReducedOutcome, inputs: np.ndarray,
                   critical_load_n: Optional[float]) -> None:

@@ -180,7 +180,7 @@ def _skew(vector, out):
 
 @jit
 def _inverse_left_jacobian(vector, out):
-    """linearization.inverse_left_jacobian, compiled."""
+    """linearization.inverse_left_jacobian, compiled: I - [v]/2 + c [v]^2."""
     angle = math.sqrt(vector[0] ** 2 + vector[1] ** 2 + vector[2] ** 2)
     cross = np.empty((3, 3))
     _skew(vector, cross)
@@ -189,7 +189,34 @@ def _inverse_left_jacobian(vector, out):
     else:
         coefficient = (1.0 / angle ** 2
                        - (1.0 + math.cos(angle)) / (2.0 * angle * math.sin(angle)))
-    out[:, :] = np.eye(3) - 0.5 * cross + coefficient * (cross @ cross)
+    for i in range(3):
+        for j in range(3):
+            square = cross[i, 0] * cross[0, j] + cross[i, 1] * cross[1, j] \
+                + cross[i, 2] * cross[2, j]
+            out[i, j] = (1.0 if i == j else 0.0) - 0.5 * cross[i, j] + coefficient * square
+
+
+@jit
+def _block(left, right, transpose_left, transpose_right, factor, out, row, column, add):
+    """Set (``add``: add to) out[row:row+3, column:column+3] factor op(left) op(right)."""
+    for i in range(3):
+        for j in range(3):
+            total = 0.0
+            for a in range(3):
+                total += (left[a, i] if transpose_left else left[i, a]) \
+                    * (right[j, a] if transpose_right else right[a, j])
+            if add:
+                out[row + i, column + j] += factor * total
+            else:
+                out[row + i, column + j] = factor * total
+
+
+@jit
+def _turn(rotation, vector, factor, out):
+    """Set ``out`` (3) to factor R v."""
+    for i in range(3):
+        out[i] = factor * (rotation[i, 0] * vector[0] + rotation[i, 1] * vector[1]
+                           + rotation[i, 2] * vector[2])
 
 
 @jit
@@ -197,32 +224,36 @@ def platform_jacobian(rotation, wrenches, residual_now, inputs, leg_rotations, a
                       compliances, jacobian):
     """robot/linearization.platform_jacobian, compiled: d residual / d platform unknowns."""
     jacobian[:, :] = 0.0
-    force = inputs[3:6].copy()
-    offset_arm = rotation @ inputs[9:12].copy()
+    vector = np.empty(3)
     cross_force = np.empty((3, 3))
     cross_arm = np.empty((3, 3))
     cross_leg = np.empty((3, 3))
     inverse = np.empty((3, 3))
-    _skew(force, cross_force)
-    _skew(offset_arm, cross_arm)
-    jacobian[21:24, 3:6] = cross_force @ cross_arm
+    _skew(inputs[3:6], cross_force)
+    _turn(rotation, inputs[9:12], 1.0, vector)
+    _skew(vector, cross_arm)
+    _block(cross_force, cross_arm, False, False, 1.0, jacobian, 21, 3, False)
     for k in range(3):
         leg = leg_rotations[k]
-        arm = rotation @ attachments[k].copy()
-        leg_force = -(leg @ wrenches[k, :3].copy())
-        _skew(arm, cross_arm)
-        _skew(leg_force, cross_leg)
-        _inverse_left_jacobian(residual_now[6 * k + 3:6 * k + 6].copy(), inverse)
+        _turn(rotation, attachments[k], 1.0, vector)
+        _skew(vector, cross_arm)
+        _turn(leg, wrenches[k, :3], -1.0, vector)
+        _skew(vector, cross_leg)
+        _inverse_left_jacobian(residual_now[6 * k + 3:6 * k + 6], inverse)
         columns = 6 + 6 * k
-        jacobian[6 * k:6 * k + 3, columns:columns + 6] = compliances[k, :3]
-        jacobian[6 * k + 3:6 * k + 6, columns:columns + 6] = inverse @ compliances[k, 3:]
-        jacobian[6 * k:6 * k + 3, 0:3] = -leg.T
-        jacobian[6 * k:6 * k + 3, 3:6] = leg.T @ cross_arm
-        jacobian[6 * k + 3:6 * k + 6, 3:6] = -(inverse.T @ leg.T)
-        jacobian[18:21, columns:columns + 3] = -leg
-        jacobian[21:24, columns:columns + 3] = -(cross_arm @ leg)
-        jacobian[21:24, columns + 3:columns + 6] = -leg
-        jacobian[21:24, 3:6] += cross_leg @ cross_arm
+        for i in range(3):
+            for j in range(6):
+                jacobian[6 * k + i, columns + j] = compliances[k, i, j]
+                jacobian[6 * k + 3 + i, columns + j] = inverse[i, 0] * compliances[k, 3, j] \
+                    + inverse[i, 1] * compliances[k, 4, j] + inverse[i, 2] * compliances[k, 5, j]
+            for j in range(3):
+                jacobian[6 * k + i, j] = -leg[j, i]
+                jacobian[18 + i, columns + j] = -leg[i, j]
+                jacobian[21 + i, columns + 3 + j] = -leg[i, j]
+        _block(leg, cross_arm, True, False, 1.0, jacobian, 6 * k, 3, False)
+        _block(inverse, leg, True, True, -1.0, jacobian, 6 * k + 3, 3, False)
+        _block(cross_arm, leg, False, False, -1.0, jacobian, 21, columns, False)
+        _block(cross_leg, cross_arm, False, False, 1.0, jacobian, 21, 3, True)
 
 
 @jit
@@ -256,11 +287,16 @@ def move_platform(position, rotation, wrenches, step, scale, x_scale, out_positi
     cross = np.empty((3, 3))
     _skew(phi, cross)
     if angle < 1e-8:
-        turn = np.eye(3) + cross + 0.5 * (cross @ cross)
+        first, second = 1.0, 0.5
     else:
-        turn = (np.eye(3) + math.sin(angle) / angle * cross
-                + (1.0 - math.cos(angle)) / angle ** 2 * (cross @ cross))
-    out_rotation[:, :] = turn @ rotation
+        first, second = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle ** 2
+    turn = np.empty((3, 3))  # exp([phi]), Rodrigues
+    for i in range(3):
+        for j in range(3):
+            square = cross[i, 0] * cross[0, j] + cross[i, 1] * cross[1, j] \
+                + cross[i, 2] * cross[2, j]
+            turn[i, j] = (1.0 if i == j else 0.0) + first * cross[i, j] + second * square
+    _block(turn, rotation, False, False, 1.0, out_rotation, 0, 0, False)
     for k in range(3):
         for i in range(6):
             index = 6 + 6 * k + i

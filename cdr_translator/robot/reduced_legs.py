@@ -123,13 +123,15 @@ class ReducedLegs:
         residual = outcome.residual if outcome.converged or np.all(
             np.isfinite(outcome.residual)) else np.full(SIZE, np.nan)
         state = outcome.state
+        # the state's arrays are the outcome's own; the chain keeps it as the next walk's
+        # start, which a walk copies before it moves
         return DeltaResult(
             converged=outcome.converged, message=outcome.message,
             iterations=outcome.iterations, sliders=inputs[:3], payload_force=inputs[3:6],
             payload_moment=inputs[6:9], payload_offset=inputs[9:],
-            platform_position=state.position.copy(), platform_rotation=state.rotation.copy(),
+            platform_position=state.position, platform_rotation=state.rotation,
             home_position=self.home_position.copy(), leg_results=chain.leg_results(outcome),
-            leg_tip_wrenches=state.wrenches.copy(), equilibrium_residual=residual[18:],
+            leg_tip_wrenches=state.wrenches, equilibrium_residual=residual[18:],
             compatibility_residual=residual[:18].reshape(3, 6), solve_time_s=0.0,
             leg_solves=0, leg_jacobians=outcome.leg_jacobians, leg_fidelity=(level,) * 3,
             leg_error_bound_m=tuple(bound[0] for bound in bounds),
