@@ -213,7 +213,8 @@ class FidelitySolver:
                             **compliance_options: float) -> SolveResult:
         """Solve the full model at ``wrench`` and expand the linear level about it."""
         started = time.perf_counter()
-        result = self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
+        # warm start, compliance and verify given by position: the options are only floats
+        result = self.full.solve(wrench[:3], wrench[3:], True, compliance, False,
                                  **compliance_options)
         if result.converged:
             try:
