@@ -64,8 +64,11 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
     for row in rows:
         batch.fidelity[row] = level  # what a row that raises was tried at
         batch.run(row, solve_row, wrenches[row], compliance)
-        if batch.message[row] and not whole:  # a whole solve's message names its level
-            batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
+        if not whole:  # a whole solve's message names its level
+            suffix = f' [{batch.fidelity[row]}: {reason}]'
+            batch.solve_message[row] += suffix
+            if batch.message[row]:
+                batch.message[row] += suffix
         solver._last_wrench = wrenches[row]
         solver._last_level = str(batch.fidelity[row])
 
@@ -161,6 +164,7 @@ def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows
     for row in rows:
         if batch.message[row]:
             batch.message[row] += f' [full: {reason}]'
+        batch.solve_message[row] += f' [full: {reason}]'
         solver._last_wrench = wrenches[row]
         solver._last_level = 'full'
 
