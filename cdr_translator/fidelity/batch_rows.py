@@ -11,6 +11,7 @@ SolveResult, or a whole ``solve`` where the level choice needs one.
 """
 
 from functools import partial
+import math
 import time
 from typing import Optional, TYPE_CHECKING
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from .validation import box_scale, box_scales
 from .. import lean_rows
-from ..batch import BatchResult, RowSolver
+from ..batch import BatchResult, RowSolver, SolveDetails
 from ..compliance import ComplianceAnalysis
 
 if TYPE_CHECKING:
@@ -192,7 +193,10 @@ def _reduced_row(solver: 'FidelitySolver', level: str, batch: BatchResult, row: 
         result.message += failure
         batch.record(row, result)
         return elapsed
+    details = SolveDetails(outcome.iterations, float(np.sqrt(outcome.rs @ outcome.rs)), None,
+                           math.nan, 0, 'fast', outcome.message, analysis)
     batch.record_pose(row, solver.reduced[level].frames(outcome.x, wrench),
                       None if analysis is None else analysis.stable, None,
-                      None if analysis is None else analysis.matrix, fidelity=level)
+                      None if analysis is None else analysis.matrix, fidelity=level,
+                      details=details)
     return elapsed

@@ -29,6 +29,9 @@ FOLLOWER_TOLERANCE = 1e-12
 #: Solves allowed for a follower load before it is reported as not converged.
 FOLLOWER_MAX_SOLVES = 8
 
+#: Fidelity levels whose ``solve_many`` rows with compliance say all a ``solve`` result does.
+BATCHED_FIDELITIES = ('full', 'cc', 'rod')
+
 #: One wrench as ``messages.wrench_from_message`` gives it: force, moment, frame_id, stamp.
 Wrench = Tuple[np.ndarray, np.ndarray, str, Mapping[str, int]]
 
@@ -131,10 +134,12 @@ class WrenchProcessor:
         Whether ``process_many`` solves runs of base-frame wrenches by one ``solve_many``.
 
         Only where the batch's rows hold everything the outputs read (``batch_row``): not
-        with backbones (a row keeps no shape), and at the levels whose batch rows record
-        their single solve's iterations, residual and verdict.
+        with backbones (a row keeps no shape), and where every row is solved by a path that
+        records its single solve's iterations, residual and verdict: with compliance, at
+        the full and the reduced levels (their compiled runs without compliance keep none).
         """
-        return (not self.backbones and self.settings.fidelity == 'full' and self.compliance)
+        return (not self.backbones and self.compliance
+                and self.settings.fidelity in BATCHED_FIDELITIES)
 
     def process_many(self, wrenches: Sequence[Wrench]) -> List[Outcome]:
         """
