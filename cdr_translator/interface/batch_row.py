@@ -3,12 +3,12 @@ One row of a ``BatchResult`` read as the ``SolveResult`` of that wrench's single
 
 The node's outputs (``messages.iter_output_messages``), replay's CSV rows and summary read a
 result's converged flag, message, iterations, residual, stability verdict and margin, error
-estimate, compliance analysis and end-disk pose. ``BatchRow`` offers exactly those from the
-batch's columns, so that one code path builds the outputs of a single solve and of a batch
-row alike.
+estimate, compliance analysis and end-disk pose, and a follower load starts from the
+end-disk rotation. ``BatchRow`` offers exactly those from the batch's columns, so that one
+code path builds the outputs of a single solve and of a batch row alike.
 """
 
-from typing import Any, Callable, Dict, Optional, TYPE_CHECKING
+from typing import Any, Callable, Optional, TYPE_CHECKING
 
 import numpy as np
 
@@ -80,11 +80,3 @@ class BatchRow:
     def end_disk_rotation(self) -> float:
         """Return the total rotation angle of the end disk relative to the base (rad)."""
         return geometry.rotation_angle(self.end_disk_rotation_matrix)
-
-    @property
-    def frames(self) -> Dict[str, np.ndarray]:
-        """Return the end-disk frame {de} (the only frame a batch row keeps)."""
-        frame = np.eye(4)
-        frame[:3, :3] = self.end_disk_rotation_matrix
-        frame[:3, 3] = self.batch.end_disk_position[self.index]
-        return {'de': frame}

@@ -188,7 +188,7 @@ class WrenchProcessor:
             self.counts['received'] += 1
             if row.converged:
                 self.counts['solved'] += 1
-                self.rotation = row.end_disk_rotation_matrix.copy()
+                self.rotation = row.end_disk_rotation_matrix
             else:
                 self.counts['not_converged'] += 1
             outputs = messages.output_messages(
