@@ -9,6 +9,8 @@ and, on request, backbones) with header stamps equal to the input stamps and log
 to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
 gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
 (``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
+Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
+batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 
 Memory stays bounded however long the input: messages stream through and the statistics
 are running ones (``msg_tools.replay_summary``). The topics replayed are chosen by
@@ -217,9 +219,10 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     ReplayError when nothing can be replayed (OutputError when an output cannot be
     written: checked before the input is read). A write error during the replay ends it
     with ``summary.output_error`` or ``summary.output_status.lost`` set. Ctrl-C (SIGINT;
-    in the main thread it is taken between two messages, see ``interrupts``) or a
-    KeyboardInterrupt stops the replay early: the output MCAP (and CSV) are still
-    finalized, and ``summary.interrupted`` is True. ``plot_samples``: message indices kept
+    in the main thread it is taken between two messages, the messages read before it
+    answered; see ``interrupts``) or a KeyboardInterrupt (the block in hand is lost)
+    stops the replay early: the output MCAP (and CSV) are still finalized, and
+    ``summary.interrupted`` is True. ``plot_samples``: message indices kept
     in ``summary.series`` whatever its thinning (ValueError when one is negative, or
     beyond the input's messages). ``other_outputs``: (what, path) of files the caller
     writes afterwards (the plot), checked with the others before the input is read.
