@@ -10,7 +10,7 @@ None in the object columns ``stable`` and ``accuracy_met``, where ``to_dict`` sa
 
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Dict, Iterable, Optional
+from typing import Any, Callable, Dict, Iterable, NamedTuple, Optional, TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,9 +21,27 @@ from .checks import check_vector
 from .errors import InputError
 from .result import SolveResult
 
+if TYPE_CHECKING:
+    from .compliance import ComplianceAnalysis
+
 #: How ``solve_many`` solves one row: (batch, row, wrench, compliance) -> solve time (s);
 #: it writes the row by ``BatchResult.record`` or ``record_pose``.
 RowSolver = Callable[['BatchResult', int, np.ndarray, bool], float]
+
+
+class SolveDetails(NamedTuple):
+    """What a single solve's result says beside the pose (``SolveResult``'s fields)."""
+
+    iterations: int
+    residual_norm: float
+    #: the solve's own stability verdict (None: not judged) and its margin
+    verdict: Optional[bool]
+    stability_margin: float
+    steps_per_segment: int
+    method: str
+    #: the result's whole message, also for a good row
+    message: str
+    analysis: Optional['ComplianceAnalysis']
 
 
 @dataclass
@@ -53,6 +71,20 @@ class BatchResult:
     fidelity: np.ndarray
     message: np.ndarray
     solve_time_s: np.ndarray
+    #: what a single solve's result says beside the pose, per row (unknown: -1, NaN, None or
+    #: ''): its iterations and residual norm, its own stability verdict (None: not judged)
+    #: and margin, the steps per segment of its error estimate, its method, its whole
+    #: message (also for a good row), the end-disk rotation matrix (N, 3, 3) and its
+    #: compliance analysis (None: not made)
+    iterations: np.ndarray
+    residual_norm: np.ndarray
+    verdict: np.ndarray
+    stability_margin: np.ndarray
+    steps_per_segment: np.ndarray
+    method: np.ndarray
+    solve_message: np.ndarray
+    end_disk_rotation: np.ndarray
+    analysis: np.ndarray
     compliance: Optional[np.ndarray] = None
 
     @classmethod
@@ -68,6 +100,9 @@ class BatchResult:
                    np.full(count, None, object), np.full(count, None, object), unknown(),
                    unknown(), unknown(3), unknown(4), unknown(2), unknown(2),
                    np.full(count, 'full', object), np.full(count, '', object), unknown(),
+                   np.full(count, -1), unknown(), np.full(count, None, object), unknown(),
+                   np.zeros(count, int), np.full(count, '', object),
+                   np.full(count, '', object), unknown(3, 3), np.full(count, None, object),
                    unknown(6, 6) if compliance else None)
 
     def __len__(self) -> int:
@@ -91,7 +126,11 @@ class BatchResult:
             column[row] = math.nan
         if self.compliance is not None:
             self.compliance[row] = math.nan
-        self.message[row] = message
+        self.message[row] = self.solve_message[row] = message
+        self.iterations[row] = 0  # known: the solve ended before any
+        self.residual_norm[row] = self.stability_margin[row] = math.nan
+        self.end_disk_rotation[row] = math.nan
+        self.verdict[row] = self.analysis[row] = None
 
     def record(self, row: int, result: SolveResult) -> None:
         """Write ``row`` from a solve's result."""
@@ -106,22 +145,40 @@ class BatchResult:
                     bool(result.accuracy_met) if estimated else None,
                     result.error_estimate_m, result.error_estimate_deg, matrix,
                     result.fidelity)
+        self.record_details(row, SolveDetails(
+            result.iterations, result.residual_norm, result.stable, result.stability_margin,
+            result.steps_per_segment, result.method, result.message, result.compliance))
         if not self._good(row):
             self.message[row] = result.message
 
+    def record_details(self, row: int, details: SolveDetails) -> None:
+        """Write what a single solve's result of ``row`` says beside its pose."""
+        self.iterations[row] = details.iterations
+        self.residual_norm[row] = details.residual_norm
+        self.verdict[row] = details.verdict
+        self.stability_margin[row] = details.stability_margin
+        self.steps_per_segment[row] = details.steps_per_segment
+        self.method[row] = details.method
+        self.solve_message[row] = details.message
+        self.analysis[row] = details.analysis
+
     def record_pose(self, row: int, frames: np.ndarray, stable: Optional[bool],
                     estimate: Optional[ErrorEstimate], matrix: Optional[np.ndarray] = None,
-                    message: str = '', fidelity: str = 'full') -> None:
+                    message: str = '', fidelity: str = 'full',
+                    details: Optional[SolveDetails] = None) -> None:
         """
         Write a converged ``row`` from its frames {pe}, {pm}, {dm}, {de} (4, 4, 4).
 
         ``estimate`` (None: not made) meets the accuracy target; ``message`` is the one a
-        single solve would give when that row is not good (its compliance failed).
+        single solve would give when that row is not good (its compliance failed);
+        ``details``: the rest of what that solve's result says (None: unknown).
         """
         self._write(row, True, frames[0], frames[1], frames[2], frames[3], stable,
                     None if estimate is None else True,
                     math.nan if estimate is None else estimate.position_m,
                     math.nan if estimate is None else estimate.angle_deg, matrix, fidelity)
+        if details is not None:
+            self.record_details(row, details)
         if not self._good(row):
             self.message[row] = message
 
@@ -170,6 +227,7 @@ class BatchResult:
         self.error_estimate_deg[row] = error_deg
         self.end_disk_position[row] = de[:3, 3]
         self.end_disk_quaternion_xyzw[row] = geometry.quaternion_xyzw(de[:3, :3])
+        self.end_disk_rotation[row] = de[:3, :3]
         self.pj_bending[row] = geometry.bending_between(pe, pm)
         self.dj_bending[row] = geometry.bending_between(dm, de)
         self.fidelity[row] = fidelity

@@ -19,7 +19,7 @@ import numpy as np
 
 from ._linalg import residual_norm
 from .accuracy import ErrorEstimate, meets
-from .batch import BatchResult
+from .batch import BatchResult, SolveDetails
 from .branch import LOAD_FLOOR, RECHECK_MARGIN, STALE_WRENCH
 from .compliance import compliance_analysis, ComplianceAnalysis
 from .continuation import warm_settings
@@ -191,13 +191,18 @@ def solve_row(solver: 'TranslatorSolver', batch: BatchResult, row: int, wrench: 
     solver._refinements.last_estimate = estimate
     elapsed = time.perf_counter() - started
     frames = outcome.shape[2]
-    matrix, message = None, ''
+    analysis: Optional[ComplianceAnalysis] = None
+    message = ''
     if compliance:
         try:
-            matrix = compliance_at(solver, outcome, wrench, frames[3][:3, :3]).matrix
+            analysis = compliance_at(solver, outcome, wrench, frames[3][:3, :3])
         except ArithmeticError as error:
             message = f'{outcome.message}; no compliance: {error}'
-    batch.record_pose(row, frames, verdict.stable, estimate, matrix, message)
+    details = SolveDetails(outcome.iterations, residual_norm(outcome.rs), verdict.stable,
+                           verdict.margin, solver.problem.params.steps_per_segment,
+                           solver.method, message or outcome.message, analysis)
+    batch.record_pose(row, frames, verdict.stable, estimate,
+                      None if analysis is None else analysis.matrix, message, details=details)
     return elapsed
 
 

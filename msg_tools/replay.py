@@ -9,6 +9,8 @@ and, on request, backbones) with header stamps equal to the input stamps and log
 to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
 gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
 (``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
+Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
+batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 
 Memory stays bounded however long the input: messages stream through and the statistics
 are running ones (``msg_tools.replay_summary``). The topics replayed are chosen by
@@ -20,11 +22,11 @@ import csv
 import math
 from pathlib import Path
 import time
-from typing import Collection, IO, Optional, Sequence, Tuple, Union
+from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
-from cdr_translator.interface.wrench_processing import WrenchProcessor
+from cdr_translator.interface.wrench_processing import Outcome, Wrench, WrenchProcessor
 from msg_tools.cdr_codecs import encoder, ShippedDecoders
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
@@ -36,6 +38,11 @@ from msg_tools.replay_estimates import pose_processors, register_poses, replay_p
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
 import numpy as np
+
+#: Wrench messages of one topic solved together at most (``WrenchProcessor.process_many``):
+#: enough that a block's Python overhead is shared, few enough that memory and the work
+#: lost to an interrupt stay small.
+BLOCK_SIZE = 256
 
 #: CSV columns, one row per input message (SI units, radians).
 CSV_COLUMNS = (
@@ -99,6 +106,105 @@ def _csv_row(index: int, raw, force, moment, frame_id, stamp_ns, outcome) -> lis
     return row
 
 
+class _Block:
+    """
+    Wrench messages of one topic read ahead, solved together, written in their order.
+
+    ``WrenchProcessor.process_many`` solves a block's base-frame wrenches by one
+    ``solve_many``; each message is then written with its outputs, its CSV row and its
+    place in the summary, exactly as if handled alone.
+    """
+
+    def __init__(self, log: McapLog, table: Any, summary: ReplaySummary,
+                 bar: Optional[Progress], processors: Dict[str, WrenchProcessor]) -> None:
+        """Write to ``log`` and ``table`` (None: no CSV), count in ``summary``."""
+        self.log, self.table, self.summary, self.bar = log, table, summary, bar
+        self.processors = processors
+        self.pending: List[Tuple[int, RawMessage, Wrench]] = []
+
+    def add(self, index: int, raw: RawMessage, wrench: Wrench) -> bool:
+        """Take message ``index``; False when a write failed (the replay ends)."""
+        if self.pending and (self.pending[0][1].topic != raw.topic
+                             or len(self.pending) >= BLOCK_SIZE):
+            if not self.flush():
+                return False
+        processor = self.processors[raw.topic]
+        if processor.batches:
+            self.pending.append((index, raw, wrench))
+            return True
+        self._write_input(raw)  # then its outputs, as soon as solved
+        self._write(index, raw, wrench, processor.process(*wrench))
+        return self._log_ok()
+
+    def flush(self) -> bool:
+        """Solve and write the messages taken; False when a write failed."""
+        if not self.pending:
+            return True
+        pending, self.pending = self.pending, []
+        processor = self.processors[pending[0][1].topic]
+        outcomes = processor.process_many([wrench for _, _, wrench in pending])
+        for (index, raw, wrench), outcome in zip(pending, outcomes):
+            self._write_input(raw)
+            self._write(index, raw, wrench, outcome)
+            if not self._log_ok():
+                return False
+        return True
+
+    def _log_ok(self) -> bool:
+        """Whether the output MCAP is still written; else say why in the summary."""
+        if not self.log.ok:
+            self.summary.output_error = f'output MCAP: {self.log.status().message}'
+        return self.log.ok
+
+    def _write_input(self, raw: RawMessage) -> None:
+        """Write and count an input message."""
+        self.summary.messages += 1
+        self.log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data, raw.log_time_ns,
+                                  raw.publish_time_ns)
+
+    def undecodable(self, index: int, raw: RawMessage, error: Exception) -> None:
+        """Write and count a message that is no WrenchStamped."""
+        self._write_input(raw)
+        self.summary.undecodable += 1
+        self.summary.warn(f'message {index} on {raw.topic}: {error}')
+        if self.table:
+            row = ([index, raw.topic, '', raw.log_time_ns, ''] + [''] * 6
+                   + ['undecodable', str(error)])
+            self.table.writerow(row + [''] * (len(CSV_COLUMNS) - len(row)))
+        if self.bar:
+            self.bar.update(self.summary.messages)
+
+    def _write(self, index: int, raw: RawMessage, wrench: Wrench, outcome: Outcome) -> None:
+        """Write the outputs and CSV row of a message written; count them in the summary."""
+        summary, log = self.summary, self.log
+        force, moment, frame_id, stamp = wrench
+        for name, type_name, message in outcome.outputs:
+            log.write(output_topic(raw.topic, name), type_name, message, raw.log_time_ns,
+                      raw.log_time_ns)
+        stamp_ns = messages.stamp_to_ns(stamp)
+        result = outcome.result
+        if result is None:
+            summary.rejected += 1
+        elif not result.converged:
+            summary.not_converged += 1
+            summary.solve_times.add(result.solve_time_s)
+        else:
+            summary.solved += 1
+            summary.solve_times.add(result.solve_time_s)
+            if summary.first_stamp_ns is None:
+                summary.first_stamp_ns = stamp_ns
+            joints = messages.joint_positions(result)
+            position = result.end_disk_position.tolist()
+            summary.converged(joints, position)
+            summary.series.add(index, 1e-9 * (stamp_ns - summary.first_stamp_ns), joints,
+                               position, np.concatenate([result.force, result.moment]))
+        if self.table:
+            self.table.writerow(_csv_row(index, raw, force, moment, frame_id, stamp_ns,
+                                         outcome))
+        if self.bar:
+            self.bar.update(summary.messages)
+
+
 def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
            topics: Optional[Sequence[str]] = None,
            params_path: Union[str, Path, None] = None, compliance: bool = True,
@@ -113,9 +219,10 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     ReplayError when nothing can be replayed (OutputError when an output cannot be
     written: checked before the input is read). A write error during the replay ends it
     with ``summary.output_error`` or ``summary.output_status.lost`` set. Ctrl-C (SIGINT;
-    in the main thread it is taken between two messages, see ``interrupts``) or a
-    KeyboardInterrupt stops the replay early: the output MCAP (and CSV) are still
-    finalized, and ``summary.interrupted`` is True. ``plot_samples``: message indices kept
+    in the main thread it is taken between two messages, the messages read before it
+    answered; see ``interrupts``) or a KeyboardInterrupt (the block in hand is lost)
+    stops the replay early: the output MCAP (and CSV) are still finalized, and
+    ``summary.interrupted`` is True. ``plot_samples``: message indices kept
     in ``summary.series`` whatever its thinning (ValueError when one is negative, or
     beyond the input's messages). ``other_outputs``: (what, path) of files the caller
     writes afterwards (the plot), checked with the others before the input is read.
@@ -156,7 +263,6 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             warm_up(processors[raw.topic], decoders, raw)
     bar = Progress(progress, total) if progress is not None else None
     started = time.perf_counter()
-    first_stamp_ns = None
     # Ctrl-C is deferred from before the outputs exist: once the output file is created, an
     # interrupt always ends in a finalized file and the summary's "interrupted"
     with deferred_sigint() as interrupt:
@@ -175,57 +281,29 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             for topic in chosen:
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             register_poses(log, poses)
+            block = _Block(log, table, summary, bar, processors)
             try:
                 for index, raw in window_messages(source.messages(), window, warm_wrench):
                     if interrupt.requested:
                         summary.interrupted = True
+                        block.flush()  # the messages read before it are answered
                         break
                     if raw.topic in estimators:
+                        if not block.flush():
+                            break
                         replay_pose(log, raw, estimators[raw.topic], decoders, summary, index)
                         continue
-                    summary.messages += 1
-                    log.write_serialized(raw.topic, messages.WRENCH_TYPE, raw.data,
-                                         raw.log_time_ns, raw.publish_time_ns)
                     try:
-                        force, moment, frame_id, stamp = messages.wrench_from_message(
-                            decoders.decode(raw))
+                        wrench = messages.wrench_from_message(decoders.decode(raw))
                     except (ValueError, AttributeError, TypeError) as error:
-                        summary.undecodable += 1
-                        summary.warn(f'message {index} on {raw.topic}: {error}')
-                        if table:
-                            row = ([index, raw.topic, '', raw.log_time_ns, ''] + [''] * 6
-                                   + ['undecodable', str(error)])
-                            table.writerow(row + [''] * (len(CSV_COLUMNS) - len(row)))
+                        if not block.flush():
+                            break
+                        block.undecodable(index, raw, error)
                         continue
-                    outcome = processors[raw.topic].process(force, moment, frame_id, stamp)
-                    for name, type_name, message in outcome.outputs:
-                        log.write(output_topic(raw.topic, name), type_name, message,
-                                  raw.log_time_ns, raw.log_time_ns)
-                    stamp_ns = messages.stamp_to_ns(stamp)
-                    result = outcome.result
-                    if result is None:
-                        summary.rejected += 1
-                    elif not result.converged:
-                        summary.not_converged += 1
-                        summary.solve_times.add(result.solve_time_s)
-                    else:
-                        summary.solved += 1
-                        summary.solve_times.add(result.solve_time_s)
-                        first_stamp_ns = stamp_ns if first_stamp_ns is None else first_stamp_ns
-                        joints = messages.joint_positions(result)
-                        position = result.end_disk_position.tolist()
-                        summary.converged(joints, position)
-                        wrench = np.concatenate([result.force, result.moment])
-                        summary.series.add(index, 1e-9 * (stamp_ns - first_stamp_ns), joints,
-                                           position, wrench)
-                    if table:
-                        table.writerow(_csv_row(index, raw, force, moment, frame_id,
-                                                stamp_ns, outcome))
-                    if bar:
-                        bar.update(summary.messages)
-                    if not log.ok:
-                        summary.output_error = f'output MCAP: {log.status().message}'
+                    if not block.add(index, raw, wrench):
                         break
+                else:
+                    block.flush()
             except KeyboardInterrupt:
                 summary.interrupted = True
             except OSError as error:   # the CSV (the MCAP writer reports through its status)
@@ -241,5 +319,4 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             if bar:
                 bar.close(summary.messages)
             summary.wall_s = time.perf_counter() - started
-            summary.first_stamp_ns = first_stamp_ns
     return summary

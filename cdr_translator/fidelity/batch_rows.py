@@ -11,6 +11,7 @@ SolveResult, or a whole ``solve`` where the level choice needs one.
 """
 
 from functools import partial
+import math
 import time
 from typing import Optional, TYPE_CHECKING
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from .validation import box_scale, box_scales
 from .. import lean_rows
-from ..batch import BatchResult, RowSolver
+from ..batch import BatchResult, RowSolver, SolveDetails
 from ..compliance import ComplianceAnalysis
 
 if TYPE_CHECKING:
@@ -64,8 +65,11 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
     for row in rows:
         batch.fidelity[row] = level  # what a row that raises was tried at
         batch.run(row, solve_row, wrenches[row], compliance)
-        if batch.message[row] and not whole:  # a whole solve's message names its level
-            batch.message[row] += f' [{batch.fidelity[row]}: {reason}]'
+        if not whole:  # a whole solve's message names its level
+            suffix = f' [{batch.fidelity[row]}: {reason}]'
+            batch.solve_message[row] += suffix
+            if batch.message[row]:
+                batch.message[row] += suffix
         solver._last_wrench = wrenches[row]
         solver._last_level = str(batch.fidelity[row])
 
@@ -161,6 +165,7 @@ def _full_rows(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows
     for row in rows:
         if batch.message[row]:
             batch.message[row] += f' [full: {reason}]'
+        batch.solve_message[row] += f' [full: {reason}]'
         solver._last_wrench = wrenches[row]
         solver._last_level = 'full'
 
@@ -188,7 +193,10 @@ def _reduced_row(solver: 'FidelitySolver', level: str, batch: BatchResult, row: 
         result.message += failure
         batch.record(row, result)
         return elapsed
+    details = SolveDetails(outcome.iterations, float(np.sqrt(outcome.rs @ outcome.rs)), None,
+                           math.nan, 0, 'fast', outcome.message, analysis)
     batch.record_pose(row, solver.reduced[level].frames(outcome.x, wrench),
                       None if analysis is None else analysis.stable, None,
-                      None if analysis is None else analysis.matrix, fidelity=level)
+                      None if analysis is None else analysis.matrix, fidelity=level,
+                      details=details)
     return elapsed

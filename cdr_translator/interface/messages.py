@@ -8,14 +8,18 @@ DiagnosticStatus ``level`` is an int here (rclpy wants it as one byte: ``bytes([
 """
 
 import math
-from typing import Any, Iterator, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .batch_row import BatchRow
 from .. import geometry
 from ..params import TranslatorParams
 from ..result import SolveResult
+
+#: What the outputs are built from: a single solve's result or a batch row read as one.
+Solved = Union[SolveResult, BatchRow]
 
 #: Topic names (relative, as the node uses them; the diagnostics topic is absolute).
 WRENCH_TOPIC = 'wrench'
@@ -126,14 +130,14 @@ def _pose(frame: np.ndarray) -> dict:
             'orientation': _vector3(geometry.quaternion_xyzw(frame[:3, :3]), 'xyzw')}
 
 
-def pose_message(result: SolveResult, stamp: Mapping[str, int], frame_id: str) -> dict:
+def pose_message(result: Solved, stamp: Mapping[str, int], frame_id: str) -> dict:
     """Return the PoseStamped of the end-disk centre and orientation in the base frame."""
     return {'header': header(stamp, frame_id),
             'pose': {'position': _vector3(result.end_disk_position),
                      'orientation': _vector3(result.end_disk_quaternion_xyzw, 'xyzw')}}
 
 
-def joint_positions(result: SolveResult) -> List[float]:
+def joint_positions(result: Solved) -> List[float]:
     """Return the JointState positions (rad) in the order of ``JOINT_NAMES``."""
     pj_theta, pj_delta = result.pj_bending
     dj_theta, dj_delta = result.dj_bending
@@ -141,14 +145,14 @@ def joint_positions(result: SolveResult) -> List[float]:
             float(result.end_disk_rotation)]
 
 
-def joint_state_message(result: SolveResult, stamp: Mapping[str, int],
+def joint_state_message(result: Solved, stamp: Mapping[str, int],
                         frame_id: str = '') -> dict:
     """Return the sensor_msgs/JointState of the bending angles and directions (rad)."""
     return {'header': header(stamp, frame_id), 'name': list(JOINT_NAMES),
             'position': joint_positions(result), 'velocity': [], 'effort': []}
 
 
-def _compliance(result: SolveResult) -> Any:
+def _compliance(result: Solved) -> Any:
     """Return ``result.compliance``; ValueError when the solve did not compute it."""
     compliance = getattr(result, 'compliance', None)
     if compliance is None:
@@ -156,7 +160,7 @@ def _compliance(result: SolveResult) -> Any:
     return compliance
 
 
-def compliance_eigenvalues_message(result: SolveResult) -> dict:
+def compliance_eigenvalues_message(result: Solved) -> dict:
     """
     Return the Float64MultiArray of the six compliance eigenvalues (ascending, SI).
 
@@ -170,7 +174,7 @@ def compliance_eigenvalues_message(result: SolveResult) -> dict:
             'data': values}
 
 
-def compliance_message(result: SolveResult) -> dict:
+def compliance_message(result: Solved) -> dict:
     """
     Return the Float64MultiArray of the 6x6 compliance matrix, row-major.
 
@@ -271,7 +275,7 @@ def diagnostics_message(stamp: Mapping[str, int], level: int, message: str,
                                    for key, value in values.items()]}]}
 
 
-def solve_diagnostic_values(result: SolveResult) -> dict:
+def solve_diagnostic_values(result: Solved) -> dict:
     """Return the key/values that describe one solve: converged, residual, iterations, time."""
     values = {'converged': bool(result.converged),
               'residual_norm': float(result.residual_norm),
@@ -294,7 +298,7 @@ def solve_diagnostic_values(result: SolveResult) -> dict:
     return values
 
 
-def solve_level(result: SolveResult) -> int:
+def solve_level(result: Solved) -> int:
     """
     Return ERROR if the solve failed, WARN if it converged to an answer not to act on, else OK.
 
@@ -311,7 +315,7 @@ def solve_level(result: SolveResult) -> int:
     return OK if stable and getattr(result, 'accuracy_met', True) else WARN
 
 
-def output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: str, *,
+def output_messages(result: Solved, stamp: Mapping[str, int], base_frame: str, *,
                     compliance: bool = True, backbones_params: Optional[TranslatorParams] = None,
                     extra_values: Optional[Mapping[str, Any]] = None
                     ) -> List[Tuple[str, str, dict]]:
@@ -329,7 +333,7 @@ def output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: s
                                      extra_values=extra_values))
 
 
-def iter_output_messages(result: SolveResult, stamp: Mapping[str, int], base_frame: str, *,
+def iter_output_messages(result: Solved, stamp: Mapping[str, int], base_frame: str, *,
                          compliance: bool = True,
                          backbones_params: Optional[TranslatorParams] = None,
                          extra_values: Optional[Mapping[str, Any]] = None
@@ -348,6 +352,8 @@ def iter_output_messages(result: SolveResult, stamp: Mapping[str, int], base_fra
                    compliance_eigenvalues_message(result))
             yield COMPLIANCE_TOPIC, FLOAT64_MULTI_ARRAY_TYPE, compliance_message(result)
         if backbones_params is not None:
+            if not isinstance(result, SolveResult):
+                raise ValueError("backbones need a solve's result: a batch row keeps no shape")
             yield (BACKBONES_TOPIC, MARKER_ARRAY_TYPE,
                    backbones_message(result, backbones_params, stamp, base_frame))
     values = solve_diagnostic_values(result)

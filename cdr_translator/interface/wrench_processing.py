@@ -10,13 +10,14 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 
 from dataclasses import dataclass
 import math
-from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import messages
+from .batch_row import BatchRow
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
 from ..params import TranslatorParams
@@ -27,6 +28,12 @@ from ..solver import check_wrench, TranslatorSolver
 FOLLOWER_TOLERANCE = 1e-12
 #: Solves allowed for a follower load before it is reported as not converged.
 FOLLOWER_MAX_SOLVES = 8
+
+#: Fidelity levels whose ``solve_many`` rows with compliance say all a ``solve`` result does.
+BATCHED_FIDELITIES = ('full', 'cc', 'rod')
+
+#: One wrench as ``messages.wrench_from_message`` gives it: force, moment, frame_id, stamp.
+Wrench = Tuple[np.ndarray, np.ndarray, str, Mapping[str, int]]
 
 
 def node_solver(params: TranslatorParams, settings: TranslatorSettings) -> FidelitySolver:
@@ -96,7 +103,7 @@ def solve_wrench(solver: Union[TranslatorSolver, FidelitySolver], force: np.ndar
 class Outcome:
     """What one wrench gave: the result (None if rejected), why not, and the outputs."""
 
-    result: Optional[SolveResult]
+    result: Optional[Union[SolveResult, BatchRow]]
     error: str
     outputs: List[Tuple[str, str, dict]]
     solves: int = 0
@@ -120,6 +127,75 @@ class WrenchProcessor:
         self.rotation = np.eye(3)
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
                                        'not_converged': 0, 'skipped': 0}
+
+    @property
+    def batches(self) -> bool:
+        """
+        Whether ``process_many`` solves runs of base-frame wrenches by one ``solve_many``.
+
+        Only where the batch's rows hold everything the outputs read (``batch_row``): not
+        with backbones (a row keeps no shape), and where every row is solved by a path that
+        records its single solve's iterations, residual and verdict: with compliance, at
+        the full and the reduced levels (their compiled runs without compliance keep none).
+        """
+        return (not self.backbones and self.compliance
+                and self.settings.fidelity in BATCHED_FIDELITIES)
+
+    def process_many(self, wrenches: Sequence[Wrench]) -> List[Outcome]:
+        """
+        Handle ``wrenches`` (force, moment, frame_id, stamp) in order, as ``process`` would.
+
+        Runs of accepted base-frame wrenches are solved by one ``solve_many``, warm along
+        them (``batches``); a rejected input and a follower load (end-disk frame) end a run
+        and are handled by ``process``. The outcomes equal those of ``process`` called on
+        each wrench in turn, to the solver's tolerance.
+        """
+        if not self.batches:
+            return [self.process(*wrench) for wrench in wrenches]
+        outcomes: List[Outcome] = []
+        run: List[Wrench] = []
+        for wrench in wrenches:
+            if self._in_run(wrench):
+                run.append(wrench)
+                continue
+            outcomes += self._solve_run(run)
+            run = []
+            outcomes.append(self.process(*wrench))
+        return outcomes + self._solve_run(run)
+
+    def _in_run(self, wrench: Wrench) -> bool:
+        """Whether ``wrench`` is accepted and in the base frame (it may join a run)."""
+        force, moment, frame_id, _ = wrench
+        settings = self.settings
+        try:
+            check_wrench(force, moment)
+            check_magnitude(force, moment, settings.max_force, settings.max_moment)
+            return not in_end_disk_frame(frame_id, settings.base_frame,
+                                         settings.end_disk_frame)
+        except ValueError:
+            return False
+
+    def _solve_run(self, run: Sequence[Wrench]) -> List[Outcome]:
+        """Solve a run of accepted base-frame wrenches by one ``solve_many``."""
+        if not run:
+            return []
+        batch = self.solver.solve_many(np.array([wrench[0] for wrench in run], dtype=float),
+                                       np.array([wrench[1] for wrench in run], dtype=float),
+                                       compliance=self.compliance)
+        outcomes = []
+        for index, wrench in enumerate(run):
+            row = BatchRow(batch, index)
+            self.counts['received'] += 1
+            if row.converged:
+                self.counts['solved'] += 1
+                self.rotation = row.end_disk_rotation_matrix
+            else:
+                self.counts['not_converged'] += 1
+            outputs = messages.output_messages(
+                row, wrench[3], self.settings.base_frame, compliance=self.compliance,
+                extra_values=dict(self.counts))
+            outcomes.append(Outcome(row, '' if row.converged else row.message, outputs, 1))
+        return outcomes
 
     def process(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
                 stamp: Mapping[str, int]) -> Outcome:
