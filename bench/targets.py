@@ -31,7 +31,7 @@ from pathlib import Path
 import platform
 import statistics
 import time
-from typing import Any, Callable, Dict, List
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from bench.compliance_costs import computed_compliance
 from bench.delta_statics import COLD_CASES, cold_solves, warm_solves
@@ -79,10 +79,12 @@ def _instrument(solver: TranslatorSolver, spent: List[float]) -> None:
     """
     Time the two per-solve extras (stability verdict, error estimate) into ``spent``.
 
-    A usual warm solve makes its estimate inside one compiled call (warm_step.py), which
-    cannot be timed apart: there the same estimate is made again alone (``_estimate_at``)
-    and that time is counted instead.
+    The solver is put on its general path (no compiled usual row, whose kept verdict and
+    estimate cannot be timed apart). A warm step there makes its estimate inside one
+    compiled call (warm_step.py): the same estimate is made again alone
+    (``_estimate_at``) and that time is counted instead.
     """
+    solver._usual_solve = lambda wrench, started: (None, None)  # type: ignore[method-assign]
     for name in ('_stability', '_estimate_error'):
         original = getattr(solver, name)
 
@@ -96,36 +98,53 @@ def _instrument(solver: TranslatorSolver, spent: List[float]) -> None:
         setattr(solver, name, timed)
 
 
-def warm_sequences(solvers: Dict[str, TranslatorSolver],
-                   sequence: np.ndarray) -> Dict[str, Dict[str, float]]:
+def _sequence_times(solvers: Dict[str, TranslatorSolver], sequence: np.ndarray,
+                    spent: Optional[Dict[str, List[float]]] = None
+                    ) -> Tuple[Dict[str, List[float]], Dict[str, List[float]]]:
     """
-    Median warm solve along ``sequence`` per solver, and its stability+estimate share.
+    Time each solver's warm solves along ``sequence``, taking turns sample by sample.
 
-    The solvers take turns sample by sample, so that they see the same machine load.
+    With ``spent`` the solvers are instrumented (``_instrument``) and the extras of each
+    solve are returned beside the times; the solvers are restored afterwards.
     """
-    spent: Dict[str, List[float]] = {name: [] for name in solvers}
     times: Dict[str, List[float]] = {name: [] for name in solvers}
     extras: Dict[str, List[float]] = {name: [] for name in solvers}
     for name, solver in solvers.items():
         solver.reset()
         solver.solve(sequence[0][:3], sequence[0][3:])
-        _instrument(solver, spent[name])
+        if spent is not None:
+            _instrument(solver, spent[name])
     for wrench in sequence:
         for name, solver in solvers.items():
-            spent[name].clear()
+            if spent is not None:
+                spent[name].clear()
             started = time.perf_counter()
             result = solver.solve(wrench[:3], wrench[3:])
             times[name].append(time.perf_counter() - started)
-            extras[name].append(sum(spent[name]))
+            extras[name].append(sum(spent[name]) if spent is not None else 0.0)
             assert result.converged, result.message
-    out = {}
-    for name, solver in solvers.items():
-        for method in ('_stability', '_estimate_error'):
+    for solver in solvers.values():
+        for method in ('_stability', '_estimate_error', '_usual_solve'):
             solver.__dict__.pop(method, None)
-        out[name] = {'median_s': _median(times[name]),
-                     'overhead_median_s': _median(extras[name]),
-                     'overhead_fraction': _median(extras[name]) / _median(times[name])}
-    return out
+    return times, extras
+
+
+def warm_sequences(solvers: Dict[str, TranslatorSolver],
+                   sequence: np.ndarray) -> Dict[str, Dict[str, float]]:
+    """
+    Median warm solve along ``sequence`` per solver, and its stability+estimate share.
+
+    The median is that of the solves as made; the share is measured on the general path
+    (``_instrument``), as a fraction of that path's median solve.
+    """
+    times, _ = _sequence_times(solvers, sequence)
+    spent: Dict[str, List[float]] = {name: [] for name in solvers}
+    general, extras = _sequence_times(solvers, sequence, spent)
+    return {name: {'median_s': _median(times[name]),
+                   'general_median_s': _median(general[name]),
+                   'overhead_median_s': _median(extras[name]),
+                   'overhead_fraction': _median(extras[name]) / _median(general[name])}
+            for name in solvers}
 
 
 def cold_cases(solvers: Dict[str, TranslatorSolver]) -> Dict[str, Dict[float, float]]:
@@ -311,7 +330,9 @@ def main() -> None:
         '',
         'Stability verdict + error estimate inside a warm solve: median '
         f"{_ms(exact['warm']['overhead_median_s'])} ms = "
-        f"{100 * exact['warm']['overhead_fraction']:.0f} % of the warm solve (target "
+        f"{100 * exact['warm']['overhead_fraction']:.0f} % of a warm solve on the general path "
+        f"({_ms(exact['warm']['general_median_s'])} ms; the compiled usual row keeps its "
+        'verdict and makes its estimate inside one call, not timed apart) (target '
         f"{100 * TARGETS['overhead']:.0f} %: "
         f"{'met' if exact['warm']['overhead_fraction'] <= TARGETS['overhead'] else 'missed'}).",
         '',
