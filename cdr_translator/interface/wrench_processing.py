@@ -10,7 +10,7 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 
 from dataclasses import dataclass
 import math
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import warnings
 
 import numpy as np
@@ -165,15 +165,29 @@ class WrenchProcessor:
 
     def _in_run(self, wrench: Wrench) -> bool:
         """Whether ``wrench`` is accepted and in the base frame (it may join a run)."""
-        force, moment, frame_id, _ = wrench
-        settings = self.settings
         try:
-            check_wrench(force, moment)
-            check_magnitude(force, moment, settings.max_force, settings.max_moment)
-            return not in_end_disk_frame(frame_id, settings.base_frame,
-                                         settings.end_disk_frame)
+            return not self._check(*wrench[:3])
         except ValueError:
             return False
+
+    def _check(self, force: np.ndarray, moment: np.ndarray, frame_id: str) -> bool:
+        """
+        Check a wrench as the node does; return whether it is in the end-disk frame.
+
+        ValueError names what rejects it (not finite, too large, an unknown frame).
+        """
+        settings = self.settings
+        check_wrench(force, moment)
+        check_magnitude(force, moment, settings.max_force, settings.max_moment)
+        return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+
+    def _tally(self, converged: bool, rotation: Callable[[], np.ndarray]) -> None:
+        """Count an answer; a converged one's end-disk orientation starts a follower load."""
+        if converged:
+            self.counts['solved'] += 1
+            self.rotation = rotation()
+        else:
+            self.counts['not_converged'] += 1
 
     def _solve_run(self, run: Sequence[Wrench]) -> List[Outcome]:
         """Solve a run of accepted base-frame wrenches by one ``solve_many``."""
@@ -186,11 +200,7 @@ class WrenchProcessor:
         for index, wrench in enumerate(run):
             row = BatchRow(batch, index)
             self.counts['received'] += 1
-            if row.converged:
-                self.counts['solved'] += 1
-                self.rotation = row.end_disk_rotation_matrix
-            else:
-                self.counts['not_converged'] += 1
+            self._tally(row.converged, lambda: row.end_disk_rotation_matrix)
             outputs = messages.output_messages(
                 row, wrench[3], self.settings.base_frame, compliance=self.compliance,
                 extra_values=dict(self.counts))
@@ -200,12 +210,9 @@ class WrenchProcessor:
     def process(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
                 stamp: Mapping[str, int]) -> Outcome:
         """Check, solve and build the outputs of one wrench (outputs stamped ``stamp``)."""
-        settings = self.settings
         self.counts['received'] += 1
         try:
-            check_wrench(force, moment)
-            check_magnitude(force, moment, settings.max_force, settings.max_moment)
-            end_disk = in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
+            end_disk = self._check(force, moment, frame_id)
         except ValueError as error:
             self.counts['rejected'] += 1
             return Outcome(None, f'rejected: {error}', messages.rejection_messages(
@@ -213,16 +220,12 @@ class WrenchProcessor:
         result, solves = solve_wrench(self.solver, np.asarray(force, dtype=float),
                                       np.asarray(moment, dtype=float), end_disk,
                                       self.rotation, self.compliance)
-        if result.converged:
-            self.counts['solved'] += 1
-            self.rotation = result.frames['de'][:3, :3]
-        else:
-            self.counts['not_converged'] += 1
+        self._tally(result.converged, lambda: result.frames['de'][:3, :3])
         extra: Dict[str, Any] = dict(self.counts)
         if end_disk:
             extra['follower_solves'] = solves
         outputs = messages.output_messages(
-            result, stamp, settings.base_frame, compliance=self.compliance,
+            result, stamp, self.settings.base_frame, compliance=self.compliance,
             backbones_params=self.solver.params if self.backbones else None,
             extra_values=extra)
         return Outcome(result, '' if result.converged else result.message, outputs, solves)
