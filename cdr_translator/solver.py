@@ -278,20 +278,35 @@ class TranslatorSolver:
     def estimate_wrench(self, position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None,
                         *, pose_covariance: Optional[ArrayLike] = None,
                         moment: Optional[ArrayLike] = None,
-                        force: Optional[ArrayLike] = None) -> WrenchEstimate:
+                        force: Optional[ArrayLike] = None,
+                        estimate: Optional[estimation.Components] = None,
+                        prior_mean: Optional[ArrayLike] = None,
+                        prior_covariance: Optional[ArrayLike] = None,
+                        target_force_sd: float = estimation.DEFAULT_TARGET_FORCE_SD,
+                        target_moment_sd: float = estimation.DEFAULT_TARGET_MOMENT_SD
+                        ) -> WrenchEstimate:
         """
         Estimate the end-disk wrench (N, N m, in {pe}) from a measured end-disk pose.
 
-        ``position`` (m) and ``quaternion_xyzw`` in {pe}: all six components; a position
-        only: the force under ``moment`` (default none), or the moment under ``force``.
-        ``pose_covariance``: 6x6 (position, rotation about the base axes; 3x3 for a
-        position) propagated to ``covariance``. Newton on the wrench with the exact
-        compliance, warm-started from the previous estimate (cdr_translator/estimation.py);
-        an unmatched pose is a flagged result, bad input an InputError (a ValueError).
+        ``position`` (m) and ``quaternion_xyzw`` in {pe}. ``estimate`` names the components
+        solved for: 'wrench', 'force' (a point contact at the tip: the moment held),
+        'moment', 'lateral' (the axial force and the moment held), or names from 'fx', 'fy',
+        'fz', 'mx', 'my', 'mz'; the others are held at ``force`` and ``moment`` (default
+        zero). Without ``estimate``: all six with an orientation, else the force (or the
+        moment when only ``force`` is given). ``pose_covariance``: 6x6 (position, rotation
+        about the base axes; 3x3 for a position); without one the pose is exact and the
+        accuracy not assessed. ``prior_mean`` (6) and ``prior_covariance`` (6x6, default
+        zero mean, 25 N and 2.5 N m standard deviations): the Gaussian prior on the wrench;
+        ``target_force_sd`` and ``target_moment_sd``: the posterior standard deviations that
+        meet the accuracy target. A maximum-a-posteriori estimate with the exact compliance,
+        warm-started from the previous estimate (cdr_translator/estimation.py); an
+        unmatched pose is a flagged result, bad input an InputError (a ValueError).
         """
-        return estimation.estimate_wrench(self, position, quaternion_xyzw,
-                                          pose_covariance=pose_covariance, moment=moment,
-                                          force=force)
+        return estimation.estimate_wrench(
+            self, position, quaternion_xyzw, pose_covariance=pose_covariance, moment=moment,
+            force=force, estimate=estimate, prior_mean=prior_mean,
+            prior_covariance=prior_covariance, target_force_sd=target_force_sd,
+            target_moment_sd=target_moment_sd)
 
     @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,

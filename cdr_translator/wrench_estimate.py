@@ -21,8 +21,8 @@ import numpy as np
 
 from .compliance import analyse, ComplianceAnalysis
 
-__all__ = ['CONDITION_LIMIT', 'json_safe', 'observability', 'TRANSLATOR_WRENCH_LABELS',
-           'WrenchEstimate']
+__all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'CONDITION_LIMIT', 'json_safe',
+           'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
@@ -32,6 +32,15 @@ CONDITION_LIMIT = 100.0
 #: Names of the end-disk wrench components [f; m] in {pe}, the primary's axis along z.
 TRANSLATOR_WRENCH_LABELS = ('lateral force x', 'lateral force y', 'axial force',
                             'bending moment x', 'bending moment y', 'torsion')
+
+#: Short names of the six wrench components, as ``estimate=`` takes them.
+COMPONENT_NAMES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
+
+#: Named sets of estimated components: all six; the force under a held moment (a point
+#: contact at the tip: moment zero); the moment under a held force; the lateral force
+#: under a held axial force and moment.
+COMPONENT_CHOICES: Dict[str, Tuple[int, ...]] = {
+    'wrench': (0, 1, 2, 3, 4, 5), 'force': (0, 1, 2), 'moment': (3, 4, 5), 'lateral': (0, 1)}
 
 
 def json_safe(value: Any) -> Any:
@@ -54,31 +63,41 @@ def json_safe(value: Any) -> Any:
 @dataclass
 class WrenchEstimate:
     """
-    The wrench [f; m] putting the model's pose at a measured one (SI, in the base frame).
+    The wrench [f; m] best explaining a measured pose (SI, in the base frame).
 
-    ``estimated`` names the components solved for: 'wrench' (all six, the orientation was
-    measured), 'force' (position only, the moment given) or 'moment' (position only, the
-    force given); the given ones are returned as given. ``covariance`` (6x6, N and N m) is
-    the pose covariance Sigma propagated through the stiffness at the solution, G Sigma
-    G^T with G = ``sensitivity`` (6 x 6, or 6 x 3 for a position) the derivative of the
-    wrench by the measured pose components (the given components' rows zero); None
-    without a pose covariance. ``converged``: the model's pose
-    matches the measured one to the rounding of the forward solve; ``residual_m`` and
-    ``residual_deg`` are what is left (position and orientation; the angle NaN when the
-    orientation was not measured). ``stable`` is the forward solve's verdict at the
-    estimate and ``stability_margin`` its margin (docs/stability.md). ``accuracy_met``:
-    converged, the forward solve's discretization error within its target, the equilibrium
-    stable and not so close to a bifurcation that another wrench could match the pose, and
-    no other match found (``alternative``: a moment from a position is searched from
-    several starts, cdr_translator/estimation.py); ``message`` says which failed.
+    A maximum-a-posteriori estimate (cdr_translator/estimation.py): ``components`` names
+    the components solved for (``estimated`` the same as 'wrench', 'force', 'moment',
+    'lateral' or the names joined); the others are returned as held. ``covariance`` (6x6,
+    N and N m; zero rows for held components) is the posterior's, (J^T J)^-1 with J the
+    whitened derivative of the pose error and of the prior term: a direction the pose does
+    not see comes back at the prior with the prior's spread. None without a pose
+    covariance (the pose was taken as exact). ``standard_deviation`` (6,) is its diagonal's
+    root (NaN without one) and ``target_sd`` (6,) the targets it is held to (NaN for held
+    components). ``sensitivity`` (6 x 6, or 6 x 3 for a position) is the derivative of the
+    estimate by the measured pose components.
+
+    Verdicts. ``converged``: the cost's Gauss-Newton step fell below a hundredth of a
+    posterior standard deviation (with an exact pose: the pose matched to the forward
+    solve's rounding). ``flags`` lists every reason not to act on the estimate: past
+    buckling (``stable`` False), stability unknown, near a bifurcation where another
+    wrench may match (``stability_margin``), the forward solve off its accuracy target,
+    another match found (``alternative``: a moment from a position is searched from
+    several starts), and with a pose covariance: a normalized pose residual that fails
+    its chi-square test (``chi_square``, its tail probability ``chi_square_p``), a force
+    or moment spread larger than both the load reported and the target (uninformative),
+    and a posterior standard deviation above its target. ``accuracy_met`` is True only
+    when a pose covariance was given and no flag was raised, False when the estimate did
+    not converge or a flag was raised, and None (not assessed) for an exact pose that
+    converged. ``message`` says all of it. ``residual_m`` and ``residual_deg`` are the
+    pose error left (the angle NaN when the orientation was not measured).
+
     ``conditioning`` lists the poorly observable wrench directions (module docstring),
-    each a dict: 'label' (the wrench component it mostly
-    is), 'direction' (unit in the scaled units, SI components), 'singular_value' (m/N,
-    scaled), 'ratio' (largest singular value over it), 'twist' and 'role' (the
-    primary-mobility analysis' label and role of the eigen-twist it moves the pose along),
-    and 'standard_deviation' (of the scaled wrench along the direction, N, from
-    ``covariance``; None without one). ``position`` and ``quaternion_xyzw`` are the
-    solved equilibrium's pose.
+    each a dict: 'label' (the wrench component it mostly is), 'direction' (unit in the
+    scaled units, SI components), 'singular_value' (m/N, scaled), 'ratio' (largest
+    singular value over it), 'twist' and 'role' (the primary-mobility analysis' label and
+    role of the eigen-twist it moves the pose along), and 'standard_deviation' (of the
+    scaled wrench along the direction, N, from ``covariance``; None without one).
+    ``position`` and ``quaternion_xyzw`` are the solved equilibrium's pose.
     """
 
     force: np.ndarray
@@ -86,7 +105,7 @@ class WrenchEstimate:
     covariance: Optional[np.ndarray]
     converged: bool
     stable: Optional[bool]
-    accuracy_met: bool
+    accuracy_met: Optional[bool]
     residual_m: float
     residual_deg: float
     conditioning: List[Dict[str, Any]]
@@ -103,8 +122,19 @@ class WrenchEstimate:
     sensitivity: Optional[np.ndarray] = field(default=None, repr=False)
     #: another wrench that matches the pose as well (then ``accuracy_met`` is False)
     alternative: Optional[np.ndarray] = None
+    components: Tuple[str, ...] = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
+    standard_deviation: np.ndarray = field(default_factory=lambda: np.full(6, np.nan))
+    target_sd: np.ndarray = field(default_factory=lambda: np.full(6, np.nan))
+    chi_square: float = math.nan
+    chi_square_p: float = math.nan
+    flags: List[str] = field(default_factory=list)
     #: the forward solve at the estimate (a SolveResult, or a DeltaResult for the robot)
     solution: Any = field(default=None, repr=False)
+
+    @property
+    def flagged(self) -> bool:
+        """Return True when the estimate is not to be acted on (``flags`` not empty)."""
+        return bool(self.flags)
 
     @property
     def wrench(self) -> np.ndarray:
@@ -117,7 +147,8 @@ class WrenchEstimate:
                 'residual_m', 'residual_deg', 'conditioning', 'message', 'estimated',
                 'condition_number', 'ill_conditioned', 'stability_margin', 'iterations',
                 'solves', 'estimate_time_s', 'position', 'quaternion_xyzw', 'sensitivity',
-                'alternative')
+                'alternative', 'components', 'standard_deviation', 'target_sd', 'chi_square',
+                'chi_square_p', 'flags')
         return {key: json_safe(getattr(self, key)) for key in keys}
 
 

@@ -54,7 +54,10 @@ def test_estimate_of_a_solved_pose_is_its_wrench(solver, estimator, params):
         estimate = estimator.estimate_wrench(solved.end_disk_position,
                                              solved.end_disk_quaternion_xyzw)
         assert isinstance(estimate, WrenchEstimate)
-        assert estimate.converged and estimate.accuracy_met, estimate.message
+        assert estimate.converged and not estimate.flags, estimate.message
+        # an exact pose (no covariance): nothing to hold a spread against
+        assert estimate.accuracy_met is None and estimate.to_dict()['accuracy_met'] is None
+        assert 'accuracy not assessed' in estimate.message
         assert scaled_error(estimate.wrench, wrench, length) < ROUND_TRIP, (wrench, estimate)
         assert estimate.residual_m < 1e-10 and estimate.residual_deg < 1e-8
         assert estimate.estimated == 'wrench' and estimate.stable
@@ -83,7 +86,8 @@ def test_position_only_estimates_the_force_or_the_moment(solver, estimator, para
     # the position observes a moment poorly (cond ~ 1e4): the model's rounding shows more
     assert scaled_error(moment.wrench, wrench, length) < 1e-5
     # and not uniquely: another moment puts the end disk at the same point, and is named
-    assert not moment.accuracy_met and 'ambiguous' in moment.message
+    assert moment.flagged and any('ambiguous' in flag for flag in moment.flags)
+    assert 'ambiguous' in moment.message
     other = moment.alternative
     assert scaled_error(other, wrench, length) > 0.1
     np.testing.assert_array_equal(other[:3], wrench[:3])
@@ -143,9 +147,11 @@ def test_the_axial_force_is_flagged_as_poorly_observable(solver, estimator):
     scale = np.repeat([1.0, length], 3)
     values = np.linalg.svd(scale[:, None] * solved.compliance.matrix * scale,
                            compute_uv=False)
-    assert axial['singular_value'] == pytest.approx(values[-1], rel=1e-6)
-    assert axial['ratio'] == pytest.approx(values[0] / values[-1], rel=1e-6)
-    assert estimate.condition_number == pytest.approx(values[0] / values[-1], rel=1e-6)
+    # at 1 um the pose sees the axial force about as well as the 25 N prior does: the
+    # estimate, and the compliance there, sit a few percent of the axial force off the truth
+    assert axial['singular_value'] == pytest.approx(values[-1], rel=1e-3)
+    assert axial['ratio'] == pytest.approx(values[0] / values[-1], rel=1e-3)
+    assert estimate.condition_number == pytest.approx(values[0] / values[-1], rel=1e-3)
     assert (axial['twist'], axial['role']) == ('translation z', 'constraint')
     direction = np.array(axial['direction'])
     assert direction[2] > 0.9 and np.linalg.norm(direction / scale) == pytest.approx(1.0)
@@ -169,7 +175,7 @@ def test_an_unreachable_pose_is_a_flagged_result(estimator, params):
     solved = TranslatorSolver(params).solve([2.0, 1.0, 0.0])
     estimate = estimator.estimate_wrench(solved.end_disk_position,
                                          solved.end_disk_quaternion_xyzw)
-    assert estimate.converged and estimate.accuracy_met, estimate.message
+    assert estimate.converged and not estimate.flags, estimate.message
 
 
 def test_a_pose_near_buckling_is_ambiguous(params):
@@ -178,8 +184,8 @@ def test_a_pose_near_buckling_is_ambiguous(params):
     assert near.stable and near.stability_margin < 0.05
     estimate = TranslatorSolver(params).estimate_wrench(near.end_disk_position,
                                                         near.end_disk_quaternion_xyzw)
-    assert estimate.converged and not estimate.accuracy_met
-    assert 'near a bifurcation' in estimate.message
+    assert estimate.converged and estimate.flagged and estimate.accuracy_met is None
+    assert any('near a bifurcation' in flag for flag in estimate.flags), estimate.flags
     assert estimate.force[2] == pytest.approx(-28.0, rel=1e-6)
 
 
@@ -187,7 +193,12 @@ def test_a_pose_near_buckling_is_ambiguous(params):
     (([0.0, math.nan, 0.1],), {}, 'position y'),
     (([0.0, 0.1],), {}, 'position must have 3'),
     (([0.0, 0.0, 0.17], [0.0, 0.0, 0.0, 2.0]), {}, 'quaternion_xyzw must be a unit'),
-    (([0.0, 0.0, 0.17], [0.0, 0.0, 0.0, 1.0]), {'moment': [0, 0, 0]}, 'give neither'),
+    (([0.0, 0.0, 0.17], [0.0, 0.0, 0.0, 1.0]), {'estimate': ('fx', 'fw')}, 'estimate must'),
+    (([0.0, 0.0, 0.17], [0.0, 0.0, 0.0, 1.0]), {'estimate': 'axial'}, 'estimate must'),
+    (([0.0, 0.0, 0.17],), {'estimate': ('fx', 'fx')}, 'twice'),
+    (([0.0, 0.0, 0.17],), {'prior_covariance': np.zeros((6, 6))}, 'positive definite'),
+    (([0.0, 0.0, 0.17],), {'prior_mean': [0.0] * 5}, 'prior_mean must have 6'),
+    (([0.0, 0.0, 0.17],), {'target_force_sd': 0.0}, 'target_force_sd must be positive'),
     (([0.0, 0.0, 0.17],), {'moment': [0, 0, 0], 'force': [0, 0, 0]}, 'not both'),
     (([0.0, 0.0, 0.17],), {'force': [0, 0, math.inf]}, 'force z'),
     (([0.0, 0.0, 0.17], [0, 0, 0, 1]), {'pose_covariance': np.eye(3)}, 'must be 6x6'),
