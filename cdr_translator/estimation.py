@@ -27,7 +27,7 @@ in length-scaled units (moments as the force that makes them at the stack height
 radius growing after steps the linearization predicted well and shrinking after steps
 that do not lower the cost (Nocedal & Wright, Numerical Optimization, 2006, Ch. 4 and
 10.3). The estimate has converged when the Gauss-Newton step would lower the whitened
-cost by less than CONVERGED_CHI2 (a hundredth of a posterior standard deviation). Along a
+cost by less than CONVERGED_CHI2 (a tenth of a posterior standard deviation). Along a
 stream each estimate starts from the last converged one (its solve and compliance reused:
 the first step needs no solve), and one that cannot converge gives up after MAX_SOLVES
 forward solves.
@@ -47,6 +47,7 @@ component name) raises InputError, a ValueError naming it.
 """
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 import math
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
@@ -89,20 +90,21 @@ DEFAULT_TARGET_FORCE_SD = 0.5
 DEFAULT_TARGET_MOMENT_SD = 0.05
 
 #: Standard deviation (m; rad times the stack height) of a pose given without a covariance:
-#: exact, a thousand times the forward solve's rounding (about 1e-12 m).
-EXACT_POSE_SD_M = 1e-9
+#: exact, ten times the forward solve's rounding (about 1e-12 m).
+EXACT_POSE_SD_M = 1e-11
 
 #: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
 #: alone, which the pose sees poorly, can take 20).
 MAX_SOLVES = 40
 
 #: Converged when the Gauss-Newton step lowers the whitened cost by at most this: the step
-#: is within a hundredth of a posterior standard deviation.
-CONVERGED_CHI2 = 1e-4
+#: is within a tenth of a posterior standard deviation, which adds a hundredth to the
+#: estimate's variance (a warm estimate along a stream then takes one forward solve).
+CONVERGED_CHI2 = 1e-2
 
 #: A rejected step from a point whose Gauss-Newton decrease is below this has hit the
 #: forward solve's rounding (1e-12 m against EXACT_POSE_SD_M): converged.
-ROUNDING_CHI2 = 1e-2
+ROUNDING_CHI2 = 1.0
 
 #: Flag an estimate whose normalized pose residual has a chi-square tail probability below
 #: this (the pose is further from the model than its covariance allows).
@@ -169,6 +171,11 @@ class Target:
     def error(self, evaluation: Evaluation) -> np.ndarray:
         """Model pose minus measured pose, the measured components (m, rad)."""
         return frame_twist(self.frame, evaluation.frame)[list(self.rows)]
+
+    @cached_property
+    def weights(self) -> 'Weights':
+        """Return the whitening of the pose and the prior (made once per Target)."""
+        return Weights.of(self)
 
 
 @dataclass(frozen=True)
@@ -344,9 +351,10 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     at most ``solves`` of them.
     """
     found = Search(None, False, '')
-    weights = Weights.of(target)
+    weights = target.weights
     free = list(target.free)
     fixed = [index for index in range(6) if index not in target.free]
+    warm = start is not None
     if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
         wrench = target.given.copy()
         wrench[free] = weights.mean
@@ -369,11 +377,17 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if float(projected @ projected) <= CONVERGED_CHI2:
             found.converged, found.message = True, 'converged'
             return found
-        step, size = _trust_region_step(values, right, projected, radius)
-        # the first radius from the damped step: the Gauss-Newton one is mostly the poorly
-        # observed directions (the axial force), where the linearization is least trusted
-        radius = (max(2.0 * float(np.linalg.norm(step)), TRUST_RADIUS_N) if radius is None
-                  else radius)
+        if radius is None:
+            # the first radius from the damped step: the Gauss-Newton one is mostly the
+            # poorly observed directions (the axial force), where the linearization from
+            # far away is least trusted. A warm start takes the Gauss-Newton step when it
+            # fits (along a stream it does: one forward solve per estimate); a cold one the
+            # damped step.
+            damped = _trust_region_step(values, right, projected, None)
+            radius = max(2.0 * float(np.linalg.norm(damped)), TRUST_RADIUS_N)
+            step = _trust_region_step(values, right, projected, radius) if warm else damped
+        else:
+            step = _trust_region_step(values, right, projected, radius)
         floor = STEP_TOLERANCE * max(float(np.linalg.norm(current.wrench / scale)), 1.0)
         if found.solves >= solves or time.perf_counter() > deadline:
             found.message = (f'no match after {found.solves} forward solves'
@@ -414,9 +428,9 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
 
 
 def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndarray,
-                       radius: Optional[float]) -> Tuple[np.ndarray, float]:
+                       radius: Optional[float]) -> np.ndarray:
     """
-    Return (step, Gauss-Newton step's size): the Levenberg-Marquardt step within ``radius``.
+    Return the Levenberg-Marquardt step within ``radius``.
 
     Minimizes |r + J step|^2 + lambda |step|^2 (scaled units; J = U diag(values) V^T and
     ``projected`` = U^T r) with the smallest lambda >= 0 that keeps the step within the
@@ -430,15 +444,14 @@ def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndar
     newton = -right.T @ (weights / values ** 2)
     size = float(np.linalg.norm(newton))
     if radius is None:
-        damped = -right.T @ (weights / (values ** 2 + (values[0] / CONDITION_LIMIT) ** 2))
-        return damped, size
+        return -right.T @ (weights / (values ** 2 + (values[0] / CONDITION_LIMIT) ** 2))
     if size <= radius or not math.isfinite(size):
-        return newton, size
+        return newton
     top = float(np.linalg.norm(weights)) / radius  # |step| <= |J^T r| / lambda
     grid = np.geomspace(max(1e-6 * values[-1] ** 2, 1e-12 * top), top, 200)
     sizes = np.linalg.norm(weights[None, :] / (values[None, :] ** 2 + grid[:, None]), axis=1)
     damping = grid[int(np.argmax(sizes <= radius))]
-    return -right.T @ (weights / (values ** 2 + damping)), size
+    return -right.T @ (weights / (values ** 2 + damping))
 
 
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
@@ -453,7 +466,7 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
                               flags=[found.message],
                               estimate_time_s=time.perf_counter() - started)
     rows, free = list(target.rows), list(target.free)
-    weights = Weights.of(target)
+    weights = target.weights
     pose_block = weights.pose @ best.compliance[np.ix_(rows, free)]
     information = pose_block.T @ pose_block + weights.prior.T @ weights.prior
     posterior = np.linalg.inv(information)

@@ -76,7 +76,7 @@ class WrenchEstimate:
     components). ``sensitivity`` (6 x 6, or 6 x 3 for a position) is the derivative of the
     estimate by the measured pose components.
 
-    Verdicts. ``converged``: the cost's Gauss-Newton step fell below a hundredth of a
+    Verdicts. ``converged``: the cost's Gauss-Newton step fell below a tenth of a
     posterior standard deviation (with an exact pose: the pose matched to the forward
     solve's rounding). ``flags`` lists every reason not to act on the estimate: past
     buckling (``stable`` False), stability unknown, near a bifurcation where another

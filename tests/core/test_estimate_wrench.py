@@ -83,16 +83,19 @@ def test_position_only_estimates_the_force_or_the_moment(solver, estimator, para
     moment = estimator.estimate_wrench(solved.end_disk_position, force=wrench[:3])
     assert moment.converged and moment.estimated == 'moment', moment.message
     np.testing.assert_array_equal(moment.force, wrench[:3])
-    # the position observes a moment poorly (cond ~ 1e4): the model's rounding shows more
-    assert scaled_error(moment.wrench, wrench, length) < 1e-5
-    # and not uniquely: another moment puts the end disk at the same point, and is named
+    # not uniquely: another moment puts the end disk at the same point, and is named; which
+    # of the two comes first depends on where the search starts
     assert moment.flagged and any('ambiguous' in flag for flag in moment.flags)
     assert 'ambiguous' in moment.message
-    other = moment.alternative
-    assert scaled_error(other, wrench, length) > 0.1
-    np.testing.assert_array_equal(other[:3], wrench[:3])
-    again = solver.solve(other[:3], other[3:])
-    np.testing.assert_allclose(again.end_disk_position, solved.end_disk_position, atol=1e-10)
+    matches = (moment.wrench, moment.alternative)
+    errors = sorted(scaled_error(match, wrench, length) for match in matches)
+    # the position observes a moment poorly (cond ~ 1e4): the model's rounding shows more
+    assert errors[0] < 1e-5 and errors[1] > 0.1, errors
+    for match in matches:
+        np.testing.assert_array_equal(match[:3], wrench[:3])
+        again = solver.solve(match[:3], match[3:])
+        np.testing.assert_allclose(again.end_disk_position, solved.end_disk_position,
+                                   atol=1e-10)
 
 
 def test_covariance_covers_the_spread_of_noisy_estimates(solver, params):
