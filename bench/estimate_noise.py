@@ -58,7 +58,7 @@ def covariance_of(position_sd: float, orientation_deg: float) -> np.ndarray:
 
 
 def range_loads(rng: np.random.Generator, count: int, choice: str) -> np.ndarray:
-    """Loads across the node's range (module docstring)."""
+    """Return loads across the node's range (module docstring)."""
     loads = np.zeros((count, 6))
     loads[:, :2] = rng.uniform(-10.0, 10.0, (count, 2))
     loads[:, 2] = rng.uniform(-3.0, 3.0, count)
@@ -102,7 +102,7 @@ def estimate_loads(forward: TranslatorSolver, estimator: TranslatorSolver, loads
 
 
 def walk_loads(rng: np.random.Generator, count: int, choice: str) -> np.ndarray:
-    """A random walk of loads, 0.3 N (and 0.005 N m) per sample, within the range."""
+    """Return a random walk of loads, 0.3 N (and 0.005 N m) per sample, within the range."""
     steps = rng.normal(size=(count, 6)) * np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
     loads = np.cumsum(steps, axis=0)
     loads[:, :2] = np.clip(loads[:, :2], -10.0, 10.0)
@@ -148,7 +148,7 @@ def measure(trials: int, walk: int) -> Tuple[List[dict], Dict[str, dict]]:
 def markdown(rows: List[dict], trials: int, walk: int) -> str:
     """Return the results page."""
     lines = [
-        '# Force sensing at a tracker\'s noise', '',
+        "# Force sensing at a tracker's noise", '',
         f'`python -m bench.estimate_noise --trials {trials} --walk {walk}`, '
         f'{datetime.date.today().isoformat()}, {platform.processor() or platform.machine()}, '
         f'{os.cpu_count()} cores. The default prior (zero mean, 25 N and 2.5 N m standard '

@@ -12,10 +12,10 @@ from typing import Any, List, TYPE_CHECKING
 if TYPE_CHECKING:
     from .batch import BatchResult
     from .errors import InputError, ParameterError, PlausibilityWarning, SolveError
+    from .estimation.wrench_estimate import WrenchEstimate
     from .params import TranslatorParams
     from .result import SolveResult
     from .solver import TranslatorSolver
-    from .wrench_estimate import WrenchEstimate
 
 __all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError',
            'SolveResult', 'TranslatorParams', 'TranslatorSolver', 'WrenchEstimate']
@@ -24,7 +24,7 @@ __all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning',
 _HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
           'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result',
           'TranslatorParams': 'params', 'TranslatorSolver': 'solver',
-          'WrenchEstimate': 'wrench_estimate'}
+          'WrenchEstimate': 'estimation.wrench_estimate'}
 
 
 def __getattr__(name: str) -> Any:

@@ -14,7 +14,7 @@ benchmarks divide by.
 The solver is the front of its parts: continuation.py (the load path, with the state
 carried between solves), correctors.py, branch.py (stability verdict, stable branch),
 refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at``) and
-estimation.py (the wrench from a measured pose).
+estimation/ (the wrench from a measured pose).
 """
 
 from contextlib import nullcontext
@@ -40,7 +40,6 @@ from .problem import JACOBIANS, Problem
 from .result import SolveResult
 from .stability import Reference, Stability
 from .verify import verify as verify_result
-from .wrench_estimate import WrenchEstimate
 
 METHODS = ('fast', 'paper')
 
@@ -284,7 +283,7 @@ class TranslatorSolver:
                         prior_covariance: Optional[ArrayLike] = None,
                         target_force_sd: float = estimation.DEFAULT_TARGET_FORCE_SD,
                         target_moment_sd: float = estimation.DEFAULT_TARGET_MOMENT_SD
-                        ) -> WrenchEstimate:
+                        ) -> estimation.WrenchEstimate:
         """
         Estimate the end-disk wrench (N, N m, in {pe}) from a measured end-disk pose.
 
@@ -299,7 +298,7 @@ class TranslatorSolver:
         zero mean, 25 N and 2.5 N m standard deviations): the Gaussian prior on the wrench;
         ``target_force_sd`` and ``target_moment_sd``: the posterior standard deviations that
         meet the accuracy target. A maximum-a-posteriori estimate with the exact compliance,
-        warm-started from the previous estimate (cdr_translator/estimation.py); an
+        warm-started from the previous estimate (cdr_translator/estimation); an
         unmatched pose is a flagged result, bad input an InputError (a ValueError).
         """
         return estimation.estimate_wrench(

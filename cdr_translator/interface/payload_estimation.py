@@ -17,8 +17,8 @@ import numpy as np
 from .pose_estimation import check_pose, estimate_messages, MeasuredPose
 from .pose_estimation import MeasuredPoseProcessor
 from .settings import CdrSettings
+from ..estimation import WrenchEstimate
 from ..robot.delta import DeltaRobot
-from ..wrench_estimate import WrenchEstimate
 
 #: Inputs: a measured platform pose, without and with its covariance.
 MEASURED_PLATFORM_POSE_TOPIC = 'measured_platform_pose'

@@ -1,7 +1,7 @@
 """
 What translator_node does with one measured end-disk pose, without ROS: checks, the estimate.
 
-Deflection-based force sensing on the node (cdr_translator/estimation.py): a
+Deflection-based force sensing on the node (cdr_translator/estimation): a
 ``measured_end_disk_pose`` (geometry_msgs/PoseStamped) or ``measured_end_disk_pose_cov``
 (PoseWithCovarianceStamped, covariance row-major 6x6 in x, y, z, rotation about x, y, z)
 gives ``estimated_wrench`` (WrenchStamped, in the base frame, stamped like the pose),
@@ -20,10 +20,9 @@ import numpy as np
 
 from . import messages
 from .settings import TranslatorSettings
-from ..estimation import measured_target
+from ..estimation import measured_target, WrenchEstimate
 from ..params import TranslatorParams
 from ..solver import TranslatorSolver
-from ..wrench_estimate import WrenchEstimate
 
 #: Inputs: a measured end-disk pose, without and with its covariance.
 MEASURED_POSE_TOPIC = 'measured_end_disk_pose'

@@ -3,7 +3,7 @@ The payload on the Continuum Delta Robot's platform from its measured pose and t
 
 Force sensing with a parallel continuum robot (Black, Till & Rucker, IEEE T-RO 34(1),
 2018): the payload is the one whose forward-statics solution puts the platform at the
-measured pose. The same search as the translator's (cdr_translator/estimation.py:
+measured pose. The same search as the translator's (cdr_translator/estimation:
 Levenberg-Marquardt steps on the payload within a trust radius, warm along a stream),
 each iterate a forward solve with the compliance, whose ``input_sensitivity`` columns for
 the payload force and moment (d platform pose / d payload, in {w}: the twist convention of
@@ -25,9 +25,9 @@ from numpy.typing import ArrayLike
 from .params import check_sliders
 from .result import INPUT_NAMES
 from ..compliance import analyse
-from ..estimation import estimate_along, Evaluation, LOAD_LIMIT, measured_target
+from ..estimation import (estimate_along, Evaluation, json_safe, LOAD_LIMIT, measured_target,
+                          WrenchEstimate)
 from ..stability import load_scale
-from ..wrench_estimate import json_safe, WrenchEstimate
 
 if TYPE_CHECKING:
     from .delta import DeltaRobot
@@ -43,7 +43,7 @@ class PayloadEstimate(WrenchEstimate):
     """
     The payload [f; m] on the platform (N, N m; in {w}, force at the platform origin).
 
-    The fields of WrenchEstimate (cdr_translator/wrench_estimate.py), the measured body
+    The fields of WrenchEstimate (cdr_translator/estimation/wrench_estimate.py), the measured body
     being the platform: ``position`` and ``quaternion_xyzw`` are the solved platform pose,
     ``solution`` the DeltaResult, ``stability_margin`` NaN (``stable`` is the robot's
     verdict); plus the ``sliders`` (m) it was estimated at.

@@ -24,7 +24,11 @@ that (at most 1 % of the met estimates) and that none exceeds 5 standard deviati
 chance gives once in two million.
 """
 
+import contextlib
+import io
 import math
+from pathlib import Path
+import re
 from typing import Dict, List, Tuple
 
 from cdr_translator import TranslatorSolver
@@ -39,6 +43,10 @@ NOISE = [(1e-4, 0.05), (2e-4, 0.1), (5e-4, 0.2)]
 
 #: Trials per setting.
 TRIALS = 200
+
+#: The docs' worked example: a marked Python block, then the block of what it prints.
+EXAMPLE_MARKER = '<!-- docs-test: estimate-example -->'
+DOCS = Path(__file__).resolve().parents[2] / 'docs'
 
 #: The prior of the calibration trials: lateral and axial force (N), moments (N m).
 LAB_SD = np.array([5.0, 5.0, 1.5, 0.1, 0.1, 0.1])
@@ -171,3 +179,16 @@ def test_an_estimate_along_a_noisy_stream_is_warm(solver, params):
         solves.append(estimate.solves)
     assert np.median(solves[1:]) <= 3, solves
     assert max(solves) <= 8, solves
+
+
+def test_the_worked_example_of_the_docs_prints_what_they_show():
+    """The force-sensing example runs and prints the output the docs give."""
+    pages = [path for path in sorted(DOCS.rglob('*.md')) if EXAMPLE_MARKER in path.read_text()]
+    assert len(pages) == 1, pages
+    text = pages[0].read_text()
+    code, shown = re.findall(r'```(?:python)?\n(.*?)```', text[text.index(EXAMPLE_MARKER):],
+                             re.DOTALL)[:2]
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(compile(code, str(pages[0]), 'exec'), {})
+    assert printed.getvalue().split() == shown.split(), printed.getvalue()

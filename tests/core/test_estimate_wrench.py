@@ -16,7 +16,7 @@ import json
 import math
 
 from cdr_translator import TranslatorSolver, WrenchEstimate
-from cdr_translator.wrench_estimate import CONDITION_LIMIT
+from cdr_translator.estimation import CONDITION_LIMIT
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation

@@ -19,7 +19,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .compliance import analyse, ComplianceAnalysis
+from ..compliance import analyse, ComplianceAnalysis
 
 __all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'CONDITION_LIMIT', 'json_safe',
            'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
@@ -65,7 +65,7 @@ class WrenchEstimate:
     """
     The wrench [f; m] best explaining a measured pose (SI, in the base frame).
 
-    A maximum-a-posteriori estimate (cdr_translator/estimation.py): ``components`` names
+    A maximum-a-posteriori estimate (cdr_translator/estimation): ``components`` names
     the components solved for (``estimated`` the same as 'wrench', 'force', 'moment',
     'lateral' or the names joined); the others are returned as held. ``covariance`` (6x6,
     N and N m; zero rows for held components) is the posterior's, (J^T J)^-1 with J the

@@ -1,0 +1,245 @@
+"""
+The estimation problem: what is measured, what is estimated, and what is known beforehand.
+
+A Target holds a measured pose (and its covariance), the wrench components solved for
+(the others held at given values) and a Gaussian prior on the wrench; Weights whitens
+both, so that the estimate minimizes |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2
+(cdr_translator.estimation). Evaluation is the forward model at one wrench, Search where an
+iteration ended: the types the search and the verdicts share.
+"""
+
+from dataclasses import dataclass
+from functools import cached_property
+import math
+from typing import Any, Optional, Sequence, Tuple, Union
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation
+
+from .wrench_estimate import COMPONENT_CHOICES, COMPONENT_NAMES, TRANSLATOR_WRENCH_LABELS
+from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
+from ..compliance import ComplianceAnalysis, frame_twist
+from ..errors import InputError
+
+__all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
+           'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
+           'estimated_components', 'estimated_name', 'Evaluation', 'EXACT_POSE_SD_M',
+           'measured_target', 'Search', 'Target', 'Weights']
+
+#: What ``estimate=`` takes: a name of COMPONENT_CHOICES or a sequence of COMPONENT_NAMES.
+Components = Union[str, Sequence[str]]
+
+#: The default prior on the wrench: zero mean, these standard deviations (N; N m). A
+#: quarter of the node's default ``max_force`` (100 N) and ``max_moment`` (10 N m): wide
+#: enough that any load the node accepts is within four standard deviations, narrow
+#: enough to keep an unobserved axial force near zero instead of at the 29 N buckling load.
+DEFAULT_PRIOR_FORCE_SD = 25.0
+
+DEFAULT_PRIOR_MOMENT_SD = 2.5
+
+#: The default accuracy targets of an estimate: posterior standard deviations (N; N m).
+DEFAULT_TARGET_FORCE_SD = 0.5
+
+DEFAULT_TARGET_MOMENT_SD = 0.05
+
+#: Standard deviation (m; rad times the stack height) of a pose given without a covariance:
+#: exact, ten times the forward solve's rounding (about 1e-12 m).
+EXACT_POSE_SD_M = 1e-11
+
+
+@dataclass
+class Evaluation:
+    """The forward model at one wrench: the pose it gives and its derivative."""
+
+    wrench: np.ndarray  # (6,) SI, in the base frame
+    frame: np.ndarray  # 4x4 pose of the measured body in the base frame
+    compliance: np.ndarray  # 6x6 d twist / d wrench (compliance.py's convention)
+    stable: Optional[bool]
+    margin: float  # stability margin, 1 unloaded (NaN: none)
+    accuracy_met: Optional[bool]
+    message: str
+    analysis: Optional[ComplianceAnalysis]
+    solution: Any  # the forward solve's result
+
+
+@dataclass(frozen=True)
+class Target:
+    """What is measured, what is estimated, and what is known beforehand."""
+
+    frame: np.ndarray  # 4x4 measured pose (identity rotation when not measured)
+    rows: Tuple[int, ...]  # measured twist components: position, and rotation if measured
+    free: Tuple[int, ...]  # estimated wrench components
+    given: np.ndarray  # (6,) the components that are not estimated (the rest ignored)
+    covariance: Optional[np.ndarray]  # of the measured components (None: exact)
+    length: float  # the scaling length H
+    labels: Tuple[str, ...]  # names of the six wrench components
+    prior_mean: np.ndarray  # (6,) of the wrench, SI
+    prior_covariance: np.ndarray  # (6, 6) of the wrench, SI
+    target_sd: np.ndarray  # (6,) accuracy targets: posterior standard deviations, SI
+    load_limit: float = math.inf  # largest scaled wrench norm tried (N)
+
+    def error(self, evaluation: Evaluation) -> np.ndarray:
+        """Model pose minus measured pose, the measured components (m, rad)."""
+        return frame_twist(self.frame, evaluation.frame)[list(self.rows)]
+
+    @cached_property
+    def weights(self) -> 'Weights':
+        """Return the whitening of the pose and the prior (made once per Target)."""
+        return Weights.of(self)
+
+
+@dataclass(frozen=True)
+class Weights:
+    """The whitening of a Target: the pose's W and the estimated components' prior."""
+
+    pose: np.ndarray  # W, (m, m): W^T W = Sigma^-1 (Sigma the pose covariance, or exact)
+    prior: np.ndarray  # L, (k, k): L^T L = P^-1, P the prior of w_f given the held values
+    mean: np.ndarray  # (k,) the prior mean of w_f given the held values
+
+    @classmethod
+    def of(cls, target: Target) -> 'Weights':
+        """Whiten ``target``'s pose covariance and condition its prior on the held values."""
+        exact = np.repeat([EXACT_POSE_SD_M, EXACT_POSE_SD_M / target.length], 3)
+        rows = list(target.rows)
+        covariance = np.diag(exact[rows] ** 2)
+        if target.covariance is not None:  # a zero or singular covariance: exact there
+            covariance = covariance + target.covariance
+        free = list(target.free)
+        held = [index for index in range(6) if index not in target.free]
+        prior = target.prior_covariance
+        mean = target.prior_mean[free].copy()
+        spread = prior[np.ix_(free, free)]
+        if held:
+            gain = prior[np.ix_(free, held)] @ np.linalg.pinv(prior[np.ix_(held, held)])
+            mean = mean + gain @ (target.given[held] - target.prior_mean[held])
+            spread = spread - gain @ prior[np.ix_(held, free)]
+        return cls(_inverse_root(covariance), _inverse_root(0.5 * (spread + spread.T)), mean)
+
+
+def _inverse_root(covariance: np.ndarray) -> np.ndarray:
+    """Return W with W^T W = covariance^-1: the inverse of its lower Cholesky factor."""
+    factor = np.linalg.cholesky(covariance)
+    return np.linalg.solve(factor, np.eye(len(factor)))
+
+
+@dataclass
+class Search:
+    """Where the iteration ended and why."""
+
+    best: Optional[Evaluation]
+    converged: bool
+    message: str
+    iterations: int = 0
+    solves: int = 0
+    #: another matching wrench, found by the second search (see estimate_along)
+    alternative: Optional[np.ndarray] = None
+
+
+def estimated_components(estimate: Optional[Components], oriented: bool,
+                         force: Optional[ArrayLike], moment: Optional[ArrayLike]
+                         ) -> Tuple[int, ...]:
+    """
+    Return the indices of the wrench components to estimate (InputError naming a bad one).
+
+    ``estimate`` is a name of COMPONENT_CHOICES ('wrench', 'force', 'moment', 'lateral') or
+    a sequence of COMPONENT_NAMES ('fx', 'fy', 'fz', 'mx', 'my', 'mz'). None: what the
+    pose and the given components leave: with a measured orientation all six, the force
+    when only ``moment`` is given, the moment when only ``force`` is; from a position the
+    force (under ``moment``, default zero) or, when only ``force`` is given, the moment.
+    """
+    if estimate is None:
+        if force is not None and moment is not None:
+            raise InputError('force and moment both given: name the components to estimate '
+                             'with estimate= (e.g. estimate=("fx", "fy")), not both')
+        if force is not None:
+            return COMPONENT_CHOICES['moment']
+        if moment is not None or not oriented:
+            return COMPONENT_CHOICES['force']
+        return COMPONENT_CHOICES['wrench']
+    if isinstance(estimate, str):
+        if estimate in COMPONENT_CHOICES:
+            return COMPONENT_CHOICES[estimate]
+        names: Sequence[Any] = [part for part in estimate.replace(',', ' ').split() if part]
+    else:
+        names = list(estimate)
+    unknown = [name for name in names if name not in COMPONENT_NAMES]
+    if unknown or not names:
+        raise InputError(f'estimate must be one of {sorted(COMPONENT_CHOICES)} or names from '
+                         f'{list(COMPONENT_NAMES)}, got {estimate!r}')
+    if len(set(names)) != len(names):
+        raise InputError(f'estimate names a component twice: {estimate!r}')
+    return tuple(sorted(COMPONENT_NAMES.index(name) for name in names))
+
+
+def diagonal_prior(force_sd: float = DEFAULT_PRIOR_FORCE_SD,
+                   moment_sd: float = DEFAULT_PRIOR_MOMENT_SD) -> np.ndarray:
+    """Return the diagonal 6x6 prior covariance of standard deviations (N, N m) given."""
+    force_sd = check_number('prior force standard deviation', force_sd, low=0.0,
+                            low_open=True, error=InputError)
+    moment_sd = check_number('prior moment standard deviation', moment_sd, low=0.0,
+                             low_open=True, error=InputError)
+    return np.diag(np.repeat([force_sd, moment_sd], 3) ** 2)
+
+
+def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
+                    covariance: Optional[ArrayLike], moment: Optional[ArrayLike],
+                    force: Optional[ArrayLike], length: float,
+                    labels: Tuple[str, ...] = TRANSLATOR_WRENCH_LABELS,
+                    names: Tuple[str, str, str] = ('position', 'quaternion_xyzw',
+                                                   'pose_covariance'), *,
+                    estimate: Optional[Components] = None,
+                    prior_mean: Optional[ArrayLike] = None,
+                    prior_covariance: Optional[ArrayLike] = None,
+                    target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
+                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> Target:
+    """
+    Check a measured pose, the components to estimate and the prior; return the Target.
+
+    ``estimate`` (estimated_components) names the components solved for; the others are
+    held at ``force`` and ``moment`` (default zero; their estimated components are
+    ignored). ``covariance`` is 6x6 (position, then rotation about the base axes, as a ROS
+    PoseWithCovariance) with the orientation; 3x3 or 6x6 (its position block used) without
+    it. ``prior_mean`` (6, default zero) and ``prior_covariance`` (6x6, default
+    diagonal_prior()) are the Gaussian prior on the wrench in the base frame.
+    ``target_force_sd`` and ``target_moment_sd`` (N, N m) are the posterior standard
+    deviations an estimate must reach to meet its accuracy target. InputError (a
+    ValueError) names a bad value.
+    """
+    frame = np.eye(4)
+    frame[:3, 3] = check_vector(names[0], position)
+    oriented = quaternion_xyzw is not None
+    if quaternion_xyzw is not None:
+        quaternion = check_unit_quaternion(names[1], quaternion_xyzw)
+        frame[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+    free = estimated_components(estimate, oriented, force, moment)
+    given = np.zeros(6)
+    if force is not None:
+        given[:3] = check_vector('force', force)
+    if moment is not None:
+        given[3:] = check_vector('moment', moment)
+    rows = tuple(range(6)) if oriented else (0, 1, 2)
+    checked = None
+    if covariance is not None:
+        size = 3 if len(rows) == 3 and np.shape(covariance) == (3, 3) else 6
+        checked = check_covariance(names[2], covariance, size)[:len(rows), :len(rows)]
+    mean = np.zeros(6) if prior_mean is None else check_vector('prior_mean', prior_mean, 6)
+    spread = (diagonal_prior() if prior_covariance is None
+              else check_covariance('prior_covariance', prior_covariance, 6))
+    if np.linalg.eigvalsh(spread[np.ix_(free, free)])[0] <= 0.0:
+        raise InputError('prior_covariance must be positive definite over the estimated '
+                         f'components {[COMPONENT_NAMES[index] for index in free]}')
+    targets = np.repeat([check_number('target_force_sd', target_force_sd, low=0.0,
+                                      low_open=True, error=InputError),
+                         check_number('target_moment_sd', target_moment_sd, low=0.0,
+                                      low_open=True, error=InputError)], 3)
+    return Target(frame, rows, free, given, checked, float(length), labels, mean, spread,
+                  targets)
+
+
+def estimated_name(target: Target) -> str:
+    """Name what ``target`` estimates: a COMPONENT_CHOICES name, or the components joined."""
+    for name, indices in COMPONENT_CHOICES.items():
+        if target.free == indices:
+            return name
+    return ','.join(COMPONENT_NAMES[index] for index in target.free)

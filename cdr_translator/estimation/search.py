@@ -1,0 +1,245 @@
+"""
+The search: Levenberg-Marquardt steps on the estimated wrench components, warm along a stream.
+
+Each step is a forward solve with the exact compliance, within a trust radius in
+length-scaled units (moments as the force that makes them at the stack height H); the
+radius grows after steps the linearization predicted well and shrinks after steps that do
+not lower the cost (Nocedal & Wright, Numerical Optimization, 2006, Ch. 4 and 10.3). A
+stable iterate never steps past buckling. ``estimate_along`` runs a search from the
+owner's last estimate, restarts once from the prior mean, and searches a moment from a
+position alone from several starts.
+"""
+
+import math
+import time
+from typing import Any, Callable, Optional, Tuple
+from weakref import WeakKeyDictionary
+
+import numpy as np
+
+from .problem import estimated_name, Evaluation, Search, Target, Weights
+from .verdict import estimate_from
+from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
+
+__all__ = ['estimate_along', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
+
+#: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
+#: alone, which the pose sees poorly, can take 20).
+MAX_SOLVES = 40
+
+#: Converged when the Gauss-Newton step lowers the whitened cost by at most this: the step
+#: is within a tenth of a posterior standard deviation, which adds a hundredth to the
+#: estimate's variance (a warm estimate along a stream then takes one forward solve).
+CONVERGED_CHI2 = 1e-2
+
+#: A rejected step from a point whose Gauss-Newton decrease is below this has hit the
+#: forward solve's rounding (1e-12 m against EXACT_POSE_SD_M): converged.
+ROUNDING_CHI2 = 1.0
+
+#: Trust radius after an estimate's first (damped) step, at least, and at most: scaled
+#: wrench norm (N).
+TRUST_RADIUS_N = 1.0
+
+MAX_TRUST_RADIUS_N = 400.0
+
+#: A trust radius this small relative to the wrench (scaled norm, at least 1 N) means no
+#: nearby wrench lowers the cost.
+STEP_TOLERANCE = 1e-10
+
+#: Two matches further apart than this (relative, scaled wrench norm, at least 1 N) are
+#: different wrenches: the forward solves converge to 1e-10, the matches to about 1e-9.
+MATCH_DISTANCE = 1e-6
+
+#: Wrenches beyond this many times the translator's load scale w* (stability.load_scale:
+#: 31.4 N for the shipped one, the axial buckling load 29.3 N) are not tried: a pose that
+#: only such a load could match is reported as unmatched, not solved at kilonewtons.
+LOAD_LIMIT = 20.0
+
+#: Each solver's (or robot's) last converged iterate: the next estimate's first linearization.
+_STARTS: 'WeakKeyDictionary[Any, Evaluation]' = WeakKeyDictionary()
+
+
+def _whitened(target: Target, weights: Weights, evaluation: Evaluation,
+              scale: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return (r, J): the whitened residual [W e; L (w_f - mu)] and its derivative.
+
+    J is by the estimated components in scaled units (N: moments over H).
+    """
+    free = list(target.free)
+    block = evaluation.compliance[np.ix_(list(target.rows), free)] * scale[None, free]
+    residual = np.concatenate([weights.pose @ target.error(evaluation),
+                               weights.prior @ (evaluation.wrench[free] - weights.mean)])
+    return residual, np.vstack([weights.pose @ block, weights.prior * scale[None, free]])
+
+
+def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
+           start: Optional[Evaluation], target: Target, deadline: float,
+           begin: Optional[np.ndarray] = None, solves: int = MAX_SOLVES) -> Search:
+    """
+    Minimize the whitened cost over the estimated components from ``start``.
+
+    Without ``start`` (or one at other held values) from ``begin``, else from the prior
+    mean. ``evaluate`` solves the forward model at a wrench (None when that solve fails);
+    at most ``solves`` of them.
+    """
+    found = Search(None, False, '')
+    weights = target.weights
+    free = list(target.free)
+    fixed = [index for index in range(6) if index not in target.free]
+    warm = start is not None
+    if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
+        wrench = target.given.copy()
+        wrench[free] = weights.mean
+        origin = start.wrench if start is not None else begin
+        if origin is not None:
+            wrench[free] = origin[free]
+        start = evaluate(wrench)
+        found.solves += 1
+        if start is None:
+            found.message = 'the forward solve at the starting wrench did not converge'
+            return found
+    current, radius = start, None
+    found.best = current
+    scale = np.repeat([1.0, target.length], 3)
+    residual, jacobian = _whitened(target, weights, current, scale)
+    while True:
+        cost = float(residual @ residual)
+        left, values, right = np.linalg.svd(jacobian, full_matrices=False)
+        projected = left.T @ residual
+        if float(projected @ projected) <= CONVERGED_CHI2:
+            found.converged, found.message = True, 'converged'
+            return found
+        if radius is None:
+            # the first radius from the damped step: the Gauss-Newton one is mostly the
+            # poorly observed directions (the axial force), where the linearization from
+            # far away is least trusted. A warm start takes the Gauss-Newton step when it
+            # fits (along a stream it does: one forward solve per estimate); a cold one the
+            # damped step.
+            damped = _trust_region_step(values, right, projected, None)
+            radius = max(2.0 * float(np.linalg.norm(damped)), TRUST_RADIUS_N)
+            step = _trust_region_step(values, right, projected, radius) if warm else damped
+        else:
+            step = _trust_region_step(values, right, projected, radius)
+        floor = STEP_TOLERANCE * max(float(np.linalg.norm(current.wrench / scale)), 1.0)
+        if found.solves >= solves or time.perf_counter() > deadline:
+            found.message = (f'no match after {found.solves} forward solves'
+                             if found.solves >= solves else 'time limit reached')
+            return found
+        found.iterations += 1
+        wrench = current.wrench.copy()
+        wrench[free] += scale[free] * step
+        beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
+        trial = None if beyond else evaluate(wrench)
+        found.solves += 0 if beyond else 1
+        predicted = cost - float(np.sum((residual + jacobian @ step) ** 2))
+        if trial is not None and not (trial.stable is False and current.stable is not False):
+            # a stable iterate never steps past buckling: the structure rests on a stable
+            # equilibrium, and the unstable side only leads the iteration to kilonewtons
+            trial_residual, trial_jacobian = _whitened(target, weights, trial, scale)
+            trial_cost = float(trial_residual @ trial_residual)
+            if trial_cost < cost:
+                gain = (cost - trial_cost) / predicted if predicted > 0.0 else 0.0
+                if gain > 0.75 and float(np.linalg.norm(step)) >= 0.99 * radius:
+                    radius = min(2.0 * radius, MAX_TRUST_RADIUS_N)
+                elif gain < 0.25:
+                    radius = 0.5 * float(np.linalg.norm(step))
+                current, residual, jacobian = trial, trial_residual, trial_jacobian
+                found.best = current
+                continue
+        if float(projected @ projected) <= ROUNDING_CHI2:
+            found.converged = True
+            found.message = 'converged (to the rounding of the forward solve)'
+            return found
+        radius = 0.25 * float(np.linalg.norm(step))
+        if radius <= floor:
+            found.message = 'no nearby wrench lowers the pose residual: no equilibrium ' \
+                'matches the measured pose' + (
+                    f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
+                    else '')
+            return found
+
+
+def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndarray,
+                       radius: Optional[float]) -> np.ndarray:
+    """
+    Return the Levenberg-Marquardt step within ``radius``.
+
+    Minimizes |r + J step|^2 + lambda |step|^2 (scaled units; J = U diag(values) V^T and
+    ``projected`` = U^T r) with the smallest lambda >= 0 that keeps the step within the
+    radius (the Gauss-Newton step when it fits), picked on a logarithmic grid. Without a
+    radius (an estimate's first step) lambda is (values_max / CONDITION_LIMIT)^2: the
+    poorly observable directions (the axial force) barely move until the others fit,
+    since there the pose error is mostly the others' second-order effect (the end disk
+    drops as it swings sideways) that a first-order model reads as axial load.
+    """
+    weights = values * projected
+    newton = -right.T @ (weights / values ** 2)
+    size = float(np.linalg.norm(newton))
+    if radius is None:
+        return -right.T @ (weights / (values ** 2 + (values[0] / CONDITION_LIMIT) ** 2))
+    if size <= radius or not math.isfinite(size):
+        return newton
+    top = float(np.linalg.norm(weights)) / radius  # |step| <= |J^T r| / lambda
+    grid = np.geomspace(max(1e-6 * values[-1] ** 2, 1e-12 * top), top, 200)
+    sizes = np.linalg.norm(weights[None, :] / (values[None, :] ** 2 + grid[:, None]), axis=1)
+    damping = grid[int(np.argmax(sizes <= radius))]
+    return -right.T @ (weights / (values ** 2 + damping))
+
+
+def _other_match(evaluate: Callable[[np.ndarray], Optional[Evaluation]], found: Search,
+                 target: Target, deadline: float) -> Optional[np.ndarray]:
+    """Search from the other starts of a moment (estimate_along); return a second match."""
+    assert found.best is not None and found.best.compliance is not None
+    scale = np.repeat([1.0, target.length], 3)
+    rows, free = list(target.rows), list(target.free)
+    block = scale[rows, None] * found.best.compliance[np.ix_(rows, free)] * scale[None, free]
+    least = np.zeros(6)
+    least[free] = np.linalg.svd(block)[2][-1] * scale[free]
+    reach = 0.1 * target.load_limit / LOAD_LIMIT  # a tenth of w* (scaled N)
+    match = found.best.wrench
+    for begin in (target.given, match + reach * least, match - reach * least):
+        if time.perf_counter() > deadline:
+            break
+        other = search(evaluate, None, target, deadline, begin)
+        found.iterations += other.iterations
+        found.solves += other.solves
+        if other.converged and other.best is not None and np.linalg.norm(
+                (other.best.wrench - match) / scale) > MATCH_DISTANCE * max(
+                float(np.linalg.norm(match / scale)), 1.0):
+            return other.best.wrench.copy()
+    return None
+
+
+def estimate_along(owner: Any, evaluate: Callable[[np.ndarray], Optional[Evaluation]],
+                   target: Target, started: float, deadline: float, warm: bool,
+                   reset: Callable[[], None]) -> WrenchEstimate:
+    """
+    Search from ``owner``'s last estimate when ``warm`` (else cold), and build the estimate.
+
+    A warm search that fails is repeated once from the prior mean after ``reset`` (the
+    previous estimate may sit past buckling or far away), within ``deadline`` and the rest
+    of MAX_SOLVES; a converged one is the next warm start. A moment from a position alone
+    is searched again from no moment and from the match moved either way along its least
+    observable direction (by a tenth of the load scale w*): a position sees the moment
+    only through the couplings of the compliance, and several moments put the end disk at
+    the same point; a second match found is ``alternative``.
+    """
+    start = _STARTS.get(owner) if warm else None
+    found = search(evaluate, start, target, deadline)
+    if (not found.converged and start is not None and time.perf_counter() < deadline
+            and found.solves < MAX_SOLVES):
+        reset()
+        restart = search(evaluate, None, target, deadline, solves=MAX_SOLVES - found.solves)
+        restart.iterations += found.iterations
+        restart.solves += found.solves
+        restart.message += ' (after a restart from the prior mean)'
+        found = restart
+    if (found.converged and found.best is not None and estimated_name(target) == 'moment'
+            and len(target.rows) == 3):
+        found.alternative = _other_match(evaluate, found, target, deadline)
+    if found.converged and found.best is not None:
+        _STARTS[owner] = found.best
+    else:
+        _STARTS.pop(owner, None)
+    return estimate_from(found, target, started)
