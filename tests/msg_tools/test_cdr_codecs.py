@@ -1,17 +1,17 @@
-"""The compiled CDR codecs of msg_tools.cdr_codecs against mcap_ros2's dynamic ones."""
+"""The compiled CDR codecs of cdr_wire.cdr_codecs against mcap_ros2's dynamic ones."""
 
 import dataclasses
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import WrenchProcessor
+from cdr_wire.cdr_codecs import decoder, encoder, ShippedDecoders
+from cdr_wire.msgdefs import MESSAGE_DEFINITIONS, shipped_types
+from cdr_wire.reader import Decoders, McapSource
 from mcap.records import Schema
 from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 from msg_tools import synth
-from msg_tools.cdr_codecs import decoder, encoder, ShippedDecoders
-from msg_tools.msgdefs import MESSAGE_DEFINITIONS, shipped_types
-from msg_tools.reader import Decoders, McapSource
 import numpy as np
 import pytest
 

@@ -8,14 +8,14 @@ import threading
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
+from cdr_wire import msgdefs
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.rosbag2_metadata import offered_qos_profiles_yaml
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import msgdefs
-from msg_tools.mcap_log import McapLog
-from msg_tools.rosbag2_metadata import offered_qos_profiles_yaml
 import numpy as np
 import pytest
 import yaml
@@ -224,7 +224,7 @@ def test_concurrent_writers_lose_nothing(tmp_path):
 KILLED_WRITER = """
 import os, signal, sys, time
 from cdr_translator.interface import messages
-from msg_tools.mcap_log import McapLog
+from cdr_wire.mcap_log import McapLog
 log = McapLog(sys.argv[1], flush_every_messages=int(sys.argv[2]), flush_every_s=float(sys.argv[3]))
 for index in range(int(sys.argv[4])):
     log.write('wrench', messages.WRENCH_TYPE,

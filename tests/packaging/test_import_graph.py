@@ -23,9 +23,9 @@ ROS_PACKAGES = {'rclpy', 'rcl_interfaces', 'geometry_msgs', 'sensor_msgs', 'std_
                 'visualization_msgs', 'diagnostic_msgs', 'builtin_interfaces'}
 
 #: msg_tools modules that form its ROS-free, cdr_translator-free MCAP core.
-MSG_TOOLS_CORE = {'msg_tools', 'msg_tools.mcap_log', 'msg_tools.reader', 'msg_tools.msgdefs',
-                  'msg_tools.info', 'msg_tools.errors', 'msg_tools.file_lock',
-                  'msg_tools.log_status', 'msg_tools.rosbag2_metadata'}
+MSG_TOOLS_CORE = {'msg_tools', 'cdr_wire.mcap_log', 'cdr_wire.reader', 'cdr_wire.msgdefs',
+                  'msg_tools.info', 'msg_tools.errors', 'cdr_wire.file_lock',
+                  'cdr_wire.log_status', 'cdr_wire.rosbag2_metadata'}
 
 #: Layer of each part of cdr_translator; a module may import only its own or lower layers.
 LAYERS = {'core': 0, 'fidelity': 1, 'robot': 1, 'studies': 2, 'interface': 3, 'ros': 4,
