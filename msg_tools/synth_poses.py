@@ -40,19 +40,19 @@ class WrenchSample(Protocol):
 
     @property
     def stamp_ns(self) -> int:
-        """Header stamp (ns)."""
+        """Return the header stamp (ns)."""
 
     @property
     def force(self) -> np.ndarray:
-        """Force (N), in the frame ``frame_id`` names."""
+        """Return the force in N, in the frame that ``frame_id`` names."""
 
     @property
     def moment(self) -> np.ndarray:
-        """Moment (N m)."""
+        """Return the moment in N m."""
 
     @property
     def frame_id(self) -> str:
-        """Header frame id, empty for the base frame."""
+        """Return the header's frame id; empty for the base frame."""
 
 
 class MeasuredPose(NamedTuple):

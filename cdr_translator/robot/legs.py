@@ -30,15 +30,15 @@ class LegFactors(Protocol):
 
     @property
     def lu(self) -> tuple:
-        """LU factorization of the leg's shooting Jacobian (nondimensional)."""
+        """Return the LU factorization of the leg's shooting Jacobian (nondimensional)."""
 
     @property
     def pose(self) -> np.ndarray:
-        """d(end-disk frame)/d(unknowns), (12, n)."""
+        """Return d(end-disk frame)/d(unknowns), (12, n)."""
 
     @property
     def wrench(self) -> np.ndarray:
-        """The wrench it was made at."""
+        """Return the wrench it was made at."""
 
 
 class ChainFactors(Protocol):
@@ -46,7 +46,7 @@ class ChainFactors(Protocol):
 
     @property
     def legs(self) -> Sequence[LegFactors]:
-        """One per leg, in order."""
+        """Return one per leg, in order."""
 
 
 class Deadline(Exception):
