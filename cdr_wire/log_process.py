@@ -15,8 +15,8 @@ with the records it never confirmed counted as lost, and records that cannot be 
 over are counted too. When the caller dies, the child sees the pipe close, finishes the
 file (summary and all) and exits; it ignores SIGINT and SIGTERM, which a terminal or a
 launcher sends the whole process group, so that the caller's shutdown decides when the
-log ends. ``RecordWriter`` (the records' log times kept in order per channel, the counts)
-is shared with the in-process writer thread of cdr_translator.ros.runtime.
+log ends. In the child, ``RecordWriter`` writes the records to the McapLog, their log
+times kept in order per channel, and counts them.
 """
 
 from dataclasses import dataclass, replace
