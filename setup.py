@@ -11,11 +11,12 @@ package_name = 'cdr_translator'
 setup(
     name=package_name,
     version='0.1.0',
-    # only the two libraries: bench/, scripts/ and tests/ are not installed
-    packages=find_packages(include=['cdr_translator', 'cdr_translator.*', 'msg_tools',
-                                    'msg_tools.*']),
-    # the ROS 2 .msg texts msg_tools ships (it needs no ROS message packages)
-    package_data={'msg_tools': ['msg/*/*.msg', 'py.typed'], 'cdr_translator': ['py.typed']},
+    # only the three libraries: bench/, scripts/ and tests/ are not installed
+    packages=find_packages(include=['cdr_translator', 'cdr_translator.*', 'cdr_wire',
+                                    'cdr_wire.*', 'msg_tools', 'msg_tools.*']),
+    # the ROS 2 .msg texts cdr_wire ships (it needs no ROS message packages)
+    package_data={'cdr_wire': ['msg/*/*.msg', 'py.typed'], 'msg_tools': ['py.typed'],
+                  'cdr_translator': ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         (os.path.join('share', package_name), ['package.xml']),

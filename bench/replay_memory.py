@@ -25,7 +25,7 @@ import time
 from typing import Any, Dict, List, Sequence, Tuple
 
 from cdr_translator.interface import messages
-from msg_tools.mcap_log import McapLog
+from cdr_wire.mcap_log import McapLog
 from msg_tools.synth import DEFAULT_START_NS
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -19,7 +19,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.pose_error import FRAME_NAMES, rotations_from_quaternions
 from cdr_translator.pose_fit import PoseSamples
-from msg_tools.reader import Decoders, McapSource, ReadReport
+from cdr_wire.reader import Decoders, McapSource, ReadReport
 import numpy as np
 from scipy.spatial.transform import Rotation
 

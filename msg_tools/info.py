@@ -4,7 +4,7 @@
 By default every chunk is read and its CRC checked, and so are the summary and
 data-section CRCs: the counts are those of the messages that can be read, and a damaged
 file is reported as such with what was lost, even when its summary is intact (a damaged
-summary is not used: the data section is read through, ``msg_tools.reader``).
+summary is not used: the data section is read through, ``cdr_wire.reader``).
 ``verify=False`` (``--no-crc``) takes the counts from the summary without reading the
 chunks (fast, for trusted files). Memory stays bounded: messages are counted as they
 stream by.
@@ -14,7 +14,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Union
 
-from msg_tools.reader import McapSource
+from cdr_wire.reader import McapSource
 
 
 def _utc(time_ns: int) -> str:

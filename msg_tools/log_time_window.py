@@ -16,7 +16,7 @@ from typing import Callable, Deque, Dict, Iterable, Iterator, Optional, Set, Tup
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import WrenchProcessor
-from msg_tools.reader import Decoders, RawMessage
+from cdr_wire.reader import Decoders, RawMessage
 
 #: Messages solved per topic before a window to warm its solver up (outputs discarded).
 WARM_UP_MESSAGES = 10

@@ -16,10 +16,10 @@ import struct
 from typing import Dict, IO, Iterator, List, Optional, Tuple
 
 from cdr_translator.interface import messages
+from cdr_wire.mcap_log import McapLog
 from mcap.reader import SeekingReader
 from mcap.records import Chunk
 from mcap.stream_reader import get_chunk_data_stream, StreamReader
-from msg_tools.mcap_log import McapLog
 import zstandard
 
 #: The /diagnostics values that count messages since the start (WrenchProcessor.counts).

@@ -27,13 +27,13 @@ from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, U
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import Outcome, Wrench, WrenchProcessor
-from msg_tools.cdr_codecs import encoder, ShippedDecoders
+from cdr_wire.cdr_codecs import ShippedDecoders
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource, RawMessage
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
-from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
-from msg_tools.reader import McapSource, RawMessage
 from msg_tools.replay_estimates import pose_processors, register_poses, replay_pose
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
@@ -269,8 +269,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
         try:
             csv_file = open(csv_path, 'w', newline='') if csv_path else None
             log = McapLog(output_path, flush_every_messages=flush_every_messages,
-                          flush_every_s=flush_every_s, if_exists='overwrite',
-                          encoder_for=encoder)
+                          flush_every_s=flush_every_s, if_exists='overwrite')
         except OSError as error:
             raise OutputError(f'cannot write {error.filename or output_path}: '
                               f'{error}') from None

@@ -12,8 +12,8 @@ from typing import Dict, Sequence
 
 from cdr_translator.interface.pose_estimation import PoseProcessor
 from cdr_translator.interface.settings import TranslatorSettings
-from msg_tools.mcap_log import McapLog
-from msg_tools.reader import Decoders, RawMessage
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import Decoders, RawMessage
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import output_topic, POSE_INPUTS
 

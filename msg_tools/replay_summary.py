@@ -15,8 +15,8 @@ import math
 from typing import Collection, Dict, List, Optional
 
 from cdr_translator.interface.joint_summary import JointSummary
-from msg_tools.log_status import LogStatus
-from msg_tools.reader import ReadReport
+from cdr_wire.log_status import LogStatus
+from cdr_wire.reader import ReadReport
 import numpy as np
 
 #: Converged messages whose joint angles and position are counted together, as one block

@@ -12,8 +12,8 @@ beside them, as translator_node estimates the wrench from them.
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from cdr_translator.interface import messages, payload_estimation, pose_estimation
+from cdr_wire.reader import McapSource
 from msg_tools.errors import ReplayError
-from msg_tools.reader import McapSource
 
 
 #: The measured-pose inputs a replay takes beside the wrenches: topic name -> type.

@@ -28,14 +28,13 @@ from typing import Any, Collection, IO, List, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.robot.atlas import dask_client
-from msg_tools.cdr_codecs import encoder
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
-from msg_tools.mcap_log import McapLog
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.part_merge import PartMerger
-from msg_tools.reader import McapSource
 from msg_tools.replay import CSV_COLUMNS, Progress, replay
 from msg_tools.replay_summary import ReplaySummary
 from msg_tools.replay_topics import select_topics
@@ -157,7 +156,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
     """Merge the windows' parts into the outputs in window order, as they complete."""
     try:
         table = open(csv_path, 'w', newline='') if csv_path else None
-        log = McapLog(output_path, if_exists='overwrite', encoder_for=encoder)
+        log = McapLog(output_path, if_exists='overwrite')
     except OSError as error:
         raise OutputError(f'cannot write {error.filename or output_path}: {error}') from None
     bar = Progress(progress, total) if progress is not None else None

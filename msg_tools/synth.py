@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import List, NamedTuple, Optional, Sequence, Union
 
 from cdr_translator.interface import messages
-from msg_tools.mcap_log import McapLog
+from cdr_wire.mcap_log import McapLog
 from msg_tools.synth_poses import (MEASURED_POSE_COV_TOPIC, MEASURED_POSE_TOPIC, MeasuredPose,
                                    POSE_COV_TYPE, pose_messages)
 import numpy as np

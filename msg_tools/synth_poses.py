@@ -17,7 +17,7 @@ together); its log time equals its stamp.
 """
 
 import math
-from typing import List, NamedTuple, Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import List, NamedTuple, Optional, Protocol, Sequence, Tuple
 
 from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.params import (Accuracy, DEFAULT_PARAMS_PATH, translator_values,
@@ -27,15 +27,32 @@ from cdr_translator.solver import TranslatorSolver
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-if TYPE_CHECKING:
-    from msg_tools.synth import Sample
-
 #: Topics and types of the measurements (translator_node's names, absolute).
 MEASURED_POSE_TOPIC = '/' + pose_estimation.MEASURED_POSE_TOPIC
 MEASURED_POSE_COV_TOPIC = '/' + pose_estimation.MEASURED_POSE_COV_TOPIC
 POSE_COV_TYPE = messages.POSE_COV_TYPE
 #: header.frame_id of measured poses in a tracker frame offset from the base.
 TRACKER_FRAME = 'tracker'
+
+
+class WrenchSample(Protocol):
+    """A wrench of a sequence as ``measure`` reads it (msg_tools.synth.Sample is one)."""
+
+    @property
+    def stamp_ns(self) -> int:
+        """Return the header stamp (ns)."""
+
+    @property
+    def force(self) -> np.ndarray:
+        """Return the force in N, in the frame that ``frame_id`` names."""
+
+    @property
+    def moment(self) -> np.ndarray:
+        """Return the moment in N m."""
+
+    @property
+    def frame_id(self) -> str:
+        """Return the header's frame id; empty for the base frame."""
 
 
 class MeasuredPose(NamedTuple):
@@ -76,7 +93,7 @@ def solvable_rows(wrenches: np.ndarray, frames: Sequence[str], values: dict) -> 
             & (np.linalg.norm(safe[:, 3:], axis=1) <= values['max_moment']))
 
 
-def measure(samples: Sequence['Sample'], noise: PoseNoise, true_params: Optional[str] = None,
+def measure(samples: Sequence[WrenchSample], noise: PoseNoise, true_params: Optional[str] = None,
             frame: Sequence[float] = (0.0,) * 6, seed: int = 0, jitter_s: float = 0.0
             ) -> Tuple[List[Optional[MeasuredPose]], str]:
     """

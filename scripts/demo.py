@@ -27,9 +27,9 @@ from cdr_translator.interface import messages
 from cdr_translator.interface.joint_summary import JointSummary
 from cdr_translator.ros.client import diagnostic_values, isolated_ros_env, NodeProcess
 from cdr_translator.ros.client import TranslatorClient
+from cdr_wire.reader import McapSource
 from geometry_msgs.msg import WrenchStamped
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools.reader import McapSource
 import numpy as np
 from rclpy.serialization import deserialize_message
 

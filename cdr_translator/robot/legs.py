@@ -9,7 +9,7 @@ and time limit, which every leg evaluation charges and checks.
 import functools
 import math
 import time
-from typing import Dict, List, Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import Dict, List, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 
@@ -21,11 +21,32 @@ from ..params import Accuracy, TranslatorParams
 from ..result import SolveResult
 from ..solver import TranslatorSolver
 
-if TYPE_CHECKING:
-    from .linearization import Factorization
-
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
+
+
+class LegFactors(Protocol):
+    """A leg's linearization at a state as TranslatorSolver.result_at takes it."""
+
+    @property
+    def lu(self) -> tuple:
+        """Return the LU factorization of the leg's shooting Jacobian (nondimensional)."""
+
+    @property
+    def pose(self) -> np.ndarray:
+        """Return d(end-disk frame)/d(unknowns), (12, n)."""
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """Return the wrench it was made at."""
+
+
+class ChainFactors(Protocol):
+    """The three legs' linearizations at a state (robot.linearization.Factorization)."""
+
+    @property
+    def legs(self) -> Sequence[LegFactors]:
+        """Return one per leg, in order."""
 
 
 class Deadline(Exception):
@@ -132,7 +153,7 @@ class ChainLegs:
         return solver.solve(wrench[:3], wrench[3:])
 
     def results(self, state: ChainState,
-                factorization: Optional['Factorization']) -> Sequence[SolveResult]:
+                factorization: Optional[ChainFactors]) -> Sequence[SolveResult]:
         """
         Return the legs' SolveResults at ``state`` (shape, stability, error estimate).
 

@@ -22,9 +22,9 @@ import time
 from typing import Any, Callable, Deque, Dict, FrozenSet, List, Mapping, Optional, Sequence
 from typing import Tuple
 
+from cdr_wire.log_process import LogProcess
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
-from msg_tools.log_process import LogProcess
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -221,7 +221,7 @@ def type_name(message_class: Any) -> str:
 
 class NodeLog(LogProcess):
     """
-    A node's MCAP log: an McapLog in a child process (msg_tools.log_process).
+    A node's MCAP log: an McapLog in a child process (cdr_wire.log_process).
 
     The node's threads only hand records over (one pickled send per batch); the writing
     runs beside them instead of taking the GIL from the solve. Records may be CDR bytes or

@@ -3,12 +3,12 @@
 from pathlib import Path
 
 from cdr_translator.interface import messages
+from cdr_wire.mcap_log import McapLog
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.stream_reader import MAGIC_SIZE
 from mcap.writer import Writer
 from msg_tools import synth
-from msg_tools.mcap_log import McapLog
 
 
 def write_chunked(path, count=40, every=10):

@@ -11,9 +11,10 @@ per chunk: the MCAP writer keeps one chunk index per 1000 output records for the
 import tracemalloc
 
 from cdr_translator.interface import messages
-from msg_tools import reader, replay_summary
+from cdr_wire import reader
+from cdr_wire.mcap_log import McapLog
+from msg_tools import replay_summary
 from msg_tools.info import describe
-from msg_tools.mcap_log import McapLog
 from msg_tools.replay import replay
 from msg_tools.synth import DEFAULT_START_NS
 

@@ -7,10 +7,10 @@ outside the chunks of the data section fails its CRC. Either way every intact me
 replayed and replay exits 1 (docs/replay.md).
 """
 
+from cdr_wire.reader import McapSource
 from chunked import record_spans, write_chunked
 from msg_tools.__main__ import main
 from msg_tools.info import describe
-from msg_tools.reader import McapSource
 from msg_tools.replay_summary import EXIT_DAMAGED_INPUT
 import pytest
 

@@ -6,13 +6,13 @@ import subprocess
 import sys
 
 from cdr_translator.interface import messages
+from cdr_wire.mcap_log import _FileSink
+from cdr_wire.reader import McapSource
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from mcap.writer import Writer
 from msg_tools import __main__ as command_line, replay as replay_module, synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
-from msg_tools.mcap_log import _FileSink
-from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 from msg_tools.replay_summary import (EXIT_DAMAGED_INPUT, EXIT_NOTHING_SOLVED, EXIT_OK,
                                       EXIT_USAGE)

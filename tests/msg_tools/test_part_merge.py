@@ -1,11 +1,11 @@
 """The merge of replay parts: records copied as stored, diagnostics counters continued."""
 
 from cdr_translator.interface import messages
+from cdr_wire.cdr_codecs import decoder, encoder
+from cdr_wire.reader import McapSource
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
-from msg_tools.cdr_codecs import decoder, encoder
 from msg_tools.part_merge import continue_counters, COUNTERS, part_messages
-from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 import pytest
 

@@ -16,6 +16,8 @@ from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
 from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from figure_checks import assert_readable
 from mcap.reader import make_reader
@@ -23,9 +25,7 @@ from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
 from msg_tools.__main__ import main
 from msg_tools.errors import ReplayError
-from msg_tools.mcap_log import McapLog
 from msg_tools.plots import arc_points, plot_replay, replay_figure, replay_shapes
-from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 import numpy as np
 import pytest

@@ -12,12 +12,12 @@ from pathlib import Path
 import subprocess
 import sys
 
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 from chunked import write_undecodable
 from msg_tools import replay as replay_module, synth
 from msg_tools.__main__ import EXIT_BROKEN_PIPE, main
 from msg_tools.errors import ReplayError
-from msg_tools.mcap_log import McapLog
-from msg_tools.reader import McapSource
 from msg_tools.replay import CSV_COLUMNS, replay
 from msg_tools.replay_summary import EXIT_USAGE
 from msg_tools.replay_topics import output_topic

@@ -4,8 +4,8 @@ import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages, pose_estimation
+from cdr_wire.mcap_log import McapLog
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools.mcap_log import McapLog
 from msg_tools.replay import replay
 import numpy as np
 

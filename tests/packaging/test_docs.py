@@ -21,17 +21,17 @@ FENCE = re.compile(r'^```.*?^```', re.MULTILINE | re.DOTALL)
 LINK = re.compile(r'!?\[[^\]]*\]\(([^)\s]+)\)')
 HEADING = re.compile(r'^#{1,6}\s+(.*?)\s*#*\s*$', re.MULTILINE)
 #: A repository path named in the docs (`cdr_translator/ros/runtime.py`, `config/...yaml`).
-CODE_PATH = re.compile(r'`((?:cdr_translator|msg_tools|bench|scripts|config|launch|tests)/'
-                       r'[\w/.-]*\w\.(?:py|yaml|md|mcap|png|json))`')
+CODE_PATH = re.compile(r'`((?:cdr_translator|cdr_wire|msg_tools|bench|scripts|config|launch|tests)'
+                       r'/[\w/.-]*\w\.(?:py|yaml|md|mcap|png|json))`')
 #: A dotted name in the package (`cdr_translator.studies.hard_cases.stability`).
-DOTTED = re.compile(r'`((?:cdr_translator|msg_tools)(?:\.\w+)+)`')
+DOTTED = re.compile(r'`((?:cdr_translator|cdr_wire|msg_tools)(?:\.\w+)+)`')
 DEFINED = re.compile(r'^\s*(?:def|class)\s+(\w+)|^(\w+)\s*[:=]', re.MULTILINE)
 #: Journal wording: history belongs in CHANGELOG.rst and git, not in docs, code or tests.
 #: (Written with a character class so that this file does not match its own pattern.)
 JOURNAL = re.compile(r'session [0-9]|\bissue[ -]?#?[0-9]|this[ ]branch|\*\*changed', re.IGNORECASE)
 #: Where journal wording is looked for (CHANGELOG.rst is the one place for history).
-JOURNAL_PLACES = ('docs', 'README.md', 'tests', 'cdr_translator', 'msg_tools', 'bench',
-                  'scripts')
+JOURNAL_PLACES = ('docs', 'README.md', 'tests', 'cdr_translator', 'cdr_wire', 'msg_tools',
+                  'bench', 'scripts')
 JOURNAL_SUFFIXES = {'.md', '.py', '.rst', '.txt', '.yaml', '.cfg'}
 #: A path outside the repository: the parent of the checkout, or an absolute path.
 OUTSIDE_PATH = re.compile(r'\.\./shared|(?<![\w.~])/(?:home|tmp|work|root|mnt)/')

@@ -1,39 +1,55 @@
 """
-The import graph of cdr_translator and msg_tools: one-way layers and no cycles.
+The import graph of cdr_translator, cdr_wire and msg_tools: one-way layers and no cycles.
 
-Every import counts, at module level or inside a function (an import hidden in a function
-to dodge a cycle is still a cycle); only ``if TYPE_CHECKING:`` blocks are left out. Layers:
-core <- wings (fidelity, robot, studies) <- interface <- ros / msg_tools apps; msg_tools'
-MCAP core imports nothing from cdr_translator; only cdr_translator.ros imports rclpy.
+Every import counts, at module level, inside a function (an import hidden in a function to
+dodge a cycle is still a cycle) or under ``if TYPE_CHECKING:`` (a type-only import ties the
+two modules together as much as any other). Layers: core <- wings (fidelity, robot,
+studies) <- interface <- ros / msg_tools apps; the wire (cdr_wire: CDR, MCAP files) imports
+nothing of cdr_translator or msg_tools, and only the edges (cdr_translator.ros, msg_tools)
+import it; only cdr_translator.ros imports rclpy.
 """
 
 import ast
 from pathlib import Path
 import subprocess
 import sys
-from typing import Dict, Iterator, Set
+from typing import Dict, FrozenSet, Iterator, List, Set
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ('cdr_translator', 'msg_tools')
+PACKAGES = ('cdr_translator', 'cdr_wire', 'msg_tools')
 
 #: ROS client library and message packages: only cdr_translator.ros may import them.
 ROS_PACKAGES = {'rclpy', 'rcl_interfaces', 'geometry_msgs', 'sensor_msgs', 'std_msgs',
                 'visualization_msgs', 'diagnostic_msgs', 'builtin_interfaces'}
 
-#: msg_tools modules that form its ROS-free, cdr_translator-free MCAP core.
-MSG_TOOLS_CORE = {'msg_tools', 'msg_tools.mcap_log', 'msg_tools.reader', 'msg_tools.msgdefs',
-                  'msg_tools.info', 'msg_tools.errors', 'msg_tools.file_lock',
-                  'msg_tools.log_status', 'msg_tools.rosbag2_metadata'}
+#: The wire package: it imports only itself; these edges import it.
+WIRE = 'cdr_wire'
+WIRE_USERS = ('cdr_translator.ros', 'msg_tools')
 
 #: Layer of each part of cdr_translator; a module may import only its own or lower layers.
 LAYERS = {'core': 0, 'fidelity': 1, 'robot': 1, 'studies': 2, 'interface': 3, 'ros': 4,
           'app': 5}
 
+#: Import cycles still to be cut, by name: each the set of modules that import each other.
+#: ``test_no_import_cycles_but_the_known_ones`` fails on any other cycle (or a module
+#: joining one of these), and ``test_known_cycles_are_still_there`` on an entry whose
+#: cycle is gone (remove it: a stale entry would let the cycle come back unnoticed).
+KNOWN_CYCLES: Dict[str, FrozenSet[str]] = {
+    'solver and its row, refinement and estimation helpers': frozenset({
+        'cdr_translator.solver', 'cdr_translator.lean_rows', 'cdr_translator.refinement',
+        'cdr_translator.given_unknowns', 'cdr_translator.estimation'}),
+    'fidelity solver, auto and batch rows': frozenset({
+        'cdr_translator.fidelity.solver', 'cdr_translator.fidelity.auto',
+        'cdr_translator.fidelity.auto_batch', 'cdr_translator.fidelity.batch_rows'}),
+    'delta robot and payload estimate': frozenset({
+        'cdr_translator.robot.delta', 'cdr_translator.robot.payload_estimate'}),
+}
+
 
 def module_names() -> Dict[str, Path]:
-    """Map every module of the two packages to its file."""
+    """Map every module of the packages to its file."""
     names = {}
     for package in PACKAGES:
         for path in sorted((ROOT / package).rglob('*.py')):
@@ -45,16 +61,10 @@ def module_names() -> Dict[str, Path]:
 
 
 def imported(module: str, path: Path) -> Iterator[str]:
-    """Yield the absolute names imported anywhere in ``path`` but TYPE_CHECKING blocks."""
+    """Yield the absolute names imported anywhere in ``path``, type-only imports included."""
     tree = ast.parse(path.read_text())
     package = module if path.name == '__init__.py' else module.rpartition('.')[0]
-    skipped: Set[int] = set()
     for node in ast.walk(tree):
-        if isinstance(node, ast.If) and 'TYPE_CHECKING' in ast.unparse(node.test):
-            skipped.update(id(child) for child in ast.walk(node))
-    for node in ast.walk(tree):
-        if id(node) in skipped:
-            continue
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -77,6 +87,52 @@ def graph() -> Dict[str, Set[str]]:
             for module, path in names.items()}
 
 
+def cycle_groups(graph: Dict[str, Set[str]]) -> List[FrozenSet[str]]:
+    """Return the groups of modules that import each other (strongly connected, Tarjan)."""
+    order: Dict[str, int] = {}
+    low: Dict[str, int] = {}
+    stack: List[str] = []
+    groups: List[FrozenSet[str]] = []
+
+    def visit(module: str) -> None:
+        order[module] = low[module] = len(order)
+        stack.append(module)
+        for target in sorted(graph[module]):
+            if target not in order:
+                visit(target)
+                low[module] = min(low[module], low[target])
+            elif target in stack:
+                low[module] = min(low[module], order[target])
+        if low[module] == order[module]:
+            group = set()
+            while True:
+                member = stack.pop()
+                group.add(member)
+                if member == module:
+                    break
+            if len(group) > 1 or module in graph[module]:
+                groups.append(frozenset(group))
+
+    for module in sorted(graph):
+        if module not in order:
+            visit(module)
+    return groups
+
+
+def one_cycle(graph: Dict[str, Set[str]], group: FrozenSet[str]) -> List[str]:
+    """Return one import cycle through the modules of ``group``, as a path back to its start."""
+    start = min(group)
+    trail = [start]
+    seen = {start}
+    while True:
+        # within a group every module reaches every other: walk until a module repeats
+        target = min(name for name in graph[trail[-1]] if name in group)
+        if target in seen:
+            return trail[trail.index(target):] + [target]
+        trail.append(target)
+        seen.add(target)
+
+
 def layer(module: str) -> int:
     """Return the layer of a cdr_translator module (cli and __main__ are the app)."""
     parts = module.split('.')
@@ -87,23 +143,33 @@ def layer(module: str) -> int:
     return LAYERS['core']
 
 
-def test_no_import_cycles(graph):
-    """Depth-first search finds no cycle, counting imports inside functions too."""
-    state: Dict[str, int] = {}
+def test_no_import_cycles_but_the_known_ones(graph):
+    """Every group of modules importing each other lies within a KNOWN_CYCLES entry."""
+    new = [group for group in cycle_groups(graph)
+           if not any(group <= known for known in KNOWN_CYCLES.values())]
+    assert not new, 'import cycles: ' + '; '.join(
+        ' -> '.join(one_cycle(graph, group)) for group in new)
 
-    def visit(module, trail):
-        state[module] = 1
-        for target in sorted(graph[module]):
-            if state.get(target) == 1:
-                cycle = trail[trail.index(target):] + [target]
-                pytest.fail('import cycle: ' + ' -> '.join(cycle))
-            if target not in state:
-                visit(target, trail + [target])
-        state[module] = 2
 
-    for module in sorted(graph):
-        if module not in state:
-            visit(module, [module])
+def test_known_cycles_are_still_there(graph):
+    """Each KNOWN_CYCLES entry still holds a cycle (else it must leave the list)."""
+    groups = cycle_groups(graph)
+    gone = [name for name, known in KNOWN_CYCLES.items()
+            if not any(group <= known for group in groups)]
+    assert not gone, f'no longer import cycles, remove them from KNOWN_CYCLES: {gone}'
+
+
+def test_cycle_groups_find_type_only_and_function_level_cycles(tmp_path):
+    """The cycle search sees a cycle closed by a TYPE_CHECKING import, and by a function's."""
+    (tmp_path / 'a.py').write_text('from typing import TYPE_CHECKING\nimport c\n'
+                                   'if TYPE_CHECKING:\n    import b\n')
+    (tmp_path / 'b.py').write_text('def f():\n    import a\n')
+    (tmp_path / 'c.py').write_text('X = 1\n')
+    names = {name: tmp_path / f'{name}.py' for name in 'abc'}
+    small = {module: {name for name in imported(module, path) if name in names}
+             for module, path in names.items()}
+    assert cycle_groups(small) == [frozenset({'a', 'b'})]
+    assert one_cycle(small, frozenset({'a', 'b'})) == ['a', 'b', 'a']
 
 
 def test_layers_point_one_way(graph):
@@ -115,10 +181,30 @@ def test_layers_point_one_way(graph):
     assert not wrong, wrong
 
 
-def test_msg_tools_core_is_independent_of_cdr_translator(graph):
-    """The MCAP writer, reader, message definitions and info import nothing of the solver."""
-    wrong = [f'{module} -> {target}' for module in MSG_TOOLS_CORE if module in graph
-             for target in graph[module] if target.startswith('cdr_translator')]
+def test_the_wire_imports_only_itself(graph):
+    """cdr_wire (CDR codecs, MCAP writer and reader) imports nothing of the solver or apps."""
+    wrong = [f'{module} -> {target}' for module, targets in graph.items()
+             if module.split('.')[0] == WIRE
+             for target in targets if target.split('.')[0] != WIRE]
+    assert not wrong, wrong
+
+
+def test_only_the_edges_import_the_wire(graph):
+    """cdr_wire is used by the ROS nodes and the msg_tools apps, not by the layers below."""
+    wrong = [f'{module} -> {target}' for module, targets in graph.items()
+             if module.split('.')[0] != WIRE
+             and not module.startswith(tuple(user + '.' for user in WIRE_USERS))
+             and module not in WIRE_USERS
+             for target in targets if target.split('.')[0] == WIRE]
+    assert not wrong, wrong
+
+
+def test_the_two_edges_import_nothing_of_each_other(graph):
+    """The ROS nodes and the msg_tools apps share the layers below them, not each other."""
+    wrong = [f'{module} -> {target}' for module, targets in graph.items()
+             for target in targets
+             if (module.startswith('cdr_translator') and target.startswith('msg_tools'))
+             or (module.startswith('msg_tools') and target.startswith('cdr_translator.ros'))]
     assert not wrong, wrong
 
 

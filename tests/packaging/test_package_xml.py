@@ -24,11 +24,11 @@ import yaml
 ROOT = Path(__file__).resolve().parents[2]
 
 #: Installed code (exec dependencies) and test code (test or exec dependencies).
-INSTALLED_SOURCES = ('cdr_translator', 'msg_tools', 'launch')
+INSTALLED_SOURCES = ('cdr_translator', 'cdr_wire', 'msg_tools', 'launch')
 TEST_SOURCES = ('tests',)
 
 #: This repository's own top-level modules (not dependencies).
-OWN_MODULES = {'cdr_translator', 'msg_tools', 'bench', 'scripts', 'tests'}
+OWN_MODULES = {'cdr_translator', 'cdr_wire', 'msg_tools', 'bench', 'scripts', 'tests'}
 
 #: Top-level import name -> the rosdep key that provides it.
 IMPORT_KEYS: Dict[str, str] = {

@@ -29,16 +29,18 @@ def test_colcon_build_installs_package_and_params(tmp_path):
     assert (share / 'ament_index' / 'resource_index' / 'packages' / 'cdr_translator').is_file()
     installed = list((tmp_path / 'install').glob('**/site-packages/cdr_translator/solver.py'))
     assert installed, 'the library was not installed'
-    # only the two libraries (and their metadata) go to site-packages: no bench, tests, scripts
+    # only the three libraries (and their metadata) go to site-packages: no bench, tests, scripts
     site = installed[0].parents[1]
     packages = {path.name for path in site.iterdir()
                 if path.is_dir() and not path.name.endswith(('.egg-info', '.dist-info'))
                 and path.name != '__pycache__'}
-    assert packages == {'cdr_translator', 'msg_tools'}, packages
+    assert packages == {'cdr_translator', 'cdr_wire', 'msg_tools'}, packages
     for subpackage in ('fidelity', 'robot', 'studies', 'interface', 'ros'):
         assert (site / 'cdr_translator' / subpackage / '__init__.py').is_file(), subpackage
     assert (site / 'cdr_translator' / 'py.typed').is_file()
     assert (site / 'msg_tools' / 'py.typed').is_file()
+    assert (site / 'cdr_wire' / 'py.typed').is_file()
+    assert (site / 'cdr_wire' / 'msg' / 'geometry_msgs' / 'WrenchStamped.msg').is_file()
     # the installed library finds the installed parameter file without the ament index
     check = subprocess.run(
         [sys.executable, '-c', 'from cdr_translator.params import DEFAULT_PARAMS_PATH as p; '

@@ -6,7 +6,7 @@ repository would pass there and fail in a plain clone. This copies ``git ls-file
 empty temporary folder and runs tests/packaging in it (the copy first on PYTHONPATH, no
 CDR_ROSDEP_DIR). Left out, to keep it under a minute: this file (it would run itself), the
 linters and the colcon build (minutes; the colcon test builds from such a copy itself), the
-import graph and the size limits (they read only cdr_translator/ and msg_tools/), and the
+import graph and the size limits (they read only the three libraries' folders), and the
 README's solve (the copy has no compiled numba kernels: minutes of compiling).
 """
 

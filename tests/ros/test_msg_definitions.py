@@ -10,9 +10,9 @@ import json
 from pathlib import Path
 import sys
 
+from cdr_wire import msgdefs
+from cdr_wire.mcap_log import McapLog
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools import msgdefs
-from msg_tools.mcap_log import McapLog
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 

@@ -17,9 +17,9 @@ from cdr_translator.interface import messages
 from cdr_translator.params import NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
 from cdr_translator.ros.runtime import NodeLog
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 from mcap.reader import make_reader
-from msg_tools.mcap_log import McapLog
-from msg_tools.reader import McapSource
 from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, START_TIMEOUT_S
 
 LOG_DIAGNOSTIC = f'{NODE_NAME}: mcap_log'

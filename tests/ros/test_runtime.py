@@ -15,10 +15,10 @@ from cdr_translator.ros.parameters import default_values, descriptor, ros_parame
 from cdr_translator.ros.parameters import SPECS
 from cdr_translator.ros.runtime import fill_message, LatestMailbox, log_lost, LogWatch, NodeLog
 from cdr_translator.ros.runtime import type_name
+from cdr_wire.errors import LogFileBusyError, LogFileExistsError
+from cdr_wire.reader import McapSource
 from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools.errors import LogFileBusyError, LogFileExistsError
-from msg_tools.reader import McapSource
 import pytest
 import rclpy
 from rclpy.node import Node

@@ -14,6 +14,7 @@ from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
 from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
+from cdr_wire.cdr_plan import HEADER
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
@@ -38,7 +39,7 @@ def _same_as_rclpy(topic, values):
     message_class = OUTPUTS[topic]
     expected = fill_message(message_class(), values)
     data = serialization.encode(message_class, values)
-    assert data[:4] == serialization.HEADER
+    assert data[:4] == HEADER
     assert deserialize_message(data, message_class) == expected
     assert deserialize_message(serialize_message(expected), message_class) == expected
 

@@ -20,9 +20,9 @@ from cdr_translator.interface import messages
 from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
 from cdr_translator.ros.translator import TranslatorNode
+from cdr_wire.reader import McapSource
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
-from msg_tools.reader import McapSource
 from msg_tools.replay import replay
 from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running
 from nodes import send_behind_a_slow_first_solve, stamped_wrenches, START_TIMEOUT_S

@@ -1,8 +1,8 @@
 """
-ROS 2 message definitions shipped with msg_tools, without any ROS package installed.
+ROS 2 message definitions shipped with cdr_wire, without any ROS package installed.
 
 The ``.msg`` texts of every type the translator reads or writes (and their dependencies) are
-shipped verbatim in ``msg_tools/msg/<package>/<Name>.msg`` (ROS 2 Jazzy, common_interfaces
+shipped verbatim in ``cdr_wire/msg/<package>/<Name>.msg`` (ROS 2 Jazzy, common_interfaces
 5.3). From them this module builds
 
 * the complete ``ros2msg`` definition text of a type the way rosbag2 writes it into an MCAP

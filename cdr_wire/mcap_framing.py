@@ -6,7 +6,7 @@ holds. A damaged summary must not stand in for the data: a flipped byte in a cha
 topic would hide its messages, one in a chunk offset would lose a chunk. The footer's
 summary CRC covers the whole summary section and the footer itself, so a file whose CRC
 matches can be read through its index; otherwise the data section is read through
-(``msg_tools.reader``). A file written without a summary CRC has its chunk index checked
+(``cdr_wire.reader``). A file written without a summary CRC has its chunk index checked
 against the chunk records it points at instead.
 """
 

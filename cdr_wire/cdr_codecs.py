@@ -3,23 +3,22 @@ CDR encoders and decoders of the shipped message types, compiled once from their
 
 ``mcap_ros2``'s dynamic encoder walks a message's definition field by field for every
 message (0.1-0.4 ms per output message); these are the generated ``struct`` writers and
-readers of ``cdr_translator.ros.serialization``, laid out from the REP-2011 type
-descriptions of ``msg_tools.msgdefs`` instead of the rclpy classes, so no ROS is needed.
-They write the same bytes as ``mcap_ros2`` (padding zeroed) and read its bytes back as
-nested dicts; ``ShippedDecoders`` reads a file's messages with them where the file's schema
-is the shipped definition. The /diagnostics array, written once per replayed wrench with
-some 35 strings, has a writer of its own (``encode_diagnostic_array``) that keeps the CDR
-of the key strings it has met: the same bytes in about half the time.
+readers of ``cdr_wire.cdr_plan``, laid out from the REP-2011 type descriptions of
+``cdr_wire.msgdefs``, so no ROS is needed. They write the same bytes as ``mcap_ros2``
+(padding zeroed) and read its bytes back as nested dicts. ``McapLog`` encodes with them;
+``ShippedDecoders`` reads a file's messages with them where the file's schema is the
+shipped definition. The /diagnostics array, written once per replayed wrench with some 35
+strings, has a writer of its own (``encode_diagnostic_array``) that keeps the CDR of the
+key strings it has met: the same bytes in about half the time.
 """
 
 from functools import lru_cache
 import struct
 from typing import Any, Callable, Dict, Mapping, Tuple
 
-from cdr_translator.ros.serialization import (description_plan, HEADER, plan_decoder,
-                                              plan_encoder)
-from msg_tools.msgdefs import MESSAGE_DEFINITIONS, type_description
-from msg_tools.reader import Decoders, RawMessage
+from cdr_wire.cdr_plan import description_plan, HEADER, plan_decoder, plan_encoder
+from cdr_wire.msgdefs import MESSAGE_DEFINITIONS, type_description
+from cdr_wire.reader import Decoders, RawMessage
 
 
 def _descriptions(type_name: str) -> Dict[str, Mapping[str, Any]]:

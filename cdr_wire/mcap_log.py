@@ -5,22 +5,21 @@ The file follows the MCAP ``ros2`` profile the way rosbag2 (Jazzy) writes it: sc
 encoding ``ros2msg`` holding the complete message definition (``msgdefs``), channels with
 message encoding ``cdr`` and the channel metadata ``offered_qos_profiles`` (the YAML list
 rosbag2 stores) and ``topic_type_hash`` (RIHS01), zstd-compressed chunks, and a ``rosbag2``
-metadata record with ``ROS_DISTRO`` (``msg_tools.rosbag2_metadata``). Completed chunks are
+metadata record with ``ROS_DISTRO`` (``cdr_wire.rosbag2_metadata``). Completed chunks are
 flushed to the file every N messages and every T seconds (a background thread), so a writer
 killed with SIGKILL loses at most the messages of that window; everything before stays
-readable (see ``msg_tools.reader`` for the salvage of such a file). ``close()`` writes the
+readable (see ``cdr_wire.reader`` for the salvage of such a file). ``close()`` writes the
 summary and index and is idempotent.
 
 One writer per file: the file is created exclusively and held with an exclusive ``flock``
-while open (``msg_tools.file_lock``). Write errors (disk full, I/O error, the file removed)
+while open (``cdr_wire.file_lock``). Write errors (disk full, I/O error, the file removed)
 never raise from ``write``/``flush``/``close``: the file is cut back to its last complete
 chunk, the records not written are counted, ``status()`` (a ``LogStatus``) says what
 happened, and writing resumes in a new file (``<stem>_<n><suffix>``) once that works again.
 See docs/logging.md.
 
-CDR encoding of plain dicts uses ``mcap_ros2``'s dynamic encoder (``serialize_dynamic`` of
-mcap-ros2-support 0.6.0, pinned in requirements.txt) unless the writer is given faster
-encoders of the same bytes (``encoder_for``; replay passes ``msg_tools.cdr_codecs``'s).
+Plain dicts are encoded to CDR by the compiled encoders of ``cdr_wire.cdr_codecs`` (the
+bytes ``mcap_ros2`` writes).
 """
 
 import errno
@@ -31,14 +30,14 @@ import threading
 import time
 from typing import Any, Callable, cast, Dict, IO, List, Mapping, Optional, Tuple, Union
 
+from cdr_wire.cdr_codecs import encoder
+from cdr_wire.errors import error_text
+from cdr_wire.file_lock import open_exclusive
+from cdr_wire.log_status import LogStatus
+from cdr_wire.msgdefs import MESSAGE_DEFINITIONS, TYPE_HASHES
+from cdr_wire.rosbag2_metadata import offered_qos_profiles_yaml, QOS_PROFILES, ROS_DISTRO
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
-from mcap_ros2._dynamic import serialize_dynamic
-from msg_tools.errors import error_text
-from msg_tools.file_lock import open_exclusive
-from msg_tools.log_status import LogStatus
-from msg_tools.msgdefs import MESSAGE_DEFINITIONS, TYPE_HASHES
-from msg_tools.rosbag2_metadata import offered_qos_profiles_yaml, QOS_PROFILES, ROS_DISTRO
 
 
 class _FileSink:
@@ -94,16 +93,12 @@ class McapLog:
     def __init__(self, path: Union[str, Path], *, flush_every_messages: int = 100,
                  flush_every_s: float = 1.0, chunk_size: int = 1024 * 1024,
                  if_exists: str = 'fail', retry_s: float = 1.0,
-                 opened: Optional[Tuple[int, Path]] = None,
-                 encoder_for: Optional[Callable[[str], Callable[[Any], bytes]]] = None
-                 ) -> None:
+                 opened: Optional[Tuple[int, Path]] = None) -> None:
         """
         Create ``path`` (see ``open_exclusive``), its parent folders, and start the MCAP.
 
         ``opened``: (descriptor, path) that ``open_exclusive(path, if_exists)`` returned
         already, e.g. in the process that handed the descriptor to this one; the log owns it.
-        ``encoder_for``: type name -> the CDR encoder ``write`` uses for it (default
-        ``mcap_ros2``'s dynamic one); it must give the bytes ``mcap_ros2`` gives.
         """
         if (isinstance(flush_every_messages, bool) or not isinstance(flush_every_messages, int)
                 or flush_every_messages < 0):
@@ -120,7 +115,6 @@ class McapLog:
         self._lock = threading.Lock()
         self._schemas: Dict[str, int] = {}
         self._encoders: Dict[str, Callable[[Any], bytes]] = {}
-        self._encoder_for = encoder_for or _dynamic_encoder
         self._channels: Dict[str, Tuple[int, str]] = {}
         self._qos: Dict[str, str] = {}
         self._type_of: Dict[str, str] = {}
@@ -167,7 +161,7 @@ class McapLog:
         self._committed_offset = 0
         self._channels = {}
         self._schemas = {}
-        writer.start(profile='ros2', library=f'cdr_translator msg_tools; {LIBRARY_IDENTIFIER}')
+        writer.start(profile='ros2', library=f'cdr_translator cdr_wire; {LIBRARY_IDENTIFIER}')
         for name, data in self._metadata:
             writer.add_metadata(name, data)
         for topic, qos in self._qos.items():
@@ -368,7 +362,7 @@ class McapLog:
             if type_name not in self._encoders:
                 if type_name not in MESSAGE_DEFINITIONS:
                     raise ValueError(f'no message definition for type {type_name!r}')
-                self._encoders[type_name] = self._encoder_for(type_name)
+                self._encoders[type_name] = encoder(type_name)
             return self._encoders[type_name]
 
     def write(self, topic: str, type_name: str, message: Mapping[str, Any], log_time_ns: int,
@@ -472,11 +466,6 @@ class McapLog:
         """Describe the log."""
         state = 'closed' if self._closed else 'open'
         return f'McapLog({str(self.path)!r}, {state}, {sum(self._sequences.values())} messages)'
-
-
-def _dynamic_encoder(type_name: str) -> Callable[[Any], bytes]:
-    """Return ``mcap_ros2``'s dynamic CDR encoder of the shipped type ``type_name``."""
-    return serialize_dynamic(type_name, MESSAGE_DEFINITIONS[type_name])[type_name]
 
 
 def _removed(fd: int) -> bool:

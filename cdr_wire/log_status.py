@@ -1,7 +1,7 @@
 """
 What an MCAP writer reports: records written, pending and lost, and the last event.
 
-Write errors are events, not exceptions (see ``msg_tools.mcap_log``): ``LogStatus`` is how
+Write errors are events, not exceptions (see ``cdr_wire.mcap_log``): ``LogStatus`` is how
 the writer, the log process and the replay tell what reached the disk.
 """
 

@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 from typing import Iterator, Optional, Tuple, Union
 
-from msg_tools.errors import LogFileBusyError, LogFileExistsError
+from cdr_wire.errors import LogFileBusyError, LogFileExistsError
 
 #: What a writer does when its path exists: fail (the default), overwrite it, or pick a
 IF_EXISTS = ('fail', 'overwrite', 'rename')

@@ -3,7 +3,7 @@ An McapLog written by a process of its own, so that the writing takes no time fr
 
 A node's MCAP writing (the mcap writer's records, chunking, zstd, CRCs: 25-50 us of Python
 per record) held the GIL its solver needs; ``LogProcess`` hands serialized records over a
-pipe to a child process (``python -m msg_tools.log_process``) that owns the McapLog, and
+pipe to a child process (``python -m cdr_wire.log_process``) that owns the McapLog, and
 costs the caller one pickled send per batch. The file is created and locked here, before
 the child starts (``open_exclusive``: an existing file or another writer is an OSError
 naming it and its holder's PID, this process's for a file it writes), and the child
@@ -15,8 +15,8 @@ with the records it never confirmed counted as lost, and records that cannot be 
 over are counted too. When the caller dies, the child sees the pipe close, finishes the
 file (summary and all) and exits; it ignores SIGINT and SIGTERM, which a terminal or a
 launcher sends the whole process group, so that the caller's shutdown decides when the
-log ends. ``RecordWriter`` (the records' log times kept in order per channel, the counts)
-is shared with the in-process writer thread of cdr_translator.ros.runtime.
+log ends. In the child, ``RecordWriter`` writes the records to the McapLog, their log
+times kept in order per channel, and counts them.
 """
 
 from dataclasses import dataclass, replace
@@ -30,10 +30,10 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
-from msg_tools.file_lock import open_exclusive
-from msg_tools.log_status import LogStatus
-from msg_tools.mcap_log import McapLog
-from msg_tools.reader import McapSource
+from cdr_wire.file_lock import open_exclusive
+from cdr_wire.log_status import LogStatus
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 
 #: How often the child reports the log's status (s), and how often it looks for news.
 STATUS_PERIOD_S = 0.1
@@ -147,7 +147,7 @@ class LogProcess:
             [source, *filter(None, [env.get('PYTHONPATH', '')])])
         try:
             self._process = subprocess.Popen(
-                [sys.executable, '-m', 'msg_tools.log_process', str(fd), str(opened),
+                [sys.executable, '-m', 'cdr_wire.log_process', str(fd), str(opened),
                  str(path), str(flush_every_messages), repr(float(flush_every_s)),
                  str(to_child), str(to_parent)],
                 pass_fds=(fd, to_child, to_parent), stdin=subprocess.DEVNULL, env=env)

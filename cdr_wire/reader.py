@@ -1,7 +1,7 @@
 """
 Read every message of an MCAP file that can still be read, and say what could not.
 
-A finished file whose summary can be trusted (its CRC matches: ``msg_tools.mcap_framing``)
+A finished file whose summary can be trusted (its CRC matches: ``cdr_wire.mcap_framing``)
 is read through its summary (chunk index and statistics): each chunk is located by its
 index, checked against its CRC and decompressed on its own, so a damaged chunk loses only
 its own messages (counted from the statistics). A file without a trustworthy summary (the
@@ -31,6 +31,8 @@ import struct
 from typing import Callable, Deque, Dict, Iterable, Iterator, List, Optional, Set, Tuple, Union
 import zlib
 
+from cdr_wire.errors import error_text
+from cdr_wire.mcap_framing import chunk_index_problem, summary_problem
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
@@ -39,8 +41,6 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, S
 from mcap.stream_reader import (CRCValidationError, get_chunk_data_stream, MAGIC_SIZE,
                                 read_magic, StreamReader)
 from mcap_ros2.decoder import DecoderFactory
-from msg_tools.errors import error_text
-from msg_tools.mcap_framing import chunk_index_problem, summary_problem
 import zstandard
 
 #: Exceptions that mean "this part of the file cannot be read": struct.error for cut

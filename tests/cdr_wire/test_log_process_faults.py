@@ -9,9 +9,9 @@ import sys
 import time
 
 from cdr_translator.interface import messages
-from msg_tools.log_process import LogProcess
-from msg_tools.mcap_log import McapLog
-from msg_tools.reader import McapSource
+from cdr_wire.log_process import LogProcess
+from cdr_wire.mcap_log import McapLog
+from cdr_wire.reader import McapSource
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Bound on every wait (s).
@@ -22,7 +22,7 @@ CLOSED = re.compile(r'MCAP log closed: (\d+) records written, (\d+) lost \((\d+)
 #: A caller that hands 300 records to its log process, says so, and waits to be killed.
 CALLER = """
 import sys, time
-from msg_tools.log_process import LogProcess
+from cdr_wire.log_process import LogProcess
 log = LogProcess(sys.argv[1], flush_every_messages=10, flush_every_s=0.05)
 data = bytes.fromhex(sys.argv[2])
 for k in range(300):

@@ -9,10 +9,10 @@ import threading
 import time
 
 from cdr_translator.interface import messages
-from msg_tools import mcap_log
-from msg_tools.errors import LogFileBusyError, LogFileExistsError
-from msg_tools.mcap_log import _FileSink, McapLog
-from msg_tools.reader import McapSource
+from cdr_wire import mcap_log
+from cdr_wire.errors import LogFileBusyError, LogFileExistsError
+from cdr_wire.mcap_log import _FileSink, McapLog
+from cdr_wire.reader import McapSource
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +53,7 @@ def test_second_writer_names_the_other_process(tmp_path):
     """A writer in another process: the error names its PID and command line."""
     path = tmp_path / 'leg.mcap'
     holder = subprocess.Popen(
-        [sys.executable, '-c', 'import sys, time\nfrom msg_tools.mcap_log import McapLog\n'
+        [sys.executable, '-c', 'import sys, time\nfrom cdr_wire.mcap_log import McapLog\n'
          'log = McapLog(sys.argv[1])\nprint("open", flush=True)\nsys.stdin.read()\n'
          'log.close()', str(path)],
         cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -181,7 +181,7 @@ def test_file_size_limit_is_a_real_write_error(tmp_path):
     script = """
 import resource, signal, sys
 from cdr_translator.interface import messages
-from msg_tools.mcap_log import McapLog
+from cdr_wire.mcap_log import McapLog
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 resource.setrlimit(resource.RLIMIT_FSIZE, (20000, resource.RLIM_INFINITY))
 log = McapLog(sys.argv[1], flush_every_messages=20, flush_every_s=0.0, retry_s=3600.0)
