@@ -28,7 +28,7 @@ import time
 from typing import Any, Dict, List
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.params import Accuracy
+from cdr_translator.params.translator_params import Accuracy
 from msg_tools import synth
 from msg_tools.__main__ import main
 from msg_tools.calibration import yaml_number

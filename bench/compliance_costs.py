@@ -11,9 +11,9 @@ import time
 from typing import Mapping, Tuple
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.compliance import ComplianceAnalysis
+from cdr_translator.analysis.compliance import ComplianceAnalysis
 from cdr_translator.fidelity import FidelitySolver
-from cdr_translator.result import SolveResult
+from cdr_translator.solve.result import SolveResult
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
 

@@ -31,8 +31,8 @@ import statistics
 import time
 from typing import Callable, Dict, List, Sequence, Tuple
 
-from cdr_translator.params import TranslatorParams
-from cdr_translator.solver import TranslatorSolver
+from cdr_translator.params.translator_params import TranslatorParams
+from cdr_translator.solve.solver import TranslatorSolver
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent

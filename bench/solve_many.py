@@ -24,9 +24,10 @@ from typing import Any, Callable, Dict, Iterator, List
 
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams
-from cdr_translator import warm_rows, warm_step
 from cdr_translator.fidelity import FidelitySolver, reduced
 from cdr_translator.fidelity.linear import TangentModel
+from cdr_translator.solve import warm_rows
+from cdr_translator.solve import warm_step
 import numpy as np
 
 #: Where the tables go.

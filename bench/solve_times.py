@@ -15,7 +15,7 @@ import statistics
 import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.paper import TABLE_II
+from cdr_translator.params.paper import TABLE_II
 import numpy as np
 
 

@@ -10,7 +10,7 @@ Prints, and writes to bench/results/targets.md:
 * cold solves of the paper's Table II cases (median of 5 each);
 * compliance on top of a solve (its own time, median along 200 warm samples);
 * 3 spacer disks per joint: cold (20 N) and warm (sequence, first 200 samples); cold also
-  by single shooting (the lifted Newton of cdr_translator/multiple_shooting.py switched off);
+  by single shooting (the lifted Newton of cdr_translator/solve/multiple_shooting.py switched off);
 * the stability verdict and error estimate together, as a fraction of the warm solve;
 * CDR forward statics (bench.delta_statics): warm along its slider circle (median), cold
   from home over its COLD_CASES (median of 3 each; the worst is the row);
@@ -37,7 +37,7 @@ from bench.compliance_costs import computed_compliance
 from bench.delta_statics import COLD_CASES, cold_solves, warm_solves
 from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.paper import TABLE_II
+from cdr_translator.params.paper import TABLE_II
 from cdr_translator.robot.delta import DeltaRobot
 import numpy as np
 

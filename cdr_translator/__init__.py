@@ -10,20 +10,21 @@ import importlib
 from typing import Any, List, TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .batch import BatchResult
     from .errors import InputError, ParameterError, PlausibilityWarning, SolveError
     from .estimation.wrench_estimate import WrenchEstimate
-    from .params import TranslatorParams
-    from .result import SolveResult
-    from .solver import TranslatorSolver
+    from .params.translator_params import TranslatorParams
+    from .solve.batch import BatchResult
+    from .solve.result import SolveResult
+    from .solve.solver import TranslatorSolver
 
 __all__ = ['BatchResult', 'InputError', 'ParameterError', 'PlausibilityWarning', 'SolveError',
            'SolveResult', 'TranslatorParams', 'TranslatorSolver', 'WrenchEstimate']
 
 #: The module that defines each exported name.
-_HOMES = {'BatchResult': 'batch', 'InputError': 'errors', 'ParameterError': 'errors',
-          'PlausibilityWarning': 'errors', 'SolveError': 'errors', 'SolveResult': 'result',
-          'TranslatorParams': 'params', 'TranslatorSolver': 'solver',
+_HOMES = {'BatchResult': 'solve.batch', 'InputError': 'errors', 'ParameterError': 'errors',
+          'PlausibilityWarning': 'errors', 'SolveError': 'errors',
+          'SolveResult': 'solve.result', 'TranslatorParams': 'params.translator_params',
+          'TranslatorSolver': 'solve.solver',
           'WrenchEstimate': 'estimation.wrench_estimate'}
 
 

@@ -32,9 +32,9 @@ import numba
 _interpreting = False
 #: The modules of the translator's residual and Jacobian (Problem's kernels) and of the
 #: kernels they call, which the paper's method runs interpreted (interpreted_kernels).
-_KERNEL_MODULES = ('cdr_translator.rod', 'cdr_translator.layout',
-                   'cdr_translator.multiple_shooting_kernels', 'cdr_translator.shooting',
-                   'cdr_translator.tangent')
+_KERNEL_MODULES = ('cdr_translator.bvp.rod', 'cdr_translator.bvp.layout',
+                   'cdr_translator.bvp.multiple_shooting_kernels', 'cdr_translator.bvp.shooting',
+                   'cdr_translator.bvp.tangent')
 _interpreted_cache: Dict[str, ModuleType] = {}
 
 #: numba's run-time configuration (CACHE_DIR is read when a cached kernel is defined).

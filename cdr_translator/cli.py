@@ -33,22 +33,23 @@ from typing import Any, Callable, List, Optional, Tuple, Union
 import numpy as np
 
 from . import _jit
-from .compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
+from .analysis.compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
+from .bvp.problem import JACOBIANS
 from .console import json_text, run_command
-from .continuation import LIFT_FROM_SPACERS
 from .fidelity import FIDELITIES, FidelitySolver
 from .interface.settings import CdrSettings, TranslatorSettings
-from .paper import TABLE_II
-from .params import Accuracy, DEFAULT_PARAMS_PATH, ParameterError, TranslatorParams
-from .problem import JACOBIANS
-from .result import SolveResult
+from .params.paper import TABLE_II
+from .params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH, ParameterError,
+                                       TranslatorParams)
 from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
 from .robot.inverse import InverseResult
 from .robot.levels import ROBOT_FIDELITIES
 from .robot.result import DeltaResult
 from .robot.samples import AtlasSpec, solve_chunk
-from .solver import METHODS, TranslatorSolver
+from .solve.continuation import LIFT_FROM_SPACERS
+from .solve.result import SolveResult
+from .solve.solver import METHODS, TranslatorSolver
 
 EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2
@@ -76,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument('--compliance', action='store_true',
                        help='add the 6x6 end-disk compliance and its primary-mobility analysis')
     solve.add_argument('--verify', action='store_true',
-                       help='re-check the solution independently (cdr_translator.verify)')
+                       help='re-check the solution independently (cdr_translator.solve.verify)')
     solve.add_argument('--sparsity-threshold', type=float, default=SPARSITY_THRESHOLD,
                        help='C_s drops |C_ij| below this times sqrt(|C_ii C_jj|) '
                             '(default: %(default)s)')

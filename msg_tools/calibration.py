@@ -8,7 +8,7 @@ within the tolerance; the covariance topic is used when the file has it (its cov
 weights the fit), else the plain poses with an assumed covariance (``--sigma``). Wrenches
 the node would not solve as given (non-finite, a frame_id other than the base frame or
 empty) and poses that cannot weight a fit (non-unit quaternion, covariance not positive
-definite) are skipped and counted. The fit itself is cdr_translator.pose_fit.
+definite) are skipped and counted. The fit itself is cdr_translator.calibration.pose_fit.
 """
 
 from dataclasses import dataclass, field
@@ -16,9 +16,9 @@ import math
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
+from cdr_translator.calibration.pose_error import FRAME_NAMES, rotations_from_quaternions
+from cdr_translator.calibration.pose_fit import PoseSamples
 from cdr_translator.interface import messages, pose_estimation
-from cdr_translator.pose_error import FRAME_NAMES, rotations_from_quaternions
-from cdr_translator.pose_fit import PoseSamples
 from cdr_wire.reader import Decoders, McapSource, ReadReport
 import numpy as np
 from scipy.spatial.transform import Rotation

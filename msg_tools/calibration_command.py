@@ -16,11 +16,11 @@ from pathlib import Path
 import sys
 from typing import Any, Dict, List, Optional
 
-from cdr_translator.fit_parameters import check_fit_names
-from cdr_translator.params import translator_values, TranslatorParams
-from cdr_translator.pose_error import check_frame, FRAME_NAMES
-from cdr_translator.pose_fit import (fit_poses, fit_summary, FitResult, rms_angle_deg,
-                                     rms_position, UnidentifiableError)
+from cdr_translator.calibration.fit_parameters import check_fit_names
+from cdr_translator.calibration.pose_error import check_frame, FRAME_NAMES
+from cdr_translator.calibration.pose_fit import (fit_poses, fit_summary, FitResult, rms_angle_deg,
+                                                 rms_position, UnidentifiableError)
+from cdr_translator.params.translator_params import translator_values, TranslatorParams
 from msg_tools.calibration import fitted_params_text, Pairing, read_pairs
 from msg_tools.calibration_plot import plot_calibration
 from msg_tools.output_paths import check_distinct, check_output
@@ -30,7 +30,7 @@ EXIT_OK, EXIT_DAMAGED_INPUT, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_UNIDENTIFIABLE
 
 
 def add_frame_option(parser: argparse.ArgumentParser, flag: str, what: str) -> None:
-    """Add ``flag`` taking a tracker frame's 6 numbers (cdr_translator.pose_error)."""
+    """Add ``flag`` taking a tracker frame's 6 numbers (cdr_translator.calibration.pose_error)."""
     parser.add_argument(flag, type=float, nargs=6, metavar='N',
                         help=f'{what}, in the base frame: X Y Z (m) RX RY RZ (rotation '
                              'vector, rad); default all 0')

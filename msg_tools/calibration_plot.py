@@ -11,8 +11,8 @@ and the orientation error of every sample with the starting and with the fitted 
 from pathlib import Path
 from typing import Union
 
+from cdr_translator.calibration.pose_fit import FitResult
 from cdr_translator.plotting import sample_marker
-from cdr_translator.pose_fit import FitResult
 from matplotlib.figure import Figure
 import numpy as np
 
@@ -24,7 +24,7 @@ def _value_text(result: FitResult, name: str) -> str:
 
 
 def calibration_figure(result: FitResult) -> Figure:
-    """Draw ``result`` (cdr_translator.pose_fit.FitResult) in three panels."""
+    """Draw ``result`` (cdr_translator.calibration.pose_fit.FitResult) in three panels."""
     figure = Figure(figsize=(15, 5.2), dpi=110)
     figure.subplots_adjust(left=0.05, right=0.98, top=0.82, bottom=0.12, wspace=0.3)
     scatter, positions, angles = figure.subplots(1, 3)

@@ -14,7 +14,7 @@ from typing import List, Optional, Sequence, Union
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.geometry import fit_circle
-from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from cdr_translator.plotting import load_text, sample_marker, thin_ticks
 import matplotlib
 from matplotlib.backend_bases import FigureCanvasBase

@@ -7,7 +7,7 @@ an empty frame_id, within the node's magnitude limits), the end-disk pose is sol
 model's defaults), expressed in a tracker frame {t} offset from the base frame {pe}, and
 perturbed by seeded Gaussian noise: the position by N(0, s_p^2) per axis, the orientation
 by a rotation exp(d) applied about the fixed axes of {t}, d ~ N(0, s_a^2) per axis
-(cdr_translator.pose_error gives the frame and error conventions). The covariance
+(cdr_translator.calibration.pose_error gives the frame and error conventions). The covariance
 diag(s_p^2 x 3, s_a^2 x 3) (m^2, rad^2; ROS order x, y, z, rx, ry, rz, row-major) goes with
 each pose. A wrench whose true solve fails gets no pose.
 
@@ -19,11 +19,11 @@ together); its log time equals its stamp.
 import math
 from typing import List, NamedTuple, Optional, Protocol, Sequence, Tuple
 
+from cdr_translator.calibration.pose_error import check_frame, to_tracker
 from cdr_translator.interface import messages, pose_estimation
-from cdr_translator.params import (Accuracy, DEFAULT_PARAMS_PATH, translator_values,
-                                   TranslatorParams)
-from cdr_translator.pose_error import check_frame, to_tracker
-from cdr_translator.solver import TranslatorSolver
+from cdr_translator.params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH,
+                                                     translator_values, TranslatorParams)
+from cdr_translator.solve.solver import TranslatorSolver
 import numpy as np
 from scipy.spatial.transform import Rotation
 

@@ -14,7 +14,7 @@ import argparse
 import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
+from cdr_translator.params.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
 import numpy as np
 from scipy.optimize import minimize
 

@@ -13,7 +13,7 @@ apart. Rucker & Webster's answer is a prior on the load: the estimate minimizes
     |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2,
 
 the pose error y(w) - y_m (position difference and the rotation vector log(R R_m^T), both
-in the base frame: the twist convention of the compliance C, cdr_translator/compliance.py)
+in the base frame: the twist convention of the compliance C, cdr_translator/analysis/compliance.py)
 whitened by the pose covariance (W^T W = Sigma^-1), plus the estimated components w_f
 against a Gaussian prior N(mu, P) (L^T L = P^-1; with some components held, the prior's
 conditional on the held values). Directions the pose cannot see come back at the prior
@@ -48,9 +48,8 @@ component name) raises InputError, a ValueError naming it.
 
 from .problem import (Components, DEFAULT_PRIOR_FORCE_SD, DEFAULT_PRIOR_MOMENT_SD,
                       DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD, diagonal_prior,
-                      estimated_components, Evaluation, measured_target, Target)
+                      estimated_components, Evaluation, measured_target, Search, Target)
 from .search import estimate_along, LOAD_LIMIT, search
-from .translator import estimate_wrench
 from .verdict import estimate_from
 from .wrench_estimate import (COMPONENT_CHOICES, COMPONENT_NAMES, CONDITION_LIMIT, json_safe,
                               observability, TRANSLATOR_WRENCH_LABELS, WrenchEstimate)
@@ -58,6 +57,6 @@ from .wrench_estimate import (COMPONENT_CHOICES, COMPONENT_NAMES, CONDITION_LIMI
 __all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'Components', 'CONDITION_LIMIT',
            'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD', 'DEFAULT_TARGET_FORCE_SD',
            'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior', 'estimate_along', 'estimate_from',
-           'estimate_wrench', 'estimated_components', 'Evaluation', 'json_safe', 'LOAD_LIMIT',
-           'measured_target', 'observability', 'search', 'Target',
+           'estimated_components', 'Evaluation', 'json_safe', 'LOAD_LIMIT',
+           'measured_target', 'observability', 'search', 'Search', 'Target',
            'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']

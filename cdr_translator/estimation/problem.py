@@ -18,8 +18,8 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from .wrench_estimate import COMPONENT_CHOICES, COMPONENT_NAMES, TRANSLATOR_WRENCH_LABELS
+from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
-from ..compliance import ComplianceAnalysis, frame_twist
 from ..errors import InputError
 
 __all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',

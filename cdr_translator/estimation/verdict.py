@@ -16,19 +16,15 @@ from scipy.stats import chi2
 
 from .problem import estimated_name, Evaluation, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
-from ..branch import RECHECK_MARGIN
-from ..compliance import frame_twist
+from ..analysis.compliance import frame_twist
+from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
 
-__all__ = ['AMBIGUOUS_MARGIN', 'CHI2_TAIL', 'estimate_from']
+__all__ = ['CHI2_TAIL', 'estimate_from']
 
 #: Flag an estimate whose normalized pose residual has a chi-square tail probability below
 #: this (the pose is further from the model than its covariance allows).
 CHI2_TAIL = 1e-3
-
-#: Below this stability margin another equilibrium branch is close (branch.RECHECK_MARGIN):
-#: a second wrench may match the pose, and the estimate is flagged.
-AMBIGUOUS_MARGIN = RECHECK_MARGIN
 
 
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
@@ -100,7 +96,7 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append('past buckling: the matching equilibrium is unstable')
     elif best.stable is None:
         flags.append('stability unknown')
-    elif best.margin < AMBIGUOUS_MARGIN:
+    elif best.margin < CLOSE_BRANCH_MARGIN:
         flags.append(f'near a bifurcation (stability margin {best.margin:.3g}): another '
                      'wrench may match this pose')
     if best.accuracy_met is False:

@@ -2,7 +2,7 @@
 WrenchEstimate: a wrench estimated from a measured pose, and how well the pose observes it.
 
 Observability. Near the solution a pose error e maps to a wrench error C_b^-1 e, C_b the
-block of the compliance (cdr_translator/compliance.py) from the estimated wrench
+block of the compliance (cdr_translator/analysis/compliance.py) from the estimated wrench
 components to the measured pose components. Its singular values, in the length-scaled
 units of the primary-mobility analysis (paper Section IV.B; forces in N, moments as the
 force that makes them at the stack height H, rotations as the displacement they cause at
@@ -19,7 +19,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..compliance import analyse, ComplianceAnalysis
+from ..analysis.compliance import analyse, ComplianceAnalysis
 
 __all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'CONDITION_LIMIT', 'json_safe',
            'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']

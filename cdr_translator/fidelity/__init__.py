@@ -9,7 +9,7 @@ the cheapest level whose validated error (fidelity.validation) meets a budget ('
 from .auto import LEVEL_COST_ORDER
 from .solver import FIDELITIES, FidelitySolver, LEVELS
 from .validation import pose_errors, reference_solver, Validation
-from ..batch import BatchResult
+from ..solve.batch import BatchResult
 
 __all__ = ['BatchResult', 'FIDELITIES', 'FidelitySolver', 'LEVEL_COST_ORDER', 'LEVELS',
            'Validation', 'pose_errors', 'reference_solver']

@@ -57,8 +57,8 @@ from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, OUTSIDE, TRUSTED
 from .validation import box_half_widths as validation_half_widths
 from .validation import box_scale, frame_errors
 from .._linalg import norm
-from ..batch import BatchResult
-from ..result import FRAME_NAMES, SolveResult
+from ..solve.batch import BatchResult
+from ..solve.result import FRAME_NAMES, SolveResult
 
 if TYPE_CHECKING:
     from .solver import FidelitySolver

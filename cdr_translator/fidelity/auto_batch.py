@@ -23,7 +23,7 @@ import numpy as np
 
 from . import batch_rows
 from .validation import box_scale, box_scales
-from ..batch import BatchResult
+from ..solve.batch import BatchResult
 
 if TYPE_CHECKING:
     from .auto import AutoFidelity

@@ -18,9 +18,9 @@ from typing import Optional, TYPE_CHECKING
 import numpy as np
 
 from .validation import box_scale, box_scales
-from .. import lean_rows
-from ..batch import BatchResult, RowSolver, SolveDetails
-from ..compliance import ComplianceAnalysis
+from ..analysis.compliance import ComplianceAnalysis
+from ..solve import lean_rows
+from ..solve.batch import BatchResult, RowSolver, SolveDetails
 
 if TYPE_CHECKING:
     from .solver import FidelitySolver

@@ -18,9 +18,9 @@ import numpy as np
 from .linear_kernels import linear_frames, linear_poses
 from .._blas import one_blas_thread
 from .._linalg import solve_lu
-from ..compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
-from ..compliance import implicit_compliance
-from ..problem import Problem
+from ..analysis.compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
+from ..analysis.compliance import implicit_compliance
+from ..bvp.problem import Problem
 
 
 class TangentModel:

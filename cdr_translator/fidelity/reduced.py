@@ -14,7 +14,7 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from . import cc, equivalent_rod, level_kernels, newton
-from ..params import TranslatorParams
+from ..params.translator_params import TranslatorParams
 
 #: Default RK4 steps per disk interval of the 'rod' model.
 ROD_STEPS = 2

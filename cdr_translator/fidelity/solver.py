@@ -23,13 +23,14 @@ from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
 from .._blas import one_blas_thread
-from ..batch import BatchResult, check_wrenches
+from ..analysis.compliance import analyse, ComplianceAnalysis, frame_twist
+from ..bvp.problem import RESIDUAL_KINDS
 from ..checks import check_number
-from ..compliance import analyse, ComplianceAnalysis, frame_twist
-from ..params import Accuracy, DEFAULT_PARAMS_PATH, translator_values, TranslatorParams
-from ..problem import RESIDUAL_KINDS
-from ..result import FRAME_NAMES, SolveResult
-from ..solver import check_wrench, NO_MOMENT, TranslatorSolver
+from ..params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH, translator_values,
+                                        TranslatorParams)
+from ..solve.batch import BatchResult, check_wrenches
+from ..solve.result import FRAME_NAMES, SolveResult
+from ..solve.solver import check_wrench, NO_MOMENT, TranslatorSolver
 
 #: The levels a solve can use.
 LEVELS = ('full', 'rod', 'cc', 'linear')

@@ -31,9 +31,9 @@ import yaml
 
 from .. import geometry
 from .._jit import jit
-from ..params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
-from ..result import FRAME_NAMES, SolveResult
-from ..solver import TranslatorSolver
+from ..params.translator_params import Accuracy, DEFAULT_PARAMS_PATH, TranslatorParams
+from ..solve.result import FRAME_NAMES, SolveResult
+from ..solve.solver import TranslatorSolver
 
 #: RK4 steps per disk interval and tolerance of the reference solution.
 REFERENCE_STEPS = 32

@@ -13,10 +13,10 @@ from typing import Any, Callable, Optional, TYPE_CHECKING
 import numpy as np
 
 from .. import geometry
-from ..batch import BatchResult
+from ..solve.batch import BatchResult
 
 if TYPE_CHECKING:
-    from ..compliance import ComplianceAnalysis
+    from ..analysis.compliance import ComplianceAnalysis
 
 
 def _column(name: str, read: Callable[[Any], Any], doc: str) -> Any:

@@ -15,8 +15,8 @@ from numpy.typing import ArrayLike
 
 from .batch_row import BatchRow
 from .. import geometry
-from ..params import TranslatorParams
-from ..result import SolveResult
+from ..params.translator_params import TranslatorParams
+from ..solve.result import SolveResult
 
 #: What the outputs are built from: a single solve's result or a batch row read as one.
 Solved = Union[SolveResult, BatchRow]

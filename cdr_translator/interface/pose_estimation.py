@@ -21,8 +21,8 @@ import numpy as np
 from . import messages
 from .settings import TranslatorSettings
 from ..estimation import measured_target, WrenchEstimate
-from ..params import TranslatorParams
-from ..solver import TranslatorSolver
+from ..params.translator_params import TranslatorParams
+from ..solve.solver import TranslatorSolver
 
 #: Inputs: a measured end-disk pose, without and with its covariance.
 MEASURED_POSE_TOPIC = 'measured_end_disk_pose'

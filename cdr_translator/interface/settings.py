@@ -4,7 +4,7 @@ The one settings type of each node section, for the nodes, the CLI and replay al
 ``TranslatorSettings`` holds every ``translator_node`` parameter, ``CdrSettings`` every
 ``cdr_node`` one, each validated in one place (``from_values``): the model through
 TranslatorParams / DeltaParams, the rest against the specs below (ranges, frames). They are
-read with ROS 2 params-file semantics (cdr_translator.params_file): the shipped
+read with ROS 2 params-file semantics (cdr_translator.params.params_file): the shipped
 config/translator.yaml, then each given file key by key; ``/**`` and the node's fully
 qualified name both apply; an unknown key or a value of the wrong ROS type is an error
 naming it. The specs are ROS-free; cdr_translator.ros.parameters turns them into
@@ -18,10 +18,11 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
 from ..checks import check_integer, check_number
 from ..errors import ParameterError
 from ..fidelity import FIDELITIES
-from ..params import Accuracy, ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS, NODE_NAME
-from ..params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
-from ..params import TranslatorParams
-from ..params_file import layered_values
+from ..params.params_file import layered_values
+from ..params.translator_params import (Accuracy, ACCURACY_KEYS, DEFAULT_PARAMS_PATH,
+                                        FIDELITY_KEYS, NODE_NAME)
+from ..params.translator_params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
+from ..params.translator_params import TranslatorParams
 from ..robot.params import CDR_NODE_NAME, CDR_NODE_ONLY_KEYS, cdr_values, DeltaParams
 
 __all__ = ['CDR_SPECS', 'CdrSettings', 'check_value', 'MODEL_KEYS', 'ParameterSpec', 'SPECS',

@@ -20,9 +20,9 @@ from . import messages
 from .batch_row import BatchRow
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
-from ..params import TranslatorParams
-from ..result import SolveResult
-from ..solver import check_wrench, TranslatorSolver
+from ..params.translator_params import TranslatorParams
+from ..solve.result import SolveResult
+from ..solve.solver import check_wrench, TranslatorSolver
 
 #: A follower load's orientation has settled when no rotation-matrix entry changes more.
 FOLLOWER_TOLERANCE = 1e-12

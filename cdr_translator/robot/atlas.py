@@ -40,7 +40,7 @@ import numpy as np
 from .samples import (AtlasSpec, chunk_bounds, LEG_LEVELS, RESULT_VARIABLES, solve_chunk,
                       workspace_volumes)
 from ..console import json_text, unwritable_reason
-from ..params import DEFAULT_PARAMS_PATH, ParameterError
+from ..params.translator_params import DEFAULT_PARAMS_PATH, ParameterError
 
 #: Exit codes of the atlas command (as the other commands').
 EXIT_CONVERGED, EXIT_BAD_INPUT, EXIT_NOT_CONVERGED = 0, 2, 3

@@ -15,8 +15,8 @@ import numpy as np
 from .kernels import platform_residual, turn_and_move
 from .params import Leg
 from .result import rotation_vector
-from ..params import TranslatorParams
-from ..result import SolveResult
+from ..params.translator_params import TranslatorParams
+from ..solve.result import SolveResult
 
 #: Size of the unknown and residual vectors: platform pose (6) + three leg wrenches (18).
 SIZE = 24

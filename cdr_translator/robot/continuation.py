@@ -20,7 +20,7 @@ from .chain import ChainState, difference
 from .coupled_newton import CoupledNewton, Outcome
 from .grid_predictor import GridPredictor
 from .linearization import Factorization
-from ..continuation import MIN_CONTINUATION_STEP
+from ..solve.continuation import MIN_CONTINUATION_STEP
 
 #: Largest change of the scaled unknowns (platform and legs) a continuation step of the
 #: coupled Newton may predict; a step predicting more is shortened. Ten times the leg

@@ -54,6 +54,7 @@ from numpy.typing import ArrayLike
 from .chain import Chain, ChainState, SIZE
 from .continuation import ChainContinuation
 from .coupled_newton import CoupledNewton, Limits, Outcome
+from .held_leg import held_critical_load, held_reference, HeldReference
 from .inverse import InverseResult, InverseSolver
 from .legs import ChainLegs
 from .levels import check_fidelity
@@ -64,10 +65,9 @@ from .reduced_batch import solve_rows
 from .reduced_legs import ReducedLegs
 from .result import DeltaResult
 from .._blas import one_blas_thread
-from ..held import held_critical_load, held_reference, HeldReference
-from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
-from ..result import SolveResult
-from ..solver import check_wrench, TranslatorSolver
+from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
+from ..solve.result import SolveResult
+from ..solve.solver import check_wrench, TranslatorSolver
 
 
 class DeltaRobot:

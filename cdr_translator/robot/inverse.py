@@ -39,8 +39,8 @@ from .result import DeltaResult
 from .slider_path import SliderPath
 from .straight_legs import straight_leg_sliders
 from .. import geometry
-from ..params import TranslatorParams
-from ..solver import check_wrench
+from ..params.translator_params import TranslatorParams
+from ..solve.solver import check_wrench
 
 
 class ForwardStatics(Protocol):

@@ -16,9 +16,9 @@ import numpy as np
 
 from .._jit import jit
 from .._linalg import lu_solve, norm
-from ..chord import apply_updates
-from ..layout import N_RODS
-from ..shooting import translator_residual
+from ..bvp.chord import apply_updates
+from ..bvp.layout import N_RODS
+from ..bvp.shooting import translator_residual
 
 
 @jit

@@ -17,9 +17,9 @@ from .chain import ChainState
 from .kernels import leg_frames, shoot_legs
 from .result import DeltaResult, LegResults
 from ..geometry import bending_between
-from ..params import Accuracy, TranslatorParams
-from ..result import SolveResult
-from ..solver import TranslatorSolver
+from ..params.translator_params import Accuracy, TranslatorParams
+from ..solve.result import SolveResult
+from ..solve.solver import TranslatorSolver
 
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')

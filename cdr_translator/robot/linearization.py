@@ -6,7 +6,7 @@ Each leg enters through its 6x6 compliance at the end disk, from one tangent-lin
 platform Jacobian's LU with the legs' factorizations (``Factorization``) serves the coupled
 Newton's steps and, at a solution, the platform compliance, the input sensitivity and the
 stability verdict of a DeltaResult (``linearize``): the condensed platform stiffness and each
-leg held at both ends (cdr_translator/held.py), which the condensation presumes stable.
+leg held at both ends (cdr_translator/robot/held_leg.py), which the condensation presumes stable.
 """
 
 from dataclasses import dataclass, field
@@ -16,13 +16,13 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from .chain import Chain, ChainState, distance, SIZE, skew
+from .held_leg import held_verdict, HeldReference, HeldVerdict
 from .kernels import secant_update
 from .legs import ChainLegs, Deadline
 from .reduced_kernels import platform_jacobian as compiled_platform_jacobian
 from .result import DeltaResult
 from .._linalg import factorize as factorize_matrix, solve_lu
-from ..held import held_verdict, HeldReference, HeldVerdict
-from ..stability import pose_twist
+from ..analysis.stability import pose_twist
 
 #: A factorization made within this distance of the solution (largest change of the scaled
 #: unknowns, platform and legs) serves the compliance and stability verdict there: it
@@ -60,7 +60,7 @@ class LegLinearization:
     twist: np.ndarray  # d(end-disk twist)/d(unknowns), (6, n): stability.pose_twist of it
     rotation: np.ndarray  # end-disk rotation in {pe_i} there
     gain: np.ndarray  # J^-1 dr/dw (n, 6): unknowns per SI wrench
-    compliance: np.ndarray  # (6, 6) SI, cdr_translator/compliance.py's convention
+    compliance: np.ndarray  # (6, 6) SI, cdr_translator/analysis/compliance.py's convention
     wrench: np.ndarray  # the wrench it was made at
 
 

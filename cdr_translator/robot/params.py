@@ -27,8 +27,9 @@ from numpy.typing import ArrayLike
 
 from ..checks import check_number
 from ..errors import InputError, ParameterError, PlausibilityWarning
-from ..params import DEFAULT_PARAMS_PATH, NODE_NAME, PLAUSIBLE_MAX_LENGTH_M, TranslatorParams
-from ..params_file import applicable_sections, layered_values, section_values
+from ..params.params_file import applicable_sections, layered_values, section_values
+from ..params.translator_params import (DEFAULT_PARAMS_PATH, NODE_NAME, PLAUSIBLE_MAX_LENGTH_M,
+                                        TranslatorParams)
 
 #: The section of the params file holding the CDR geometry (also the cdr_node's name).
 CDR_NODE_NAME = 'cdr_node'

@@ -7,7 +7,7 @@ measured pose. The same search as the translator's (cdr_translator/estimation:
 Levenberg-Marquardt steps on the payload within a trust radius, warm along a stream),
 each iterate a forward solve with the compliance, whose ``input_sensitivity`` columns for
 the payload force and moment (d platform pose / d payload, in {w}: the twist convention of
-cdr_translator/compliance.py) are the exact derivative. With the platform orientation all
+cdr_translator/analysis/compliance.py) are the exact derivative. With the platform orientation all
 six components are estimated; with its position only, the force under no moment.
 
 The estimate is flagged, never raised, when no payload matches (``converged`` False) or
@@ -24,10 +24,10 @@ from numpy.typing import ArrayLike
 
 from .params import check_sliders
 from .result import INPUT_NAMES
-from ..compliance import analyse
+from ..analysis.compliance import analyse
+from ..analysis.stability import load_scale
 from ..estimation import (estimate_along, Evaluation, json_safe, LOAD_LIMIT, measured_target,
                           WrenchEstimate)
-from ..stability import load_scale
 
 if TYPE_CHECKING:
     from .delta import DeltaRobot

@@ -17,10 +17,10 @@ from typing import Callable, Dict, Optional
 import numpy as np
 
 from .coupled_kernels import solve_samples
+from .held_leg import held_verdict, HeldReference
 from .levels import BoundTable
 from .reduced_chain import ReducedChain
 from .result import DeltaResult, rotation_vector
-from ..held import held_verdict, HeldReference
 
 #: A row's outputs from the compiled loop: name -> (trailing shape, dtype); 'leg_x' is (3, n).
 _LOOP_OUTPUTS = {'leg_x': None, 'wrenches': ((3, 6), float), 'position': ((3,), float),

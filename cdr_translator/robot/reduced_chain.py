@@ -22,15 +22,15 @@ import numpy as np
 from .chain import Chain, ChainState, SIZE
 from .chain_path import DEGREE, point_width, push
 from .coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
+from .held_leg import held_reference, held_verdict, HeldReference
 from .linearization import chain_verdict
 from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
 from .result import DeltaResult, LegResults
-from ..continuation import MIN_CONTINUATION_STEP
 from ..fidelity import cc, equivalent_rod
 from ..fidelity.reduced import ReducedModel, ROD_STEPS
-from ..held import held_reference, held_verdict, HeldReference
-from ..params import TranslatorParams
-from ..result import FRAME_NAMES, SolveResult
+from ..params.translator_params import TranslatorParams
+from ..solve.continuation import MIN_CONTINUATION_STEP
+from ..solve.result import FRAME_NAMES, SolveResult
 
 #: Why a compiled Newton correction failed, by its outcome code.
 _FAILURES = {LEG_FAILED: "a leg's reduced model did not converge under its wrench",

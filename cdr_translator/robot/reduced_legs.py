@@ -16,13 +16,13 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 
 from .chain import Chain, SIZE
+from .held_leg import HeldReference
 from .levels import BoundTable, REDUCED_LEVELS, within_budget
 from .reduced_chain import ReducedChain, ReducedOutcome
 from .result import DeltaResult
 from ..fidelity import Validation
 from ..fidelity.reduced import ROD_STEPS
-from ..held import HeldReference
-from ..params import TranslatorParams
+from ..params.translator_params import TranslatorParams
 
 
 class ReducedLegs:

@@ -6,10 +6,10 @@ from typing import Any, Callable, Iterable, List, Optional, overload, Sequence, 
 
 import numpy as np
 
+from .held_leg import HeldVerdict
 from .kernels import small_rotation_vector
 from .. import geometry
-from ..held import HeldVerdict
-from ..result import SolveResult
+from ..solve.result import SolveResult
 
 __all__ = ['DeltaResult', 'INPUT_NAMES', 'LegResults', 'rotation_vector']
 
@@ -127,8 +127,8 @@ class DeltaResult:
       force at the platform origin, components in {w}, to the small twist [v; w] of the
       platform: v the displacement of its origin, w its rotation (R <- exp([w]) R), in {w}.
       C = -(J^-1)[pose, equilibrium]. SI: C[:3, :3] m/N, C[:3, 3:] m/(N m), C[3:, :3] rad/N,
-      C[3:, 3:] rad/(N m) (the translator's convention, cdr_translator/compliance.py, moved
-      from the end disk in {pe} to the platform in {w}). Dead-load geometric stiffness of
+      C[3:, 3:] rad/(N m) (the translator's convention, cdr_translator/analysis/compliance.py,
+      moved from the end disk in {pe} to the platform in {w}). Dead-load geometric stiffness of
       the payload and the leg reactions' moment arms are included.
     * ``input_sensitivity`` (6, 12): d[platform position; rotation] / d[inputs], inputs
       ``INPUT_NAMES`` (sliders m, force N, moment N m, offset m); the inverse statics
@@ -141,7 +141,7 @@ class DeltaResult:
       is unstable (``stable`` False, ``message`` says so); a leg whose verdict could not be
       made leaves it None (unknown) unless another part is unstable. None when not computed.
     * ``leg_stability``: per leg, its verdict with both end disks held
-      (cdr_translator/held.py: parity of det J_d and the axial compression against the
+      (cdr_translator/robot/held_leg.py: parity of det J_d and the axial compression against the
       held buckling load of the straight leg, with a margin).
 
     ``leg_fidelity``: the level each leg was solved at ('full', 'rod', 'cc';

@@ -23,7 +23,7 @@ import numpy as np
 from .delta import DeltaRobot
 from .levels import check_fidelity
 from .params import DeltaParams
-from ..params import DEFAULT_PARAMS_PATH
+from ..params.translator_params import DEFAULT_PARAMS_PATH
 
 #: Characters of a sample's message kept in the atlas.
 MESSAGE_LENGTH = 160

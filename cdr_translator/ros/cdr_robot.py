@@ -46,11 +46,11 @@ from ..interface import messages, payload_estimation, robot_messages
 from ..interface.payload_estimation import PayloadProcessor
 from ..interface.settings import CDR_SPECS, CdrSettings
 from ..interface.wrench_processing import check_magnitude
-from ..params import DEFAULT_PARAMS_PATH
+from ..params.translator_params import DEFAULT_PARAMS_PATH
 from ..robot.delta import DeltaRobot
 from ..robot.inverse import check_target
 from ..robot.params import CDR_NODE_NAME, check_sliders
-from ..solver import check_wrench
+from ..solve.solver import check_wrench
 
 #: Output topics and their message classes (the translator node's classes, by type).
 CDR_OUTPUTS = {

@@ -2,7 +2,7 @@
 ``--help`` of both nodes, written from the declarations the node itself uses.
 
 The parameters are the node's specs (cdr_translator.interface.settings) with the shipped
-defaults and their ROS types (cdr_translator.params_file), the topics the node's own
+defaults and their ROS types (cdr_translator.params.params_file), the topics the node's own
 topic -> message class tables, the exit codes ``runtime.run``'s.
 """
 
@@ -11,7 +11,7 @@ from typing import Any, Iterable, List, Mapping, Sequence, Tuple
 from .parameters import node_arguments
 from ..console import EXIT_INTERRUPTED
 from ..interface.settings import ParameterSpec
-from ..params_file import declared_type
+from ..params.params_file import declared_type
 
 __all__ = ['EXIT_CANNOT_START', 'EXIT_CODES', 'HELP_FLAGS', 'help_text', 'wants_help']
 

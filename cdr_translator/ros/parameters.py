@@ -18,8 +18,8 @@ import yaml
 from ..errors import ParameterError
 from ..interface.settings import check_value, MODEL_KEYS, ParameterSpec, SPECS
 from ..interface.settings import TranslatorSettings
-from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
-from ..params_file import read_document
+from ..params.params_file import read_document
+from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
 
 __all__ = ['check_command_line', 'check_value', 'default_values', 'descriptor', 'MODEL_KEYS',
            'model_params', 'NodeSettings', 'node_arguments', 'ParameterSpec',

@@ -43,7 +43,7 @@ from .node_help import EXIT_CANNOT_START, wants_help
 from .parameters import check_command_line, check_value
 from ..console import run_command
 from ..interface import messages
-from ..params import ParameterError
+from ..params.translator_params import ParameterError
 
 #: The node's output topics (relative names except /diagnostics) and their message classes.
 OUTPUTS = {

@@ -50,9 +50,9 @@ from ..interface.pose_estimation import PoseProcessor
 from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
 from ..interface.wrench_processing import solve_wrench
-from ..params import DEFAULT_PARAMS_PATH, NODE_NAME
-from ..result import SolveResult
-from ..solver import check_wrench
+from ..params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
+from ..solve.result import SolveResult
+from ..solve.solver import check_wrench
 
 
 #: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.

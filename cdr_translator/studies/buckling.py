@@ -5,7 +5,7 @@ Axial buckling of the straight translator: the numerical critical load and the E
 the straight compression branch and judges stability on both sides of it;
 :func:`euler_critical_load` gives the closed-form Euler estimate of the same structure.
 :func:`held_critical_compression` does the same with both end disks held (a leg of the
-robot, cdr_translator/held.py) and confirms each side by a perturbed held solve
+robot, cdr_translator/robot/held_leg.py) and confirms each side by a perturbed held solve
 (:func:`perturbed_held_solve`).
 """
 
@@ -19,8 +19,8 @@ from scipy.optimize import brentq, minimize_scalar
 
 from .hard_cases import stability, study_solver
 from .._blas import one_blas_thread
-from ..held import held_critical_load, held_jacobian, held_solve, HeldCritical
-from ..params import TranslatorParams
+from ..params.translator_params import TranslatorParams
+from ..robot.held_leg import held_critical_load, held_jacobian, held_solve, HeldCritical
 
 #: Amplitudes (in the unit null vector of J_d, nondimensional unknowns and wrench) of the
 #: perturbations a held re-solve starts from: within the buckled branch's reach 2 % past the

@@ -15,9 +15,9 @@ from ..fidelity.solver import FidelitySolver
 from ..fidelity.validation import box_half_widths, box_samples, KEYED_PARAMS, level_bound
 from ..fidelity.validation import LINEAR_BASES, LINEAR_SCALES, offset_samples, pose_errors
 from ..fidelity.validation import reference_solver, SCALES, Validation
-from ..params import TranslatorParams
-from ..result import SolveResult
-from ..solver import TranslatorSolver
+from ..params.translator_params import TranslatorParams
+from ..solve.result import SolveResult
+from ..solve.solver import TranslatorSolver
 
 
 def validate(params: TranslatorParams, rod_steps: int, seed: int = 6) -> Validation:

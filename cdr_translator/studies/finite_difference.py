@@ -2,16 +2,16 @@
 Finite-difference checks of what the solver computes analytically: the paper's way.
 
 ``finite_difference_compliance`` builds C from central differences of 12 loaded solves
-(the paper's ref. [15]); cdr_translator.compliance computes it by implicit differentiation,
-and the two agree to about 1e-8 relative (tests/core/test_compliance.py).
+(the paper's ref. [15]); cdr_translator.analysis.compliance computes it by implicit
+differentiation, and the two agree to about 1e-8 relative (tests/core/test_compliance.py).
 """
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..compliance import frame_twist
-from ..params import Accuracy, TranslatorParams
-from ..solver import TranslatorSolver
+from ..analysis.compliance import frame_twist
+from ..params.translator_params import Accuracy, TranslatorParams
+from ..solve.solver import TranslatorSolver
 
 
 def finite_difference_compliance(params: TranslatorParams, force: ArrayLike,

@@ -4,7 +4,7 @@ The hard-case suite: loads at the edges of the translator's range, solved, verif
 Every case is a sequence of end-disk wrenches solved in order with one solver, the first
 from the unloaded state, the rest warm-started (load reversals, jumps), optionally on
 changed parameters (short/long tube, soft/stiff material, more spacer disks). Each
-converged solve is re-checked by :mod:`cdr_translator.verify`; the last one is also
+converged solve is re-checked by :mod:`cdr_translator.solve.verify`; the last one is also
 judged for stability (:func:`stability`). When a converged state fails verification only
 through discretization error, :func:`run_case` can re-solve it on a finer grid
 (warm-started from the coarse solution) until it verifies.
@@ -22,11 +22,11 @@ from typing import Any, List, Optional, Tuple
 import numpy as np
 
 from .finite_difference import finite_difference_compliance
-from ..compliance import analyse
-from ..params import Accuracy, TranslatorParams
-from ..result import SolveResult
-from ..solver import TranslatorSolver
-from ..verify import Verification, verify
+from ..analysis.compliance import analyse
+from ..params.translator_params import Accuracy, TranslatorParams
+from ..solve.result import SolveResult
+from ..solve.solver import TranslatorSolver
+from ..solve.verify import Verification, verify
 
 #: Time cap of one solve in the suite (s); also the documented worst case of a case step.
 CASE_TIME_LIMIT_S = 20.0

@@ -1,10 +1,10 @@
-"""Error estimate and automatic refinement on every solve (cdr_translator.accuracy)."""
+"""Error estimate and automatic refinement on every solve (cdr_translator.analysis.accuracy)."""
 
 import json
 
 from cdr_translator import cli, TranslatorSolver
-from cdr_translator.accuracy import ErrorEstimate, kept_steps, refined_steps, STEP_DOWN
-from cdr_translator.params import Accuracy, ParameterError, TranslatorParams
+from cdr_translator.analysis.accuracy import ErrorEstimate, kept_steps, refined_steps, STEP_DOWN
+from cdr_translator.params.translator_params import Accuracy, ParameterError, TranslatorParams
 import numpy as np
 import pytest
 
@@ -186,7 +186,7 @@ def test_random_wrenches_verify_or_are_flagged(params):
 def test_spacer_disks_have_an_upper_bound(params):
     """Library and node refuse more than MAX_SPACERS_PER_JOINT spacer disks per joint."""
     from cdr_translator.interface.settings import SPECS
-    from cdr_translator.params import MAX_SPACERS_PER_JOINT
+    from cdr_translator.params.translator_params import MAX_SPACERS_PER_JOINT
 
     with pytest.raises(ParameterError, match='spacers_per_joint'):
         params.with_changes(spacers_per_joint=MAX_SPACERS_PER_JOINT + 1)

@@ -6,7 +6,7 @@ import pickle
 
 from batch_checks import assert_rows_equal, sequence
 from cdr_translator import BatchResult, InputError, TranslatorSolver
-from cdr_translator.result import SolveResult
+from cdr_translator.solve.result import SolveResult
 import numpy as np
 import pytest
 

@@ -1,11 +1,12 @@
-"""The compiled Newton-Broyden loop (cdr_translator/chord.py) against plain linear algebra."""
+"""The compiled Newton-Broyden loop (cdr_translator/bvp/chord.py) against plain linear algebra."""
 
 import gc
 import math
 import tracemalloc
 import warnings
 
-from cdr_translator import _linalg, chord
+from cdr_translator import _linalg
+from cdr_translator.bvp import chord
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor, lu_solve

@@ -7,8 +7,8 @@ Tolerances are relative to max |C| unless stated; C is in SI units (m/N, rad/(N 
 import json
 
 from cdr_translator import cli, TranslatorSolver
-from cdr_translator.compliance import analyse, AXIS_LABELS, frame_twist
-from cdr_translator.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
+from cdr_translator.analysis.compliance import analyse, AXIS_LABELS, frame_twist
+from cdr_translator.params.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
 import pytest

@@ -2,9 +2,10 @@
 
 from dataclasses import replace
 
-from cdr_translator import rod, TranslatorSolver
+from cdr_translator import TranslatorSolver
 from cdr_translator._jit import interpreted_kernels
-from cdr_translator.problem import Problem
+from cdr_translator.bvp import rod
+from cdr_translator.bvp.problem import Problem
 import numpy as np
 import pytest
 

@@ -33,7 +33,7 @@ rod.rk4_stage_pose(p, rot, np.ones(3), np.zeros((3, 3)), 0.5, np.empty(3), np.em
 counts = _jit.kernel_counts()
 print(json.dumps({'location': _jit.CACHE_LOCATION, 'compiled': counts.compiled,
                   'loaded': counts.loaded,
-                  'uncached': 'cdr_translator.rod.rk4_stage_pose' in _jit.uncached_kernels()}))
+                  'uncached': 'cdr_translator.bvp.rod.rk4_stage_pose' in _jit.uncached_kernels()}))
 """
 
 

@@ -1,7 +1,8 @@
 """Multiple shooting by the lifted Newton method (multiple_shooting and its node kernels)."""
 
-from cdr_translator import continuation, multiple_shooting, TranslatorSolver
-from cdr_translator.problem import Problem
+from cdr_translator import TranslatorSolver
+from cdr_translator.bvp.problem import Problem
+from cdr_translator.solve import continuation, multiple_shooting
 import numpy as np
 import pytest
 

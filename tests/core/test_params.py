@@ -3,9 +3,10 @@
 import math
 import warnings
 
-from cdr_translator import ParameterError, params_file, PlausibilityWarning, TranslatorParams
+from cdr_translator import ParameterError, PlausibilityWarning, TranslatorParams
 from cdr_translator.console import run_command
-from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
+from cdr_translator.params import params_file
+from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
 import pytest
 import yaml
 

@@ -1,5 +1,5 @@
 """
-The fallback continuation (cdr_translator.path_following) and its use by TranslatorSolver.
+The fallback continuation (cdr_translator.solve.path_following) and its use by TranslatorSolver.
 
 Torsion 40 N m stalls the default continuation (docs/hard_cases.md); the fallback takes it
 to the wrench. Solves that converge without it are unchanged, failures come back as
@@ -7,8 +7,8 @@ results with a message.
 """
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.params import Accuracy
-from cdr_translator.path_following import hermite
+from cdr_translator.params.translator_params import Accuracy
+from cdr_translator.solve.path_following import hermite
 import numpy as np
 import pytest
 

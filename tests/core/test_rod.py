@@ -11,7 +11,7 @@ published tables).
 import math
 
 # ament_flake8 sets no application-import-names, so the package sorts as third party.
-from cdr_translator.rod import solve_cantilever
+from cdr_translator.bvp.rod import solve_cantilever
 import numpy as np
 import pytest
 from scipy.integrate import solve_bvp

@@ -1,8 +1,10 @@
-"""Stability verdict on every solve (cdr_translator.stability, docs/stability.md)."""
+"""Stability verdict on every solve (cdr_translator.analysis.stability, docs/stability.md)."""
 
 import json
 
-from cdr_translator import _linalg, branch, cli, stability, TranslatorSolver
+from cdr_translator import _linalg, cli, TranslatorSolver
+from cdr_translator.analysis import stability
+from cdr_translator.solve import branch
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor

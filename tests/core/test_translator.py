@@ -2,9 +2,10 @@
 
 import math
 
-from cdr_translator import continuation, TranslatorSolver
-from cdr_translator.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
-from cdr_translator.params import Accuracy
+from cdr_translator import TranslatorSolver
+from cdr_translator.params.paper import TABLE_II, TABLE_II_TOLERANCE_DEG
+from cdr_translator.params.translator_params import Accuracy
+from cdr_translator.solve import continuation
 import numpy as np
 import pytest
 

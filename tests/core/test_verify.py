@@ -1,4 +1,4 @@
-"""Independent verification (cdr_translator.verify): it passes good results, catches bad ones."""
+"""Independent verification (cdr_translator.solve.verify): good results pass, bad ones fail."""
 
 import copy
 import dataclasses
@@ -6,9 +6,9 @@ import json
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.cli import main
-from cdr_translator.params import Accuracy
-from cdr_translator.result import PAPER_TOLERANCES
-from cdr_translator.verify import Tolerances, verify
+from cdr_translator.params.translator_params import Accuracy
+from cdr_translator.solve.result import PAPER_TOLERANCES
+from cdr_translator.solve.verify import Tolerances, verify
 import numpy as np
 import pytest
 

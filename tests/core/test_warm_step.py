@@ -1,8 +1,9 @@
-"""The one-call warm solve (cdr_translator/warm_step.py) against its parts made one by one."""
+"""The one-call warm solve (cdr_translator/solve/warm_step.py) against its parts one by one."""
 
-from cdr_translator import chord, TranslatorSolver
-from cdr_translator.accuracy import estimate
-from cdr_translator.warm_step import _warm_step, settings_array, TOO_FAR, warm_step
+from cdr_translator import TranslatorSolver
+from cdr_translator.analysis.accuracy import estimate
+from cdr_translator.bvp import chord
+from cdr_translator.solve.warm_step import _warm_step, settings_array, TOO_FAR, warm_step
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor

@@ -4,7 +4,7 @@ import pickle
 
 from batch_checks import assert_rows_equal, sequence
 from cdr_translator.fidelity import BatchResult, FidelitySolver, LEVEL_COST_ORDER
-from cdr_translator.result import FRAME_NAMES
+from cdr_translator.solve.result import FRAME_NAMES
 import numpy as np
 import pytest
 

@@ -4,10 +4,11 @@ from cdr_translator import TranslatorParams
 from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.interface.settings import CDR_SPECS, CdrSettings, check_value, MODEL_KEYS
 from cdr_translator.interface.settings import SPECS, TranslatorSettings
-from cdr_translator.params import ACCURACY_KEYS, DEFAULT_PARAMS_PATH, FIDELITY_KEYS
-from cdr_translator.params import NODE_ONLY_KEYS
-from cdr_translator.params import ParameterError, read_params_file
-from cdr_translator.params_file import section_applies
+from cdr_translator.params.params_file import section_applies
+from cdr_translator.params.translator_params import (ACCURACY_KEYS, DEFAULT_PARAMS_PATH,
+                                                     FIDELITY_KEYS)
+from cdr_translator.params.translator_params import NODE_ONLY_KEYS
+from cdr_translator.params.translator_params import ParameterError, read_params_file
 from cdr_translator.robot import DeltaParams, DeltaRobot
 from cdr_translator.robot.params import CDR_NODE_ONLY_KEYS
 import pytest

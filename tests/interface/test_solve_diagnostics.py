@@ -1,7 +1,8 @@
 """Diagnostics of a solve (node and replay alike): unstable or inaccurate answers are WARN."""
 
-from cdr_translator import branch, TranslatorSolver
+from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
+from cdr_translator.solve import branch
 
 
 def _diagnostic(result) -> dict:

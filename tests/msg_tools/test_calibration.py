@@ -6,10 +6,10 @@ import json
 import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
+from cdr_translator.calibration.pose_error import FRAME_NAMES
+from cdr_translator.calibration.pose_fit import fit_poses
 from cdr_translator.cli import main as cdr_main
 from cdr_translator.interface.settings import TranslatorSettings
-from cdr_translator.pose_error import FRAME_NAMES
-from cdr_translator.pose_fit import fit_poses
 from figure_checks import assert_readable
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.__main__ import main

@@ -15,7 +15,7 @@ import time
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
-from cdr_translator.params import Accuracy, DEFAULT_PARAMS_PATH
+from cdr_translator.params.translator_params import Accuracy, DEFAULT_PARAMS_PATH
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
 from chunked import chunk_offsets, write_chunked, write_undecodable

@@ -8,7 +8,7 @@ from cdr_translator.interface.batch_row import BatchRow
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import BATCHED_FIDELITIES, node_solver
 from cdr_translator.interface.wrench_processing import WrenchProcessor
-from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import replay as replay_module
 from msg_tools import synth

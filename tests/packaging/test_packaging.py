@@ -27,7 +27,7 @@ def test_colcon_build_installs_package_and_params(tmp_path):
     for name in ('translator.launch.py', 'cdr.launch.py', 'launch_common.py'):
         assert (share / 'cdr_translator' / 'launch' / name).is_file(), name
     assert (share / 'ament_index' / 'resource_index' / 'packages' / 'cdr_translator').is_file()
-    installed = list((tmp_path / 'install').glob('**/site-packages/cdr_translator/solver.py'))
+    installed = list((tmp_path / 'install').glob('**/site-packages/cdr_translator/__init__.py'))
     assert installed, 'the library was not installed'
     # only the three libraries (and their metadata) go to site-packages: no bench, tests, scripts
     site = installed[0].parents[1]

@@ -3,7 +3,7 @@
 import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
-from cdr_translator.params import Accuracy
+from cdr_translator.params.translator_params import Accuracy
 from cdr_translator.robot import coupled_newton, kernels
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.linearization import MAX_SECANTS, Secants

@@ -2,18 +2,18 @@
 Each leg held at both ends: its buckling load, its verdict on both sides, the robot's verdict.
 
 The robot's stability verdict condenses the legs into the platform stiffness, valid only if
-each leg is stable with both end disks held (cdr_translator/held.py).
+each leg is stable with both end disks held (cdr_translator/robot/held_leg.py).
 """
 
 import math
 
 from cdr_translator import TranslatorSolver
 from cdr_translator._linalg import factorize, solve_lu
-from cdr_translator.held import held_reference, held_verdict, HeldReference
-from cdr_translator.params import Accuracy
+from cdr_translator.analysis.stability import pose_twist
+from cdr_translator.params.translator_params import Accuracy
 from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.robot.held_leg import held_reference, held_verdict, HeldReference
 from cdr_translator.robot.linearization import chain_verdict
-from cdr_translator.stability import pose_twist
 from cdr_translator.studies.buckling import euler_critical_load, held_critical_compression
 import numpy as np
 import pytest

@@ -1,10 +1,10 @@
 """Reduced legs: the coupled warm solve and the atlas's compiled loop over samples."""
 
+from cdr_translator.analysis.stability import determinant_sign
 from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.robot.coupled_kernels import refresh_leg
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.samples import empty_results, store
-from cdr_translator.stability import determinant_sign
 import numpy as np
 import pytest
 

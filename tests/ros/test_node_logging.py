@@ -14,7 +14,7 @@ import sys
 import time
 
 from cdr_translator.interface import messages
-from cdr_translator.params import NODE_NAME
+from cdr_translator.params.translator_params import NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
 from cdr_translator.ros.runtime import NodeLog
 from cdr_wire.mcap_log import McapLog

@@ -9,7 +9,7 @@ import weakref
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import check_magnitude, in_end_disk_frame
-from cdr_translator.params import ParameterError
+from cdr_translator.params.translator_params import ParameterError
 from cdr_translator.ros import runtime
 from cdr_translator.ros.parameters import default_values, descriptor, ros_parameter_sources
 from cdr_translator.ros.parameters import SPECS

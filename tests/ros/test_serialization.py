@@ -11,7 +11,7 @@ in-process in its own context and domain.
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import node_solver
-from cdr_translator.params import DEFAULT_PARAMS_PATH
+from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
 from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
 from cdr_wire.cdr_plan import HEADER

@@ -17,7 +17,7 @@ import time
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.interface import messages
-from cdr_translator.params import DEFAULT_PARAMS_PATH, NODE_NAME
+from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
 from cdr_translator.ros.translator import TranslatorNode
 from cdr_wire.reader import McapSource

@@ -6,8 +6,9 @@ The whole suite, with refinement, runs in `make hard-cases` (bench/hard_cases.py
 
 import math
 
-from cdr_translator import continuation, TranslatorSolver
-from cdr_translator.params import Accuracy
+from cdr_translator import TranslatorSolver
+from cdr_translator.params.translator_params import Accuracy
+from cdr_translator.solve import continuation
 from cdr_translator.studies import hard_cases
 from cdr_translator.studies.buckling import critical_compression
 from cdr_translator.studies.hard_case_report import markdown_report

@@ -1,0 +1,309 @@
+"""
+Compliance of the end disk and its primary-mobility (screw) analysis (paper Section IV.B).
+
+Convention: C maps a small extra wrench [f; m] (components in the base frame {pe}, applied at
+the end-disk centre) to the small twist [v; w] of the end disk: v the velocity of its centre,
+w its angular velocity, both in {pe}. SI units: C[:3, :3] m/N, C[:3, 3:] m/(N m),
+C[3:, :3] rad/N, C[3:, 3:] rad/(N m).
+
+Two computations that agree to about 1e-8 relative (tests/core/test_compliance.py):
+
+* ``implicit_compliance`` (the default): implicit differentiation of the shooting problem
+  at the converged solution (Rucker & Webster, ICRA 2011). r(x, w) = 0 gives
+  dx/dw = -J^-1 dr/dw; the twist is the derivative of the end-disk pose along each column.
+  The exact Jacobian and the end-disk pose derivative come from one tangent-linear shot;
+  C is then one 6-column solve with that factorization (no refinement sweeps).
+* ``cdr_translator.studies.finite_difference.finite_difference_compliance``: central
+  differences of loaded solves, the paper's way (its ref. [15]); the check.
+"""
+
+from dataclasses import dataclass
+import math
+import time
+from typing import Any, Optional, Tuple
+
+import numpy as np
+from scipy.linalg.lapack import dgeev, dgesv, dsyevd
+
+from . import stability
+from .. import _linalg
+from .._jit import jit
+from ..bvp.problem import Problem
+
+#: Human-readable names of the six twist/wrench axes, in the order of C's rows.
+AXIS_LABELS = ('translation x', 'translation y', 'translation z',
+               'rotation x', 'rotation y', 'rotation z')
+
+#: Default relative threshold below which a coupling term is zeroed in C_s (see ``analyse``).
+SPARSITY_THRESHOLD = 0.2
+
+#: Default ratio to the most compliant direction above which an eigen-twist is a mobility.
+MOBILITY_RATIO = 0.2
+
+#: Largest perturbation of the nondimensional unknowns in a directional difference
+#: (fidelity/linear.py: the tube frames' and points' sensitivities).
+DIRECTIONAL_STEP = 1e-5
+
+
+@dataclass(frozen=True)
+class ComplianceAnalysis:
+    """
+    The 6x6 compliance C at one loaded configuration and its eigen/screw analysis.
+
+    ``sparse_matrix`` is the paper's C_s; ``eigenvalues`` (xi) and ``eigenvectors`` (Gamma,
+    one column per eigenvalue) are those of C_s, ordered by ``labels`` (the axis each
+    eigenvector mostly moves along). ``roles`` marks each column 'mobility' (a primary-mobility
+    twist) or 'constraint' (it spans the constraint-wrench space); ``primary_mobility``
+    lists the labels of the mobilities. ``stable`` says whether the symmetric part of the
+    stiffness C^-1 is positive definite. ``time_s`` is the cost of computing C and
+    ``estimated_error`` machine epsilon times a condition estimate of J (C is exact to
+    rounding: no differencing is involved).
+    """
+
+    matrix: np.ndarray
+    sparse_matrix: np.ndarray
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    labels: Tuple[str, ...]
+    roles: Tuple[str, ...]
+    primary_mobility: Tuple[str, ...]
+    stable: bool
+    smallest_stiffness_eigenvalue: float
+    sparsity_threshold: float
+    mobility_ratio: float
+    characteristic_length: float
+    method: str
+    time_s: float
+    estimated_error: float = 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-ready form; the keys of ``solve --compliance --json``."""
+        return {
+            'compliance': self.matrix.tolist(),
+            'compliance_sparse': self.sparse_matrix.tolist(),
+            'compliance_eigenvalues': self.eigenvalues.tolist(),
+            'compliance_eigenvectors': self.eigenvectors.tolist(),
+            'compliance_labels': list(self.labels),
+            'compliance_roles': list(self.roles),
+            'primary_mobility': list(self.primary_mobility),
+            'stable': bool(self.stable),
+            'compliance_method': self.method,
+            'compliance_time_s': float(self.time_s),
+            'compliance_estimated_error': float(self.estimated_error),
+        }
+
+
+# implicit differentiation -------------------------------------------------------------------
+def implicit_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                        factorization: Optional[Tuple[tuple, np.ndarray]] = None,
+                        rotation: Optional[np.ndarray] = None
+                        ) -> Tuple[np.ndarray, tuple, float]:
+    """
+    Return (C, lu, estimated relative error of C) at the converged unknowns ``xs``.
+
+    Implicit differentiation with the exact Jacobian: r(x, w) = 0 gives dx/dw = -J^-1 dr/dw
+    and C = dT/dx dx/dw, T the end-disk twist (Rucker & Webster, ICRA 2011). J and dT/dx
+    come from one tangent-linear shot (problem.exact_jacobian) unless ``factorization``
+    = (lu, pose Jacobian) already holds them at ``xs``; then C is one 6-column LU solve.
+    ``rotation``: the end disk's rotation matrix at ``xs`` if known (else one more shot).
+    No refinement sweeps: C is exact to rounding, so the error estimate is cond(J) times
+    the machine epsilon, bounded by the 1-norm condition estimate of the factorization.
+    ArithmeticError if J is singular or not finite at ``xs``.
+    """
+    if factorization is None:
+        _, jacobian, pose = problem.exact_jacobian(xs, wrench)
+        lu = _factorization(jacobian)
+    else:
+        lu, pose = factorization
+    if rotation is None:  # the end disk's orientation at xs, unless the caller has it
+        rotation = problem.residual_and_end_frame(xs, wrench)[1][:3, :3]
+    compliance = stability.compliance_from_factorization(lu, pose, rotation,
+                                                         problem.wrench_sensitivity)
+    if not np.all(np.isfinite(compliance)):
+        raise ArithmeticError('the Jacobian at the solution is singular')
+    diagonal = np.abs(np.diag(lu[0]))
+    error = float(np.finfo(float).eps * diagonal.max() / diagonal.min())
+    return compliance, lu, error
+
+
+def _factorization(jacobian: np.ndarray) -> tuple:
+    if not np.all(np.isfinite(jacobian)):
+        raise ArithmeticError('the Jacobian at the solution is not finite')
+    return _linalg.factorize(jacobian)
+
+
+def frame_twist(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """
+    Twist [dp; dtheta] taking 4x4 frame ``before`` to ``after``, both in the base frame.
+
+    dp is the displacement of the origin, dtheta the rotation vector of
+    after[:3, :3] before[:3, :3]^T (a spatial rotation increment).
+    """
+    rotation = after[:3, :3] @ before[:3, :3].T
+    skew = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                     rotation[1, 0] - rotation[0, 1]]) / 2.0
+    sine = np.linalg.norm(skew)
+    cosine = (np.trace(rotation) - 1.0) / 2.0
+    angle = math.atan2(sine, cosine)
+    scale = angle / sine if sine > 1e-12 else 1.0 + angle ** 2 / 6.0
+    return np.concatenate([after[:3, 3] - before[:3, 3], scale * skew])
+
+
+# eigen / screw analysis -----------------------------------------------------------------------
+def analyse(compliance: np.ndarray, characteristic_length: float,
+            sparsity_threshold: float = SPARSITY_THRESHOLD,
+            mobility_ratio: float = MOBILITY_RATIO, method: str = 'implicit',
+            time_s: float = 0.0, estimated_error: float = 0.0) -> ComplianceAnalysis:
+    """
+    Primary-mobility analysis of C in the manner of the paper (Table III).
+
+    C_s zeroes every coupling term whose magnitude is below ``sparsity_threshold`` times
+    sqrt(|C_ii C_jj|) (a unit-free measure, unlike a threshold on raw entries whose units
+    differ). Eigenvalues and eigenvectors are those of C_s. An eigen-direction gamma is a
+    primary-mobility twist when its compliance in length units, xi |gamma|^2 /
+    |S^-1 gamma|^2 with S = diag(1, 1, 1, L, L, L) (rotations measured as the displacement
+    they cause at ``characteristic_length`` L), is at least ``mobility_ratio`` times the
+    largest such value; otherwise it spans the constraint-wrench space.
+    """
+    if not 0.0 <= sparsity_threshold < 1.0:
+        raise ValueError(f'sparsity_threshold must lie in [0, 1), got {sparsity_threshold}')
+    if not 0.0 < mobility_ratio <= 1.0:
+        raise ValueError(f'mobility_ratio must lie in (0, 1], got {mobility_ratio}')
+    if not characteristic_length > 0.0:
+        raise ValueError(f'characteristic_length must be positive, got {characteristic_length}')
+    sparse = np.empty((6, 6))
+    _sparsify(np.ascontiguousarray(compliance, dtype=float), float(sparsity_threshold), sparse)
+    values, vectors = _real_eigen(sparse)
+    dominant = np.empty(6, dtype=np.int64)
+    mobile = np.empty(6, dtype=np.bool_)
+    values, vectors = _arrange(values, np.asfortranarray(vectors), float(characteristic_length),
+                               float(mobility_ratio), dominant, mobile)
+    labels = tuple(AXIS_LABELS[axis] for axis in dominant.tolist())
+    roles = tuple('mobility' if flag else 'constraint' for flag in mobile.tolist())
+    smallest = _smallest_stiffness_eigenvalue(compliance)
+    return ComplianceAnalysis(
+        matrix=compliance, sparse_matrix=sparse, eigenvalues=values, eigenvectors=vectors,
+        labels=labels, roles=roles,
+        primary_mobility=tuple(label for label, role in zip(labels, roles)
+                               if role == 'mobility'),
+        stable=smallest > 0.0, smallest_stiffness_eigenvalue=smallest,
+        sparsity_threshold=sparsity_threshold, mobility_ratio=mobility_ratio,
+        characteristic_length=characteristic_length, method=method, time_s=time_s,
+        estimated_error=estimated_error)
+
+
+@jit
+def _sparsify(compliance, threshold, out):
+    """C_s into ``out``: off-diagonal terms below threshold sqrt(|C_ii C_jj|) zeroed."""
+    for i in range(6):
+        for j in range(6):
+            bound = threshold * math.sqrt(abs(compliance[i, i])) * math.sqrt(
+                abs(compliance[j, j]))
+            small = i != j and abs(compliance[i, j]) < bound  # NaN is never small
+            out[i, j] = 0.0 if small else compliance[i, j]
+
+
+@jit
+def _arrange(values, vectors, length, ratio, dominant, mobile):
+    """
+    Order, scale and classify the eigen-pairs of C_s (``analyse``); return them.
+
+    Each vector's dominant axis is its largest entry in scaled units (S = diag(1, 1, 1, L,
+    L, L): rotations times ``length``); the pairs are sorted by dominant axis, then by
+    decreasing eigenvalue (a stable sort); each vector gets unit length and a positive
+    dominant entry. ``dominant`` and ``mobile`` (compliance in length units at least
+    ``ratio`` times the largest; none if one is NaN) receive their flags in that order.
+    """
+    axis = np.empty(6, dtype=np.int64)
+    for j in range(6):
+        best, axis[j] = -1.0, 0
+        for i in range(6):
+            size = abs(vectors[i, j]) * (length if i >= 3 else 1.0)
+            if size > best:
+                best, axis[j] = size, i
+    order = np.arange(6)
+    for k in range(1, 6):  # insertion sort: stable, as numpy.lexsort
+        current = order[k]
+        m = k
+        while m > 0 and (axis[order[m - 1]] > axis[current] or (
+                axis[order[m - 1]] == axis[current] and values[order[m - 1]] < values[current])):
+            order[m] = order[m - 1]
+            m -= 1
+        order[m] = current
+    sorted_values = np.empty(6)
+    sorted_vectors = np.empty((6, 6))
+    in_length_units = np.empty(6)
+    largest = -np.inf
+    for k in range(6):
+        j = order[k]
+        dominant[k] = axis[j]
+        sorted_values[k] = values[j]
+        norm = 0.0
+        for i in range(6):
+            norm += vectors[i, j] * vectors[i, j]
+        factor = math.copysign(1.0 / math.sqrt(norm), vectors[axis[j], j])
+        scaled = 0.0
+        for i in range(6):
+            entry = factor * vectors[i, j]
+            sorted_vectors[i, k] = entry
+            entry /= length if i >= 3 else 1.0
+            scaled += entry * entry
+        in_length_units[k] = values[j] / scaled
+        if np.isnan(in_length_units[k]) or np.isnan(largest):
+            largest = np.nan
+        else:
+            largest = max(largest, in_length_units[k])
+    for k in range(6):
+        mobile[k] = in_length_units[k] >= ratio * largest
+    return sorted_values, sorted_vectors
+
+
+_IDENTITY = np.eye(6)
+
+
+def _real_eigen(matrix: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Real parts of the eigenvalues and eigenvectors of a real 6x6 matrix (LAPACK dgeev).
+
+    dgeev stores a complex pair's vectors as (real part, imaginary part) in two columns;
+    both columns get the real part here, as numpy.linalg.eig(...).real would give. Called
+    directly: numpy.linalg.eig's wrapping cost twice the decomposition (42 against 18 us).
+    """
+    values, imaginary, _, vectors, info = dgeev(matrix, compute_vl=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'dgeev: the QR algorithm failed to converge ({info})')
+    pairs = np.flatnonzero(imaginary > 0.0)
+    if pairs.size:  # second of each pair: the conjugate vector, same real part
+        vectors[:, pairs + 1] = vectors[:, pairs]
+    return values, vectors
+
+
+def _smallest_stiffness_eigenvalue(compliance: np.ndarray) -> float:
+    """Smallest eigenvalue of the symmetric part of K = C^-1 (-inf if C is singular)."""
+    stiffness, info = dgesv(compliance, _IDENTITY)[2:]
+    if info != 0 or not np.all(np.isfinite(stiffness)):  # singular C
+        return -math.inf
+    values, _, info = dsyevd(stiffness + stiffness.T, compute_v=0)
+    return 0.5 * float(values[0]) if info == 0 else -math.inf
+
+
+def compliance_analysis(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                        factorization: Optional[Tuple[tuple, np.ndarray]] = None,
+                        rotation: Optional[np.ndarray] = None,
+                        **options: Any) -> Tuple[ComplianceAnalysis, tuple, np.ndarray]:
+    """
+    Implicit C at a converged solution and its analysis, plus the factorization used.
+
+    Returns (analysis, lu, pose Jacobian) so that the caller can keep the exact
+    factorization at the solution; ``factorization`` = (lu, pose Jacobian) at ``xs``
+    skips the tangent shot.
+    """
+    started = time.perf_counter()
+    if factorization is None:
+        _, jacobian, pose = problem.exact_jacobian(xs, wrench)
+        factorization = (_factorization(jacobian), pose.copy())
+    compliance, lu, error = implicit_compliance(problem, xs, wrench, factorization, rotation)
+    elapsed = time.perf_counter() - started
+    analysis = analyse(compliance, problem.params.stack_height, time_s=elapsed,
+                       estimated_error=error, **options)
+    return analysis, lu, factorization[1]

@@ -1,0 +1,84 @@
+"""
+The translator's wrench from its measured end-disk pose (TranslatorSolver.estimate_wrench).
+
+Each evaluation is a solve with the compliance; its stability margin comes from the exact
+compliance there, since the solve's may come from a factorization made at another wrench
+(docs/stability.md), and near zero it decides the ambiguity.
+"""
+
+from dataclasses import replace
+import math
+import time
+from typing import Optional, TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..analysis.stability import load_scale
+from ..estimation import (Components, DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD,
+                          estimate_along, estimate_from, Evaluation, LOAD_LIMIT,
+                          measured_target, Search, WrenchEstimate)
+
+if TYPE_CHECKING:
+    from .solver import TranslatorSolver
+
+__all__ = ['estimate_wrench', 'REACH']
+
+#: No equilibrium puts the end-disk centre further from the base than this many stack
+#: heights (the backbones would have to stretch by a percent: kilonewtons).
+REACH = 1.01
+
+
+def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray,
+                           deadline: float) -> Optional[Evaluation]:
+    """Solve the translator at ``wrench`` with its compliance by ``deadline`` (None: failed)."""
+    limit = solver.time_limit_s
+    solver.time_limit_s = max(deadline - time.perf_counter(), 0.0)
+    try:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+    finally:
+        solver.time_limit_s = limit
+    if not result.converged or result.compliance is None:
+        return None
+    # the margin from the exact compliance here: the solve's may come from a factorization
+    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
+    compliance = result.compliance.matrix
+    scale = np.repeat([1.0, solver.params.stack_height], 3)
+    try:
+        stiffness = np.linalg.inv(scale[:, None] * compliance * scale[None, :])
+        margin = float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0]
+                       / solver._origin().smallest_stiffness)
+    except np.linalg.LinAlgError:
+        margin = -math.inf
+    return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable, margin,
+                      result.accuracy_met, result.message, result.compliance, result)
+
+
+def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
+                    quaternion_xyzw: Optional[ArrayLike] = None, *,
+                    pose_covariance: Optional[ArrayLike] = None,
+                    moment: Optional[ArrayLike] = None,
+                    force: Optional[ArrayLike] = None,
+                    estimate: Optional[Components] = None,
+                    prior_mean: Optional[ArrayLike] = None,
+                    prior_covariance: Optional[ArrayLike] = None,
+                    target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
+                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> WrenchEstimate:
+    """Return the end-disk wrench matching a measured pose (TranslatorSolver's method)."""
+    started = time.perf_counter()
+    length = solver.params.stack_height
+    target = replace(measured_target(position, quaternion_xyzw, pose_covariance, moment, force,
+                                     length, estimate=estimate, prior_mean=prior_mean,
+                                     prior_covariance=prior_covariance,
+                                     target_force_sd=target_force_sd,
+                                     target_moment_sd=target_moment_sd),
+                     load_limit=LOAD_LIMIT * load_scale(solver._origin()))
+    reach = float(np.linalg.norm(target.frame[:3, 3]))
+    if reach > REACH * length:
+        return estimate_from(
+            Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m from the '
+                   f'base (stack height {length:.4g} m)'), target, started)
+    deadline = started + solver.time_limit_s
+    return estimate_along(solver, lambda wrench: _translator_evaluation(solver, wrench, deadline),
+                          target, started, deadline, solver._previous is not None,
+                          solver.reset)
