@@ -11,7 +11,7 @@ KERNELS := $(VENV)/.kernels-stamp
 KERNEL_SOURCES := cdr_translator/_jit.py \
 	$(shell grep -rlE --include='*.py' '^@jit' cdr_translator)
 
-.PHONY: setup test demo clean clean-kernels bags hard-cases bench atlas-scale
+.PHONY: setup test docs demo clean clean-kernels bags hard-cases bench atlas-scale
 
 setup: $(STAMP) $(KERNELS)
 
@@ -38,6 +38,11 @@ $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 test: setup
 	$(VPY) -m mypy
 	$(VPY) -m pytest tests
+
+# The documentation as HTML in build/docs (Sphinx + MyST; warnings are errors, as in the test
+# tests/packaging/test_docs_build.py that make test runs). Open build/docs/index.html.
+docs: setup
+	$(VPY) -m sphinx -W --keep-going -q -b html docs build/docs
 
 # The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
 hard-cases: setup
