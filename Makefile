@@ -44,7 +44,7 @@ test: setup
 docs: setup
 	$(VPY) -m sphinx -W --keep-going -q -b html docs build/docs
 
-# The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
@@ -67,7 +67,7 @@ bench: setup
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
-# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/robot.md).
+# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/explanation/robot.md).
 atlas-scale: setup
 	$(VPY) -m bench.atlas_scale
 

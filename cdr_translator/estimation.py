@@ -376,7 +376,7 @@ def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray,
     if not result.converged or result.compliance is None:
         return None
     # the margin from the exact compliance here: the solve's may come from a factorization
-    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
+    # made at another wrench (docs/explanation), and near zero it decides the ambiguity
     compliance = result.compliance.matrix
     scale = np.repeat([1.0, solver.params.stack_height], 3)
     try:

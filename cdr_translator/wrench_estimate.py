@@ -10,7 +10,7 @@ H, so every singular value is in m/N), say how far the pose moves per newton alo
 wrench direction: a direction whose singular value is more than CONDITION_LIMIT times
 below the largest is poorly observable (a pose error of a micrometre there means newtons).
 The translator's axial force is always one: its axial stiffness is four orders above the
-lateral one (docs/compliance.md, xi of translation z).
+lateral one (docs/explanation/model.md, xi of translation z).
 """
 
 from dataclasses import dataclass, field
@@ -66,7 +66,7 @@ class WrenchEstimate:
     matches the measured one to the rounding of the forward solve; ``residual_m`` and
     ``residual_deg`` are what is left (position and orientation; the angle NaN when the
     orientation was not measured). ``stable`` is the forward solve's verdict at the
-    estimate and ``stability_margin`` its margin (docs/stability.md). ``accuracy_met``:
+    estimate and ``stability_margin`` its margin (docs/explanation). ``accuracy_met``:
     converged, the forward solve's discretization error within its target, the equilibrium
     stable and not so close to a bifurcation that another wrench could match the pose, and
     no other match found (``alternative``: a moment from a position is searched from

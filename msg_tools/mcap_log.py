@@ -16,7 +16,7 @@ while open (``msg_tools.file_lock``). Write errors (disk full, I/O error, the fi
 never raise from ``write``/``flush``/``close``: the file is cut back to its last complete
 chunk, the records not written are counted, ``status()`` (a ``LogStatus``) says what
 happened, and writing resumes in a new file (``<stem>_<n><suffix>``) once that works again.
-See docs/logging.md.
+See docs/reference/files.md.
 
 CDR encoding of plain dicts uses ``mcap_ros2``'s dynamic encoder (``serialize_dynamic`` of
 mcap-ros2-support 0.6.0, pinned in requirements.txt) unless the writer is given faster

@@ -1,4 +1,4 @@
-"""Stability verdict on every solve (cdr_translator.stability, docs/stability.md)."""
+"""Stability verdict on every solve (cdr_translator.stability, docs/explanation)."""
 
 import json
 
