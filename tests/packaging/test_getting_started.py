@@ -1,6 +1,7 @@
 """
-docs/tutorial/getting_started.md as printed: its Python runs, its offline commands exit as
-documented; the exit-code table of docs/reference/cli.md covers every command.
+docs/tutorial/getting_started.md as printed: its Python runs, its commands exit as shown.
+
+The exit-code table of docs/reference/cli.md covers every command.
 
 The node's part (starting translator_node, feeding it, its log) runs over DDS in
 tests/ros/test_getting_started_node.py; here every block is checked to be marked, the
