@@ -28,6 +28,8 @@ myst_enable_extensions = ['colon_fence', 'deflist']
 
 # API reference: the public names, in source order, with their types in the description
 autodoc_member_order = 'bysource'
+# defaults as written (DEFAULT_PARAMS_PATH), not as evaluated on the building machine
+autodoc_preserve_defaults = True
 autodoc_typehints = 'description'
 autodoc_typehints_description_target = 'documented_params'
 autodoc_default_options = {'members': True, 'show-inheritance': True}

@@ -13,6 +13,7 @@ import importlib
 import io
 import os
 from pathlib import Path
+import re
 from typing import Any, Dict, List
 
 from docutils import nodes
@@ -25,6 +26,8 @@ from sphinx.util.docutils import SphinxDirective
 PROGRAMS = {'cdr_translator': 'cdr_translator.cli', 'msg_tools': 'msg_tools.__main__'}
 #: Width of the help texts (argparse reads it from COLUMNS).
 HELP_COLUMNS = '92'
+#: The checkout, whose absolute path a default in a help text would otherwise show.
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def command_help(argv: List[str]) -> str:
@@ -44,7 +47,10 @@ def command_help(argv: List[str]) -> str:
     text = output.getvalue()
     if not text.startswith('usage:'):
         raise ValueError(f'{" ".join(argv)} --help printed no usage: {text[:200]!r}')
-    return text
+    # argparse may wrap a default path at a hyphen: match the checkout's path across a wrap
+    wrapped = ''.join(re.escape(char) + (r'(?:\n *)?' if char == '-' else '')
+                      for char in f'{ROOT}{os.sep}')
+    return re.sub(wrapped, '', text)
 
 
 class CommandHelp(SphinxDirective):

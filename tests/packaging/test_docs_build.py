@@ -31,3 +31,5 @@ def test_docs_build_without_warnings(tmp_path):
     cli = (out / 'reference' / 'cli.html').read_text(encoding='utf-8')
     assert 'usage: python -m cdr_translator solve' in cli and '--force' in cli
     assert (out / 'tutorial' / 'getting_started.html').is_file()
+    for page in out.rglob('*.html'):  # defaults as written, not this machine's paths
+        assert str(ROOT) not in page.read_text(encoding='utf-8'), f'{page.name} shows {ROOT}'
