@@ -10,8 +10,12 @@ from pathlib import Path
 import sys
 
 DOCS = Path(__file__).resolve().parent
-# the checkout documented is the one these docs are in, whatever else is installed
-sys.path[:0] = [str(DOCS.parent), str(DOCS / '_ext')]
+# The checkout documented is the one these docs are in, whatever else is installed. rosdoc2
+# runs this file from a copy of docs/ in its build folder inside the package: the checkout is
+# then the nearest folder above that holds package.xml.
+CHECKOUT = next((folder for folder in DOCS.parents if (folder / 'package.xml').is_file()),
+                DOCS.parent)
+sys.path[:0] = [str(CHECKOUT), str(DOCS / '_ext')]
 
 project = 'cdr_translator'
 author = 'cdr_translator authors'
