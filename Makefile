@@ -11,7 +11,7 @@ KERNELS := $(VENV)/.kernels-stamp
 KERNEL_SOURCES := cdr_translator/_jit.py \
 	$(shell grep -rlE --include='*.py' '^@jit' cdr_translator)
 
-.PHONY: setup test demo clean clean-kernels bags hard-cases bench atlas-scale
+.PHONY: setup test docs demo clean clean-kernels bags hard-cases bench atlas-scale
 
 setup: $(STAMP) $(KERNELS)
 
@@ -39,7 +39,12 @@ test: setup
 	$(VPY) -m mypy
 	$(VPY) -m pytest tests
 
-# The whole hard-case suite (about a minute): bench/results/hard_cases.md, docs/hard_cases.md.
+# The documentation as HTML in build/docs (Sphinx + MyST; warnings are errors, as in the test
+# tests/packaging/test_docs_build.py that make test runs). Open build/docs/index.html.
+docs: setup
+	$(VPY) -m sphinx -W --keep-going -q -b html docs build/docs
+
+# The whole hard-case suite (about a minute): bench/results/hard_cases.md.
 hard-cases: setup
 	$(VPY) -m bench.hard_cases
 
@@ -64,7 +69,7 @@ bench: setup
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
-# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/robot.md).
+# bench/results/atlas_scale.md and atlas_{workspace,stiffness}.png (docs/explanation/robot.md).
 atlas-scale: setup
 	$(VPY) -m bench.atlas_scale
 

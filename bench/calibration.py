@@ -137,7 +137,7 @@ def main_bench() -> None:
         f'{platform.machine()}, {os.cpu_count()} cores; load average '
         f'{", ".join(f"{value:.1f}" for value in os.getloadavg())}). {args.count} random-walk '
         'wrenches, poses of a hidden prototype with 0.2 mm / 0.1 deg noise; '
-        '[measurements.md](../../docs/measurements.md) explains the fit.', '',
+        '[measurements.md](../../docs/howto/measurements.md) explains the fit.', '',
         *table(rows, truth), '',
         '| scenario | rms position | rms angle | cross-validated rms position | fit | '
         'cross-validation | model passes | one pass | whole command |',

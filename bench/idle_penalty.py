@@ -19,7 +19,7 @@ this thread's idleness but time: what runs elsewhere meanwhile):
 * ``SolveResult.to_dict()`` (pure Python: dicts and lists, as a node builds its messages).
 
 Writes bench/results/idle_penalty.md: the median per kind and pause, and its ratio to the
-back-to-back median. docs/performance.md and bench/results/node_rate.md read it.
+back-to-back median. docs/explanation/numerical_design.md and bench/results/node_rate.md read it.
 """
 
 import argparse

@@ -144,7 +144,7 @@ def main() -> None:
     lines += ['', f'Targets: cc warm forward statics <= 20 us (measured '
               f'{warm["cc"] * 1e6:.0f} us); atlas at cc >= 1e4 samples/s on one worker '
               f'(measured {rate["cc"]:.0f}/s); atlas at full >= 300 samples/s (measured '
-              f'{rate["full"]:.0f}/s). docs/robot_levels.md says what limits them.']
+              f'{rate["full"]:.0f}/s).']
     text = '\n'.join(lines) + '\n'
     print(text)
     RESULT.write_text(text)

@@ -18,7 +18,7 @@ Command line: argument parsing and printing only; the physics lives in the solve
 Exit codes: 0 converged (and stable), 3 not converged (the result is still printed; for
 ``paper``, either case), 2 bad input (every key of the params file is checked, as the nodes
 do), 4 ``solve`` or ``delta`` converged to an unstable equilibrium (``stable: false`` in the
-output: past a bifurcation no stable branch was found; docs/stability.md). delta-ik: 0
+output: past a bifurcation no stable branch was found; docs/explanation). delta-ik: 0
 only when the target is reached; an unreachable target prints the nearest reachable point
 and exits 3. atlas: 0 when every sample converged, 3 otherwise. Every command: 130 on
 Ctrl-C, 141 when standard output was closed early (``| head``), no traceback. ``--json``
@@ -85,7 +85,7 @@ def _parser() -> argparse.ArgumentParser:
                        help='an eigen-twist at least this fraction of the most compliant one '
                             'is a primary mobility (default: %(default)s)')
     solve.add_argument('--fidelity', choices=('full', 'rod', 'cc', 'auto'), default='full',
-                       help='model level (docs/performance.md); auto: the cheapest '
+                       help='model level (docs/howto/fidelity.md); auto: the cheapest '
                             'level within --max-position-error and --max-angle-error')
     solve.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
                        help='error budget of --fidelity auto: end-disk position, m')
@@ -159,7 +159,7 @@ def _add_payload_arguments(command: argparse.ArgumentParser) -> None:
 def _add_level_arguments(command: argparse.ArgumentParser) -> None:
     """Add the legs' fidelity level and its error budget (delta, delta-ik, atlas)."""
     command.add_argument('--fidelity', choices=ROBOT_FIDELITIES, default='full',
-                         help="the legs' model level (docs/robot_levels.md); auto: the "
+                         help="the legs' model level (docs/howto/robot.md); auto: the "
                               'cheapest level within the budget at every leg, else full')
     command.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
                          help="error budget of --fidelity auto: each leg's end disk, m")
@@ -437,6 +437,6 @@ def _run(argv: Optional[List[str]]) -> int:
         return EXIT_NOT_CONVERGED
     if data.get('stable') is False:
         print('warning: the equilibrium found is unstable (stable: false); see '
-              'docs/stability.md', file=sys.stderr)
+              'docs/explanation/solution_quality.md', file=sys.stderr)
         return EXIT_UNSTABLE
     return EXIT_CONVERGED

@@ -16,7 +16,7 @@ while open (``cdr_wire.file_lock``). Write errors (disk full, I/O error, the fil
 never raise from ``write``/``flush``/``close``: the file is cut back to its last complete
 chunk, the records not written are counted, ``status()`` (a ``LogStatus``) says what
 happened, and writing resumes in a new file (``<stem>_<n><suffix>``) once that works again.
-See docs/logging.md.
+See docs/reference/files.md.
 
 Plain dicts are encoded to CDR by the compiled encoders of ``cdr_wire.cdr_codecs`` (the
 bytes ``mcap_ros2`` writes).

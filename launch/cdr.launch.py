@@ -7,7 +7,7 @@ Launch cdr_node (the delta robot's statics) on a ROS 2 workstation.
 The node gets the ``cdr_node`` section of ``params_file`` (default: the shipped
 config/translator.yaml); ``mcap_path``, ``log_to_mcap`` and ``log_dir`` replace the
 file's value only when given (launch_common.py). The pip-wheel venv has no ``ros2 launch``:
-run ``.venv/bin/cdr_node`` there (docs/ros.md).
+run ``.venv/bin/cdr_node`` there (docs/howto/run_nodes.md).
 """
 
 import importlib.util

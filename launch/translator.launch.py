@@ -7,7 +7,7 @@ Launch translator_node on a ROS 2 workstation (``launch``, ``launch_ros`` have n
 The node gets the ``translator_node`` section of ``params_file`` (default: the shipped
 config/translator.yaml); ``mcap_path``, ``log_to_mcap`` and ``log_dir`` replace the
 file's value only when given (launch_common.py). The pip-wheel venv has no ``ros2 launch``:
-run ``.venv/bin/translator_node`` there (docs/ros.md).
+run ``.venv/bin/translator_node`` there (docs/howto/run_nodes.md).
 """
 
 import importlib.util

@@ -12,12 +12,12 @@ Command line of msg_tools (no ROS needed): info, synth, replay, calibrate.
                                   [--fit-frame] [--params FILE] [--out fitted.yaml] [--json]
                                   [--plot PATH.png] [--stamp-tolerance S]
 
-Exit codes (replay; docs/replay.md): 0 all good; 1 the input was damaged, what could be
+Exit codes (replay; docs/reference/cli.md): 0 all good; 1 the input was damaged, what could be
 read was replayed; 2 bad arguments, unusable input or an output that cannot be written
 (checked before reading; message on stderr, no traceback); 3 nothing could be decoded or
 solved; 130 interrupted by Ctrl-C (the output MCAP is finalized all the same). info and
 synth: 0 done (info also for a damaged file, which it reports), 2 bad arguments or unusable
-input. calibrate (docs/measurements.md): 0 fitted; 1 fitted from a damaged input; 2 bad
+input. calibrate (docs/howto/measurements.md): 0 fitted; 1 fitted from a damaged input; 2 bad
 arguments or unusable input; 3 not converged; 4 refused, the parameters cannot be
 identified from the recordings. All: 141 when stdout was closed early (``| head``).
 """

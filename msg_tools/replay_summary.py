@@ -7,7 +7,7 @@ and at most ``WARNING_LIMIT`` per-message warnings are kept; the joint angles ar
 by ``JointSummary`` (ranges, and the bending directions, which wrap at ±180°, by circular
 mean and circular standard deviation). ``ReplaySummary.table`` is
 the table ``python -m msg_tools replay`` prints; ``EXIT_CODES`` its exit codes
-(docs/replay.md).
+(docs/howto/replay.md).
 """
 
 from dataclasses import dataclass, field
@@ -24,7 +24,7 @@ import numpy as np
 #: Python.
 SETTLE_EVERY = 256
 
-#: Exit codes of ``python -m msg_tools replay`` (docs/replay.md).
+#: Exit codes of ``python -m msg_tools replay`` (docs/reference/cli.md).
 EXIT_OK = 0
 EXIT_DAMAGED_INPUT = 1
 EXIT_USAGE = 2

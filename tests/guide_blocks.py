@@ -1,5 +1,5 @@
 """
-The marked blocks of docs/getting_started.md, and how its tests run them.
+The marked blocks of docs/tutorial/getting_started.md, and how its tests run them.
 
 A marker line ``<!-- docs-test: KIND -->`` (optionally ``KIND (why)``) right above a fenced
 block says what the tests do with it:
@@ -23,7 +23,7 @@ import sys
 from typing import Dict, List, Mapping, Sequence, Tuple
 
 ROOT = Path(__file__).resolve().parents[1]
-GUIDE = ROOT / 'docs' / 'getting_started.md'
+GUIDE = ROOT / 'docs' / 'tutorial' / 'getting_started.md'
 KINDS = {'python', 'feed', 'shell', 'node', 'node-log', 'output', 'not-run'}
 #: Kinds whose lines are commands, each with its documented exit code.
 COMMAND_KINDS = {'shell', 'node', 'node-log'}

@@ -1,5 +1,5 @@
 """
-Discretization-error estimate of a converged solve (docs/accuracy.md).
+Discretization-error estimate of a converged solve (docs/explanation/solution_quality.md).
 
 The solver integrates every rod segment with N fixed RK4 steps, a method of order 4: at the
 converged unknowns x_N the computed quantities q_N differ from the exact continuum ones by

@@ -1,7 +1,7 @@
 """
 Stability verdict of a converged translator solve, from the factorization the solve has.
 
-Criterion (docs/stability.md). The translator under a dead end-disk wrench is a conservative
+Criterion (docs/explanation). The translator under a dead end-disk wrench is a conservative
 elastic structure: an equilibrium is stable when the second variation of its potential
 energy is positive definite (Lyapunov / Lagrange-Dirichlet; for rods Maddocks, "Stability
 and folds", Arch. Rational Mech. Anal. 99:301-328, 1987). Two necessary conditions that the

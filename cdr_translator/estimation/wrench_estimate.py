@@ -10,7 +10,7 @@ H, so every singular value is in m/N), say how far the pose moves per newton alo
 wrench direction: a direction whose singular value is more than CONDITION_LIMIT times
 below the largest is poorly observable (a pose error of a micrometre there means newtons).
 The translator's axial force is always one: its axial stiffness is four orders above the
-lateral one (docs/compliance.md, xi of translation z).
+lateral one (docs/explanation/model.md, xi of translation z).
 """
 
 from dataclasses import dataclass, field

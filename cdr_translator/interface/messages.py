@@ -287,7 +287,7 @@ def solve_diagnostic_values(result: Solved) -> dict:
     if compliance is not None:
         values['stable'] = bool(compliance.stable)
     stable = getattr(result, 'stable', None)
-    if stable is not None:  # the solve's own verdict (docs/stability.md) wins
+    if stable is not None:  # the solve's own verdict (docs/explanation/solution_quality.md) wins
         values['stable'] = bool(stable)
         values['stability_margin'] = float(result.stability_margin)
     if math.isfinite(getattr(result, 'error_estimate_m', math.nan)):
@@ -304,7 +304,7 @@ def solve_level(result: Solved) -> int:
 
     Not to act on: an unstable equilibrium (the solve's verdict, or the compliance's when
     only that was computed), or one whose estimated discretization error misses the
-    accuracy target (docs/stability.md, docs/accuracy.md).
+    accuracy target (docs/explanation/solution_quality.md).
     """
     if not result.converged:
         return ERROR

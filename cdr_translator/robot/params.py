@@ -72,7 +72,7 @@ class DeltaParams:
     ``slider_inclination_deg``: angle of each slider axis from the robot axis, tilted in
     the leg's radial plane towards the axis (0: sliders parallel to the robot axis, the
     positive direction pointing at the platform side, -z). ``slider_stroke``: the largest
-    allowed |slider position| from home.
+    allowed absolute slider position from home.
     """
 
     base_radius: float

@@ -46,7 +46,7 @@ EXTRAPOLATION_MISS = 0.5
 #: Cold continuations of translators with at least this many spacer disks per joint correct
 #: by the lifted Newton method (multiple_shooting.newton) instead of single shooting;
 #: None: never. At one spacer disk single shooting is the faster corrector
-#: (docs/hard_cases.md).
+#: (docs/explanation/solution_quality.md).
 LIFT_FROM_SPACERS: Optional[int] = 2
 
 #: A corrector of one continuation step: (guess, wrench, deadline, factorization or None,

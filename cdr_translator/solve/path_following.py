@@ -3,8 +3,8 @@ Fallback continuation for the loads where the default chord/Newton continuation 
 
 The default continuation (solver.py) predicts each step to first order with a stored,
 possibly stale, factorization and corrects with chord/Newton steps to a fixed tolerance.
-On the hardest cases (docs/hard_cases.md: PJ past 100 deg, torsion 40 N m, nine spacer
-disks per joint at 20 N) it stalls for two reasons, both measured:
+On the hardest cases (docs/explanation/solution_quality.md: PJ past 100 deg, torsion
+40 N m, nine spacer disks per joint at 20 N) it stalls for two reasons, both measured:
 
 * The solution path x(lambda) is smooth (no fold: the Jacobian's smallest singular value
   stays near 1e-2) but single shooting through the disk intervals makes the residual so

@@ -1,7 +1,7 @@
 """
 Accuracy of a converged solve: its error estimate, and refinement until the target is met.
 
-docs/accuracy.md.
+docs/explanation/solution_quality.md.
 
 A solve whose estimate (accuracy.py) misses the target is re-solved by solvers of the same
 structure at more steps per segment, each warm-started from the previous one (``refine``);

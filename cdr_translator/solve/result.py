@@ -78,7 +78,7 @@ class SolveResult:
     #: the model that produced the result: 'full', or a reduced level of
     #: cdr_translator.fidelity ('cc', 'rod', 'linear')
     fidelity: str = 'full'
-    #: stability verdict of the equilibrium (cdr_translator.analysis.stability; docs/stability.md):
+    #: stability verdict of the equilibrium (cdr_translator.analysis.stability; docs/explanation):
     #: None when not assessed (not converged, or the paper's method)
     stable: Optional[bool] = None
     #: smallest generalized eigenvalue of the end-disk stiffness against the unloaded one:
@@ -203,7 +203,7 @@ class SolveResult:
             'accuracy_met': (bool(self.accuracy_met) if math.isfinite(self.error_estimate_m)
                              else None),
             'steps_per_segment': int(self.steps_per_segment),
-            # the solve's own verdict (docs/stability.md) wins over the compliance's; null
+            # the solve's own verdict (docs/explanation) wins over the compliance's; null
             # when neither was assessed
             'stable': (bool(self.stable) if self.stable is not None
                        else bool(self.compliance.stable) if self.compliance is not None

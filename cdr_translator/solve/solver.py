@@ -250,7 +250,7 @@ class TranslatorSolver:
         With ``verify`` the result is re-checked independently (``cdr_translator.solve.verify``:
         ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
         A warm solve after a refined one solves at the refined steps per segment directly
-        (``refinement.solve_kept``, docs/accuracy.md).
+        (``refinement.solve_kept``, docs/explanation/solution_quality.md).
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()

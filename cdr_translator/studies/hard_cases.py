@@ -11,7 +11,7 @@ through discretization error, :func:`run_case` can re-solve it on a finer grid
 
 Axial buckling lives in :mod:`cdr_translator.studies.buckling` and the Markdown report in
 :mod:`cdr_translator.studies.hard_case_report`. ``bench/hard_cases.py`` runs it all and
-writes bench/results/hard_cases.md and the summary in docs/hard_cases.md;
+writes bench/results/hard_cases.md;
 ``tests/studies/test_hard_cases.py`` runs the quick cases.
 """
 
@@ -261,7 +261,8 @@ def stability(solver: TranslatorSolver, result: SolveResult) -> Tuple[Optional[b
     structure's stiffness crossing zero anywhere makes the Jacobian singular; an odd number
     of such crossings flips the determinant's sign, which catches internal modes the end
     disk does not feel. A symmetric pair of internal crossings would escape the second test
-    (the four-fold symmetry allows one); that limit is stated in docs/hard_cases.md.
+    (the four-fold symmetry allows one); that limit is stated in
+    docs/explanation/solution_quality.md.
     """
     if not result.converged:
         return None, 'not converged'

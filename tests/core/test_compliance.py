@@ -62,7 +62,7 @@ def test_compliance_symmetric_under_axial_or_no_load(compliance_solver, force):
 
     The structure is conservative: C = J K^-1 J^T with K the Hessian of the potential,
     pairing [f; m] with [v; w]. (Under a lateral preload the model's C46/C64 pair differs
-    by about 3 %: see docs/compliance.md.)
+    by about 3 %: see docs/explanation/model.md.)
     """
     matrix = compliance_solver.solve(force, compliance=True).compliance.matrix
     assert relative_difference(matrix, matrix.T) <= 1e-7
@@ -139,7 +139,7 @@ def test_table_iii_diagonal_within_25_percent(paper_cases, force, index):
     """
     The diagonal terms that can match do, within 25 %.
 
-    Not tested, with the reason in docs/compliance.md: C55 (and C44), set by the stretching of two
+    Not tested, with the reason in docs/explanation: C55 (and C44), set by the stretching of two
     secondaries, 2 EA r^2 / L_s, which the zero-load test confirms, is 4.7x the paper's;
     at 20 N the paper's C11 and C33 fall 2.9x from 12 N while its Table II bending angles,
     which this model reproduces, grow smoothly; C66 at 20 N rises 37 % in the paper.

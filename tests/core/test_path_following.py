@@ -1,7 +1,7 @@
 """
 The fallback continuation (cdr_translator.solve.path_following) and its use by TranslatorSolver.
 
-Torsion 40 N m stalls the default continuation (docs/hard_cases.md); the fallback takes it
+Torsion 40 N m stalls the default continuation (docs/explanation); the fallback takes it
 to the wrench. Solves that converge without it are unchanged, failures come back as
 results with a message.
 """

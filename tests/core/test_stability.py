@@ -1,4 +1,4 @@
-"""Stability verdict on every solve (cdr_translator.analysis.stability, docs/stability.md)."""
+"""Stability verdict on every solve (cdr_translator.analysis.stability, docs/explanation)."""
 
 import json
 

@@ -4,7 +4,7 @@ A flipped byte in each kind of record: info and replay say what is damaged, read
 The data section is the source of truth: a damaged summary (schemas, channels, statistics,
 chunk index, offsets, footer) is not used and the data section is read through; damage
 outside the chunks of the data section fails its CRC. Either way every intact message is
-replayed and replay exits 1 (docs/replay.md).
+replayed and replay exits 1 (docs/reference/cli.md).
 """
 
 from cdr_wire.reader import McapSource

@@ -27,7 +27,7 @@ def robot():
 
 class Layout:
     """
-    The CDR layout rebuilt from the raw YAML numbers and the conventions of docs/robot.md.
+    The CDR layout rebuilt from the raw YAML numbers and docs/reference/conventions.md.
 
     Written apart from delta_params.legs() so that the tests check that code too: leg i
     leaves its base point R_b (cos a_i, sin a_i, 0) - q_i z_w along the straight line to
@@ -182,7 +182,7 @@ def test_payload_sweep_mostly_translates(robot, sliders):
     """
     A 1 kg payload in 26 directions: the platform moves < 0.05 mm and turns < 0.1 deg.
 
-    (Measured: 0.037-0.039 mm and 0.063-0.065 deg; docs/robot.md.)
+    (Measured: 0.037-0.039 mm and 0.063-0.065 deg; docs/explanation/robot.md.)
     """
     unloaded = converged(robot, sliders)
     directions = [np.array(d, float) / np.linalg.norm(d)

@@ -151,7 +151,7 @@ def _rotation(vector):
 
 
 def _residual(robot, state, inputs):
-    """Return the CDR residual of docs/robot.md, written with numpy (the pre-compiled form)."""
+    """Return the CDR residual of docs/explanation/robot.md in numpy (the pre-compiled form)."""
     force, moment, offset = inputs[3:6], inputs[6:9], inputs[9:]
     residual = np.empty(24)
     total_force, total_moment = force.copy(), moment + np.cross(state.rotation @ offset, force)

@@ -1,5 +1,5 @@
 """
-docs/getting_started.md over DDS: its node command, its feed.py and the commands on the log.
+docs/tutorial/getting_started.md over DDS: its node command, its feed.py, the commands on its log.
 
 In a fresh folder and the module's own ROS domain: the guide's translator_node command
 line starts the node (this interpreter's console script), the guide's feed.py gets the
