@@ -51,6 +51,10 @@ LAB_SD = np.array([5.0, 5.0, 1.5, 0.1, 0.1, 0.1])
 
 NAMES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
 
+#: The figure's name of each choice of components.
+LEGEND = {'wrench': 'wrench (all six)', 'force': 'force (moment held at zero)',
+          'lateral': 'lateral (axial force and moment held)'}
+
 
 def covariance_of(position_sd: float, orientation_deg: float) -> np.ndarray:
     """Return the diagonal pose covariance (m^2, rad^2)."""
@@ -183,13 +187,12 @@ def draw(figure: Dict[str, dict], path: Path) -> None:
         for choice, found in figure.items():
             truths, estimates = np.array(found['truths']), np.array(found['estimates'])
             axis.plot(truths[:, index], estimates[:, index], 'o', ms=3, alpha=0.6,
-                      color=colours[choice], label=f'{choice}')
+                      color=colours[choice], label=LEGEND[choice])
         axis.plot([-span, span], [-span, span], 'k-', lw=0.8, label='estimate = truth')
         axis.set_xlabel(f'true {title} (N)')
         axis.set_ylabel(f'estimated {title} (N)')
         axis.set_title(f'{title}, tracker 0.2 mm / 0.1 deg')
         axis.grid(alpha=0.3)
-    axes[1].set_ylim(-12.0, 12.0)
     axes[0].legend(title='estimated components', loc='upper left', fontsize=8)
     fig.savefig(path, dpi=110)
 

@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PROBE = """
 import json
 import numpy as np
-from cdr_translator import _jit, rod
+from cdr_translator import _jit
+from cdr_translator.bvp import rod
 p, rot = np.zeros(3), np.eye(3)
 rod.rk4_stage_pose(p, rot, np.ones(3), np.zeros((3, 3)), 0.5, np.empty(3), np.empty((3, 3)))
 counts = _jit.kernel_counts()
@@ -106,7 +107,7 @@ def test_writable_package_caches_in_tree(copy):
     source, cache_home = copy / 'src', copy / 'cache'
     report = _probe(source, cache_home)
     assert report['location'] == str(source / 'cdr_translator' / '__pycache__')
-    assert list((source / 'cdr_translator' / '__pycache__').glob('rod.rk4_stage_pose-*.nbi'))
+    assert list((source / 'cdr_translator').rglob('__pycache__/rod.rk4_stage_pose-*.nbi'))
     assert not (cache_home / 'cdr_translator').exists()
 
 
@@ -124,7 +125,7 @@ def test_numba_cache_dir_wins(copy):
 def test_kernels_cached_with_other_options_are_compiled_anew(copy, stamp_text):
     """A folder stamped with other options (or none) is cleared: numba's index ignores them."""
     source, cache_home = copy / 'src', copy / 'cache'
-    stamp = source / 'cdr_translator' / '__pycache__' / OPTIONS_STAMP
+    stamp = source / 'cdr_translator' / 'bvp' / '__pycache__' / OPTIONS_STAMP  # rod's folder
     assert _probe(source, cache_home)['compiled'] >= 1
     assert stamp.read_text() == options_text()
     assert _probe(source, cache_home)['compiled'] == 0  # loaded: same options
@@ -138,14 +139,14 @@ def test_kernels_cached_with_other_options_are_compiled_anew(copy, stamp_text):
 
 
 def test_a_change_a_kernel_depends_on_clears_the_cache(tmp_path):
-    """A module a kernel module imports (problem.py) changed: new digest; the CLI: same."""
+    """A module a kernel module imports (bvp/problem.py) changed: new digest; the CLI: same."""
     package = tmp_path / 'cdr_translator'
     shutil.copytree(Path(cdr_translator._jit.__file__).parent, package,
                     ignore=shutil.ignore_patterns('__pycache__'))
     before = kernel_sources_digest(package)
     (package / 'cli.py').write_text((package / 'cli.py').read_text() + '# unrelated\n')
     assert kernel_sources_digest.__wrapped__(package) == before
-    imported = package / 'problem.py'
+    imported = package / 'bvp' / 'problem.py'
     assert '@jit' not in imported.read_text()
     imported.write_text(imported.read_text() + '# changed\n')
     assert kernel_sources_digest.__wrapped__(package) != before
