@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.parameter import Parameter
 import yaml
 
 from ..errors import ParameterError
@@ -21,7 +22,8 @@ from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..params_file import read_document
 
-__all__ = ['check_command_line', 'check_value', 'default_values', 'descriptor', 'MODEL_KEYS',
+__all__ = ['check_command_line', 'check_value', 'declared_value', 'default_values',
+           'descriptor', 'MODEL_KEYS',
            'model_params', 'NodeSettings', 'node_arguments', 'ParameterSpec',
            'ros_parameter_sources', 'SPECS']
 
@@ -46,6 +48,19 @@ def descriptor(spec: ParameterSpec, value: Any) -> ParameterDescriptor:
         described.floating_point_range = [FloatingPointRange(
             from_value=float(low), to_value=float(high), step=0.0)]
     return described
+
+
+def declared_value(value: Any) -> Any:
+    """
+    Return what ``declare_parameter`` takes for a default ``value``.
+
+    An empty list declares the double-array type with no value (rclpy would take ``[]`` for
+    a byte array and refuse doubles later; rcl reads ``[]`` in a file as not set); the node
+    reads the unset value back as ``[]``. Everything else as it is.
+    """
+    if isinstance(value, (list, tuple)) and not value:
+        return Parameter.Type.DOUBLE_ARRAY
+    return value
 
 
 def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str, Any]]:
