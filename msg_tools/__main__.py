@@ -106,7 +106,7 @@ def _parser() -> argparse.ArgumentParser:
     replay.add_argument('--progress', choices=('auto', 'always', 'never'), default='auto',
                         help='progress bar on stderr; auto: when stderr is a terminal')
     estimate = replay.add_argument_group(
-        'wrench estimates from measured poses (default: the params file\'s estimate_* keys)')
+        "wrench estimates from measured poses (default: the params file's estimate_* keys)")
     estimate.add_argument('--estimate', metavar='COMPONENTS',
                           help="components estimated: '' (all six), wrench, force, moment, "
                                "lateral, or names such as 'fx fy' (estimate_components)")

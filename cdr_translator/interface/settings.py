@@ -153,7 +153,7 @@ _ESTIMATE = (
     ParameterSpec('estimate_target_moment_sd', 'N m, the same for each moment component',
                   bounds=(1e-6, 1e6)),
     ParameterSpec('estimate_components', "wrench components estimated from a pose: '' (all "
-                  "six), wrench, force, moment, lateral, or names from fx fy fz mx my mz; "
+                  'six), wrench, force, moment, lateral, or names from fx fy fz mx my mz; '
                   'the others are held at estimate_held_force / estimate_held_moment'),
     ParameterSpec('estimate_held_force', 'N, [fx, fy, fz] of the force components not '
                   'estimated'),
@@ -227,7 +227,7 @@ def _doubles(name: str, value: Any, sizes: Tuple[int, ...]) -> Tuple[float, ...]
 
 
 def estimate_components(choice: str) -> Optional[Components]:
-    """Return ``estimate_components`` as ``estimate=`` takes it: None for '' (as the pose allows)."""
+    """Return ``estimate_components`` as ``estimate=`` takes it (None for '': the pose's choice)."""
     return choice.strip() or None
 
 

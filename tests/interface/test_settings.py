@@ -177,7 +177,7 @@ def test_the_shipped_file_is_the_default(tmp_path):
     ('estimate_target_moment_sd', 0.0, 'estimate_target_moment_sd must lie in'),
     ('estimate_pose_position_sd', -1e-4, 'estimate_pose_position_sd must lie in'),
     ('estimate_pose_orientation_sd', 4.0, 'estimate_pose_orientation_sd must lie in'),
-    ('estimate_components', 'fx fq', "estimate_components: estimate must be one of"),
+    ('estimate_components', 'fx fq', 'estimate_components: estimate must be one of'),
     ('estimate_components', 'fx fx', 'estimate_components: estimate names a component twice'),
     ('estimate_held_force', [1.0, 2.0], 'estimate_held_force must be a list of 3 doubles'),
     ('estimate_held_moment', [0.0, float('nan'), 0.0], 'estimate_held_moment[1]'),
