@@ -227,7 +227,7 @@ def _doubles(name: str, value: Any, sizes: Tuple[int, ...]) -> Tuple[float, ...]
 
 
 def estimate_components(choice: str) -> Optional[Components]:
-    """Return ``estimate_components`` as ``estimate=`` takes it (None for '': the pose's choice)."""
+    """Return ``estimate_components`` as ``estimate=`` takes it; '' (as the pose allows) None."""
     return choice.strip() or None
 
 
