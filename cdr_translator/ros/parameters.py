@@ -22,7 +22,7 @@ from ..interface.settings import TranslatorSettings
 from ..params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..params_file import read_document
 
-__all__ = ['check_command_line', 'check_value', 'declared_value', 'default_values',
+__all__ = ['check_command_line', 'check_value', 'declare', 'default_values',
            'descriptor', 'MODEL_KEYS',
            'model_params', 'NodeSettings', 'node_arguments', 'ParameterSpec',
            'ros_parameter_sources', 'SPECS']
@@ -50,17 +50,20 @@ def descriptor(spec: ParameterSpec, value: Any) -> ParameterDescriptor:
     return described
 
 
-def declared_value(value: Any) -> Any:
+def declare(node: Any, spec: ParameterSpec, value: Any) -> Any:
     """
-    Return what ``declare_parameter`` takes for a default ``value``.
+    Declare ``spec``'s parameter on ``node`` with the default ``value``; return its value.
 
-    An empty list declares the double-array type with no value (rclpy would take ``[]`` for
-    a byte array and refuse doubles later; rcl reads ``[]`` in a file as not set); the node
-    reads the unset value back as ``[]``. Everything else as it is.
+    An empty list is declared as an empty double array: rclpy would type ``[]`` a byte
+    array (and refuse doubles later), and rcl reads ``[]`` in a file as not set, which would
+    leave the parameter uninitialized (``ros2 param dump`` then returns nothing).
     """
+    described = descriptor(spec, value)
     if isinstance(value, (list, tuple)) and not value:
-        return Parameter.Type.DOUBLE_ARRAY
-    return value
+        node.declare_parameter(spec.name, Parameter.Type.DOUBLE_ARRAY, described)
+        node.set_parameters([Parameter(spec.name, Parameter.Type.DOUBLE_ARRAY, [])])
+        return []
+    return node.declare_parameter(spec.name, value, described).value
 
 
 def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str, Any]]:

@@ -182,6 +182,8 @@ def test_estimate_parameters_change_at_run_time(node):
     is refused with the reason naming it; the next pose is estimated with the new values.
     """
     assert node.get_parameter('estimate_components').value == ''
+    declared = node.get_parameter('estimate_prior_covariance')  # initialized: ros2 param dump
+    assert declared.type_ == Parameter.Type.DOUBLE_ARRAY and list(declared.value) == []
     assert node.get_parameter('estimate_pose_position_sd').value == 0.0002
     prior = np.diag([9.0, 9.0, 1.0, 0.04, 0.04, 0.04]).ravel().tolist()
     results = node.set_parameters([Parameter('estimate_prior_covariance', value=prior),
