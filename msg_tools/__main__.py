@@ -8,6 +8,10 @@ Command line of msg_tools (no ROS needed): info, synth, replay, calibrate.
     python -m msg_tools replay IN.mcap --out OUT.mcap [--topic NAME] [--params FILE]
                                [--csv FILE] [--plot FILE.png]
                                [--workers K | --scheduler ADDRESS]
+                               [--estimate COMPONENTS] [--held-force FX FY FZ]
+                               [--held-moment MX MY MZ] [--prior-force-sd N]
+                               [--prior-moment-sd NM] [--target-force-sd N]
+                               [--target-moment-sd NM] [--pose-sd POSITION_M ORIENTATION_RAD]
     python -m msg_tools calibrate RUN.mcap [RUN2.mcap ...] --fit NAME [NAME ...]
                                   [--fit-frame] [--params FILE] [--out fitted.yaml] [--json]
                                   [--plot PATH.png] [--stamp-tolerance S]
@@ -24,12 +28,13 @@ identified from the recordings. All: 141 when stdout was closed early (``| head`
 
 import argparse
 import sys
-from typing import Optional, Sequence
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
 
 quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
 
+from cdr_translator.interface.settings import check_value, TranslatorSettings  # noqa: E402
 from msg_tools import synth  # noqa: E402
 from msg_tools.calibration_command import (  # noqa: E402
     add_frame_option, add_parser, run_calibrate)
@@ -43,7 +48,7 @@ from msg_tools.replay_windows import replay_on_dask  # noqa: E402
 from msg_tools.synth import PROFILES  # noqa: E402
 from msg_tools.synth_poses import check_noise, measure  # noqa: E402
 
-__all__ = ['EXIT_BROKEN_PIPE', 'main']
+__all__ = ['ESTIMATE_FLAGS', 'estimate_parameters', 'EXIT_BROKEN_PIPE', 'main']
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -100,6 +105,31 @@ def _parser() -> argparse.ArgumentParser:
                          help='replay in log-time windows on the Dask cluster at ADDRESS')
     replay.add_argument('--progress', choices=('auto', 'always', 'never'), default='auto',
                         help='progress bar on stderr; auto: when stderr is a terminal')
+    estimate = replay.add_argument_group(
+        "wrench estimates from measured poses (default: the params file's estimate_* keys)")
+    estimate.add_argument('--estimate', metavar='COMPONENTS',
+                          help="components estimated: '' (all six), wrench, force, moment, "
+                               "lateral, or names such as 'fx fy' (estimate_components)")
+    estimate.add_argument('--held-force', type=float, nargs=3, metavar=('FX', 'FY', 'FZ'),
+                          help='N, the force components not estimated (estimate_held_force)')
+    estimate.add_argument('--held-moment', type=float, nargs=3, metavar=('MX', 'MY', 'MZ'),
+                          help='N m, the moment components not estimated '
+                               '(estimate_held_moment)')
+    estimate.add_argument('--prior-force-sd', type=float, metavar='N',
+                          help='N, prior sd of each force component (estimate_prior_force_sd)')
+    estimate.add_argument('--prior-moment-sd', type=float, metavar='NM',
+                          help='N m, prior sd of each moment component '
+                               '(estimate_prior_moment_sd)')
+    estimate.add_argument('--target-force-sd', type=float, metavar='N',
+                          help='N, posterior sd meeting the accuracy target '
+                               '(estimate_target_force_sd)')
+    estimate.add_argument('--target-moment-sd', type=float, metavar='NM',
+                          help='N m, the same for the moment (estimate_target_moment_sd)')
+    estimate.add_argument('--pose-sd', type=float, nargs=2,
+                          metavar=('POSITION_M', 'ORIENTATION_RAD'),
+                          help='noise assumed for a PoseStamped; 0 0: exact, accuracy not '
+                               'assessed (estimate_pose_position_sd, '
+                               'estimate_pose_orientation_sd)')
     add_parser(commands)
     return parser
 
@@ -156,6 +186,43 @@ def _run_synth(args: argparse.Namespace, argv: Optional[Sequence[str]]) -> int:
     return 0
 
 
+#: The replay flags that set translator_node's estimate parameters: flag, then the keys.
+ESTIMATE_FLAGS = (
+    ('--estimate', ('estimate_components',)),
+    ('--held-force', ('estimate_held_force',)),
+    ('--held-moment', ('estimate_held_moment',)),
+    ('--prior-force-sd', ('estimate_prior_force_sd',)),
+    ('--prior-moment-sd', ('estimate_prior_moment_sd',)),
+    ('--target-force-sd', ('estimate_target_force_sd',)),
+    ('--target-moment-sd', ('estimate_target_moment_sd',)),
+    ('--pose-sd', ('estimate_pose_position_sd', 'estimate_pose_orientation_sd')),
+)
+
+
+def estimate_parameters(args: argparse.Namespace) -> Dict[str, Any]:
+    """
+    Return the estimate parameters the replay flags given set, checked over ``--params``.
+
+    ValueError naming the flag for a value the node would refuse.
+    """
+    given: Dict[str, Tuple[str, Any]] = {}
+    for flag, keys in ESTIMATE_FLAGS:
+        value = getattr(args, flag[2:].replace('-', '_'))
+        if value is None:
+            continue
+        if len(keys) == 1:
+            given[keys[0]] = (flag, list(value) if isinstance(value, list) else value)
+        else:
+            given.update({key: (flag, item) for key, item in zip(keys, value)})
+    parameters = {key: value for key, (_, value) in given.items()}
+    others = {**TranslatorSettings.from_params_file(args.params).values(), **parameters}
+    for key, (flag, value) in given.items():
+        reason = check_value(key, value, others)
+        if reason is not None:
+            raise ValueError(f'{flag}: {reason}')
+    return parameters
+
+
 def _run_replay(args: argparse.Namespace) -> int:
     """Run ``python -m msg_tools replay`` with parsed ``args``; return the exit code."""
     stream = sys.stderr if (args.progress == 'always' or (
@@ -167,6 +234,7 @@ def _run_replay(args: argparse.Namespace) -> int:
         if args.plot:
             check_plot_path(args.plot)
         options = {'topics': args.topic, 'params_path': args.params,
+                   'parameters': estimate_parameters(args),
                    'compliance': not args.no_compliance, 'backbones': args.backbones,
                    'csv_path': args.csv, 'progress': stream,
                    'plot_samples': args.plot_samples or (),

@@ -22,7 +22,7 @@ import csv
 import math
 from pathlib import Path
 import time
-from typing import Any, Collection, Dict, IO, List, Optional, Sequence, Tuple, Union
+from typing import Any, Collection, Dict, IO, List, Mapping, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
@@ -212,7 +212,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
            progress: Optional[IO[str]] = None, flush_every_messages: int = 1000,
            flush_every_s: float = 2.0, plot_samples: Collection[int] = (),
            other_outputs: Sequence[Tuple[str, Union[str, Path]]] = (),
-           window: Optional[LogTimeWindow] = None) -> ReplaySummary:
+           window: Optional[LogTimeWindow] = None,
+           parameters: Optional[Mapping[str, Any]] = None) -> ReplaySummary:
     """
     Replay ``input_path`` into ``output_path``; return the summary.
 
@@ -227,6 +228,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     beyond the input's messages). ``other_outputs``: (what, path) of files the caller
     writes afterwards (the plot), checked with the others before the input is read.
     ``window``: replay only the messages logged in it (``log_time_window``).
+    ``parameters``: translator_node parameter values over those of ``params_path`` (the
+    estimate's, from the command line's flags), checked as the node checks them.
     """
     if Path(input_path).is_dir():
         raise ReplayError(f'{input_path} is a folder, not an MCAP file')
@@ -249,6 +252,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
         raise ValueError(f"plot samples {beyond} are beyond the input's {total} messages "
                          f'(indices 0..{total - 1})')
     settings = TranslatorSettings.from_params_file(params_path)
+    if parameters:
+        settings = settings.with_values(**parameters)
     params = settings.params
     source = McapSource(input_path, topics=chosen + poses, check_data_crc=True)
     estimators = pose_processors(poses, settings)

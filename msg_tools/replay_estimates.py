@@ -6,6 +6,7 @@ the estimation solver warm-started along the stream, the same messages); both me
 topics of one namespace share one processor, as they share one in the node. The input
 and the outputs (``estimated_wrench``, ``estimated_wrench_covariance``, ``/diagnostics``,
 in the input's namespace) are written with the input's log time; a pose gets no CSV row.
+The summary counts every pose as estimated, flagged, failed or rejected.
 """
 
 from typing import Dict, Sequence
@@ -43,11 +44,21 @@ def replay_pose(log: McapLog, raw: RawMessage, processor: PoseProcessor, decoder
         message = decoders.decode(raw)
     except ValueError as error:
         summary.undecodable += 1
+        summary.rejected_poses += 1
         summary.warn(f'message {index} on {raw.topic}: {error}')
         return
     outcome = processor.process(message)
-    if outcome.estimate is not None and outcome.estimate.converged:
-        summary.estimated += 1
+    estimate = outcome.estimate
+    if estimate is None:
+        summary.rejected_poses += 1
+    else:
+        summary.estimate_times.add(estimate.estimate_time_s)
+        if not estimate.converged:
+            summary.failed += 1
+        elif estimate.flagged:
+            summary.flagged += 1
+        else:
+            summary.estimated += 1
     for name, type_name, values in outcome.outputs:
         log.write(output_topic(raw.topic, name), type_name, values, raw.log_time_ns,
                   raw.log_time_ns)

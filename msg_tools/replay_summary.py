@@ -155,9 +155,16 @@ class ReplaySummary:
     not_converged: int = 0
     rejected: int = 0
     undecodable: int = 0
-    #: Measured end-disk poses replayed, and those a matching wrench was estimated for.
+    #: Measured end-disk poses replayed, each counted once more as: estimated (converged,
+    #: no flag), flagged (converged, not to be acted on), failed (not converged) or
+    #: rejected (undecodable or bad input).
     poses: int = 0
     estimated: int = 0
+    flagged: int = 0
+    failed: int = 0
+    rejected_poses: int = 0
+    #: Time of each estimate (converged or not).
+    estimate_times: TimeStats = field(default_factory=TimeStats)
     solve_times: TimeStats = field(default_factory=TimeStats)
     wall_s: float = 0.0
     interrupted: bool = False
@@ -228,11 +235,13 @@ class ReplaySummary:
         self.settle()
         later.settle()
         for name in ('messages', 'solved', 'not_converged', 'rejected', 'undecodable',
-                     'warnings_dropped', 'poses', 'estimated'):
+                     'warnings_dropped', 'poses', 'estimated', 'flagged', 'failed',
+                     'rejected_poses'):
             setattr(self, name, getattr(self, name) + getattr(later, name))
         for text in later.warnings:
             self.warn(text)
         self.solve_times.merge(later.solve_times)
+        self.estimate_times.merge(later.estimate_times)
         self.joints.merge(later.joints)
         if later.position_range is not None:
             self.converged_range(later.position_range)
@@ -254,6 +263,11 @@ class ReplaySummary:
             return
         self.position_range = np.array([np.minimum(self.position_range[0], low),
                                         np.maximum(self.position_range[1], high)])
+
+    def pose_counts(self) -> str:
+        """Return what became of every measured pose: '400: 209 estimated, 150 flagged, ...'."""
+        return (f'{self.poses}: {self.estimated} estimated, {self.flagged} flagged, '
+                f'{self.failed} failed, {self.rejected_poses} rejected')
 
     def exit_code(self) -> int:
         """Return the exit code (``EXIT_CODES``) this replay ends with."""
@@ -280,12 +294,16 @@ class ReplaySummary:
                 ('undecodable', str(self.undecodable)),
                 ('duplicates skipped', str(self.input_report.duplicates))]
         if self.poses:
-            rows.append(('measured poses', f'{self.poses} ({self.estimated} estimated)'))
+            rows.append(('measured poses', self.pose_counts()))
         if self.solve_times.count:
             p50, p90, p99 = (1e3 * self.solve_times.percentile(q) for q in (50, 90, 99))
             rows.append(('solve time ms p50/p90/p99/max',
                          f'{p50:.3f} / {p90:.3f} / {p99:.3f} / '
                          f'{1e3 * self.solve_times.max_s:.3f}'))
+        if self.estimate_times.count:
+            p50, p95 = (1e3 * self.estimate_times.percentile(q) for q in (50, 95))
+            rows.append(('estimate time ms p50/p95/max',
+                         f'{p50:.3f} / {p95:.3f} / {1e3 * self.estimate_times.max_s:.3f}'))
         rows.extend(self.joints.rows())
         if self.position_range is not None:
             position = 1e3 * self.position_range

@@ -24,9 +24,10 @@ from pathlib import Path
 import shutil
 import tempfile
 import time
-from typing import Any, Collection, IO, List, Optional, Sequence, Tuple, Union
+from typing import Any, Collection, IO, List, Mapping, Optional, Sequence, Tuple, Union
 
 from cdr_translator.interface import messages
+from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.robot.atlas import dask_client
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
@@ -66,13 +67,13 @@ def plan_windows(start_ns: int, end_ns: int, count: int) -> List[LogTimeWindow]:
 
 def replay_window(input_path: str, part_path: str, csv_path: Optional[str],
                   window: LogTimeWindow, topics: List[str], params_path: Optional[str],
-                  compliance: bool, backbones: bool, plot_samples: Collection[int]
-                  ) -> ReplaySummary:
+                  compliance: bool, backbones: bool, plot_samples: Collection[int],
+                  parameters: Optional[Mapping[str, Any]] = None) -> ReplaySummary:
     """Replay the messages of ``window`` into the part ``part_path`` (a Dask task)."""
     return replay(input_path, part_path, topics=topics, params_path=params_path,
                   compliance=compliance, backbones=backbones, csv_path=csv_path,
                   flush_every_messages=0, flush_every_s=0.0, plot_samples=plot_samples,
-                  window=window)
+                  window=window, parameters=parameters)
 
 
 def _check_outputs(input_path: Union[str, Path],
@@ -94,8 +95,8 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
                    backbones: bool = False, csv_path: Union[str, Path, None] = None,
                    progress: Optional[IO[str]] = None, plot_samples: Collection[int] = (),
                    other_outputs: Sequence[Tuple[str, Union[str, Path]]] = (),
-                   window_messages: int = MIN_WINDOW_MESSAGES, client: Any = None
-                   ) -> ReplaySummary:
+                   window_messages: int = MIN_WINDOW_MESSAGES, client: Any = None,
+                   parameters: Optional[Mapping[str, Any]] = None) -> ReplaySummary:
     """
     Replay as ``replay.replay`` does, in log-time windows on Dask workers; return the summary.
 
@@ -109,6 +110,8 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
         raise ValueError(f'--workers must be at least 1, got {workers}')
     _check_outputs(input_path, [('output MCAP', output_path), ('CSV', csv_path),
                                 *other_outputs])
+    if parameters:  # refused here, not in every window
+        TranslatorSettings.from_params_file(params_path).with_values(**parameters)
     source = McapSource(input_path)
     chosen, warnings, total, _ = select_topics(source, topics)
     span = source.channel_overview()[3]
@@ -134,7 +137,7 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
             client.submit(replay_window, str(input_path), str(parts / f'{k}.mcap'),
                           str(parts / f'{k}.csv') if csv_path else None, window, chosen,
                           str(params_path) if params_path else None, compliance, backbones,
-                          sorted(plot_samples), pure=False,
+                          sorted(plot_samples), dict(parameters or {}), pure=False,
                           key=f'replay-window-{k}-{time.time_ns()}')
             for k, window in enumerate(windows)]
         _merge(futures, parts, output_path, csv_path, summary, progress, total)

@@ -19,8 +19,8 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from . import messages
-from .settings import TranslatorSettings
-from ..estimation import measured_target, WrenchEstimate
+from .settings import estimate_components, TranslatorSettings
+from ..estimation import diagonal_prior, measured_target, WrenchEstimate
 from ..params.translator_params import TranslatorParams
 from ..solve.solver import TranslatorSolver
 
@@ -83,8 +83,26 @@ def check_pose(measured: MeasuredPose, frame: str, length: float) -> None:
                     None, length)
 
 
+def _accuracy_text(accuracy_met: Optional[bool]) -> str:
+    """Return 'true', 'false' or 'not assessed' (None: no pose covariance to judge by)."""
+    return 'not assessed' if accuracy_met is None else str(bool(accuracy_met)).lower()
+
+
+def _numbers_text(values: np.ndarray) -> str:
+    """Return numbers as '1.2e-05 3.4' ('nan' for a component that has none)."""
+    return ' '.join(f'{float(value):.4g}' for value in values)
+
+
 def estimate_values(estimate: WrenchEstimate) -> Dict[str, Any]:
-    """Return the diagnostic key/values of one estimate: residual, conditioning, stability."""
+    """
+    Return the diagnostic key/values of one estimate.
+
+    The residual, conditioning and stability; ``accuracy_met`` ('true', 'false' or 'not
+    assessed' for an exact pose); ``flags`` (the reasons not to act on it, '; '-joined,
+    'none'); the estimated ``components``; the posterior standard deviations of the six
+    components (``standard_deviation``, N and N m, fx..mz, 'nan' where not estimated or
+    without a pose covariance); ``chi_square`` and its tail probability ``chi_square_p``.
+    """
     poorly = ', '.join(f"{direction['label']} ({direction['ratio']:.3g} x)"
                        for direction in estimate.conditioning)
     values: Dict[str, Any] = {
@@ -95,7 +113,12 @@ def estimate_values(estimate: WrenchEstimate) -> Dict[str, Any]:
     if estimate.stable is not None:
         values['stable'] = bool(estimate.stable)
     values.update({'stability_margin': float(estimate.stability_margin),
-                   'accuracy_met': bool(estimate.accuracy_met),
+                   'accuracy_met': _accuracy_text(estimate.accuracy_met),
+                   'flags': '; '.join(estimate.flags) or 'none',
+                   'components': ' '.join(estimate.components),
+                   'standard_deviation': _numbers_text(estimate.standard_deviation),
+                   'chi_square': float(estimate.chi_square),
+                   'chi_square_p': float(estimate.chi_square_p),
                    'iterations': int(estimate.iterations), 'solves': int(estimate.solves),
                    'estimate_time_ms': 1e3 * float(estimate.estimate_time_s)})
     return values
@@ -105,13 +128,17 @@ def estimate_level(estimate: WrenchEstimate) -> int:
     """
     Return ERROR when no wrench matches the pose, WARN for one not to act on, else OK.
 
-    Not to act on: ``accuracy_met`` false (past buckling, near a bifurcation where another
-    wrench may match, or the forward solve off its accuracy target). A poorly observable
-    direction is reported in the values only: the axial force always is one.
+    Not to act on: ``flagged`` (past buckling, near a bifurcation where another wrench may
+    match, the forward solve off its accuracy target, a pose residual its covariance does
+    not allow, a spread beyond the target) or ``accuracy_met`` False. An exact pose's
+    estimate (``accuracy_met`` None: not assessed) without flags is OK. A poorly
+    observable direction is reported in the values only: the axial force always is one.
     """
     if not estimate.converged:
         return messages.ERROR
-    return messages.OK if estimate.accuracy_met else messages.WARN
+    if estimate.flagged or estimate.accuracy_met is False:
+        return messages.WARN
+    return messages.OK
 
 
 def estimate_messages(estimate: WrenchEstimate, stamp: Mapping[str, int], base_frame: str,
@@ -168,8 +195,11 @@ class MeasuredPoseProcessor(abc.ABC):
     """
     A node's handling of a stream of measured poses: check, estimate, messages.
 
-    Counts received, rejected, solved (a matching load found) and not converged poses and
-    reports them in every diagnostic; ``skipped`` is the caller's (0 offline).
+    Counts, reported in every diagnostic: ``received``; ``rejected`` (bad input);
+    ``solved`` (a matching load found: converged), split into ``estimated`` (no flag) and
+    ``flagged`` (not to be acted on); ``not_converged`` (failed: no load matches); and
+    ``skipped`` (the caller's: pushed out of the mailbox; 0 offline). Once idle,
+    received = solved + not_converged + rejected + skipped.
     """
 
     diagnostic_name = ESTIMATE_DIAGNOSTIC_NAME
@@ -177,7 +207,8 @@ class MeasuredPoseProcessor(abc.ABC):
     def __init__(self) -> None:
         """Start the counts at zero."""
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
-                                       'not_converged': 0, 'skipped': 0}
+                                       'estimated': 0, 'flagged': 0, 'not_converged': 0,
+                                       'skipped': 0}
 
     def reject(self, stamp: Mapping[str, int], reason: str) -> EstimateOutcome:
         """Count a rejected pose; return its ERROR diagnostic."""
@@ -201,7 +232,11 @@ class MeasuredPoseProcessor(abc.ABC):
         except ValueError as error:
             return self.reject(measured.stamp, str(error))
         estimate = self.estimate(measured)
-        self.counts['solved' if estimate.converged else 'not_converged'] += 1
+        if estimate.converged:
+            self.counts['solved'] += 1
+            self.counts['flagged' if estimate.flagged else 'estimated'] += 1
+        else:
+            self.counts['not_converged'] += 1
         return EstimateOutcome(estimate, '' if estimate.converged else estimate.message,
                                self.outputs(estimate, measured.stamp, dict(self.counts)))
 
@@ -219,23 +254,81 @@ class MeasuredPoseProcessor(abc.ABC):
         """Return the (topic, type, message) published for an estimate."""
 
 
+def estimate_options(settings: TranslatorSettings) -> Dict[str, Any]:
+    """
+    Return the keyword arguments of ``estimate_wrench`` the estimate parameters give.
+
+    ``estimate_components`` '' leaves the choice to the pose (all six components with an
+    orientation) and the held values unused; otherwise the others are held at
+    ``estimate_held_force`` / ``estimate_held_moment``. The prior is zero-mean, its
+    covariance ``estimate_prior_covariance`` or, when that is empty, diagonal from the two
+    prior standard deviations.
+    """
+    components = estimate_components(settings.estimate_components)
+    prior = (np.reshape(settings.estimate_prior_covariance, (6, 6))
+             if settings.estimate_prior_covariance
+             else diagonal_prior(settings.estimate_prior_force_sd,
+                                 settings.estimate_prior_moment_sd))
+    options: Dict[str, Any] = {
+        'estimate': components, 'prior_covariance': prior,
+        'target_force_sd': settings.estimate_target_force_sd,
+        'target_moment_sd': settings.estimate_target_moment_sd}
+    if components is not None:
+        options.update(force=np.array(settings.estimate_held_force),
+                       moment=np.array(settings.estimate_held_moment))
+    return options
+
+
+def assumed_pose_covariance(settings: TranslatorSettings) -> Optional[np.ndarray]:
+    """
+    Return the covariance assumed for a pose without one (a PoseStamped), 6x6.
+
+    Position then rotation about the base axes, from ``estimate_pose_position_sd`` and
+    ``estimate_pose_orientation_sd``; None (the pose is exact, the accuracy not assessed)
+    when both are 0. One of them 0 makes that part exact.
+    """
+    position_sd = settings.estimate_pose_position_sd
+    orientation_sd = settings.estimate_pose_orientation_sd
+    if position_sd == 0.0 and orientation_sd == 0.0:
+        return None
+    return np.diag(np.repeat([position_sd, orientation_sd], 3) ** 2)
+
+
 class PoseProcessor(MeasuredPoseProcessor):
     """translator_node's measured end-disk poses: the wrench, warm along the stream."""
 
     def __init__(self, params: TranslatorParams, settings: TranslatorSettings) -> None:
-        """Build the estimation solver for ``params``."""
+        """Build the estimation solver for ``params``; the estimate follows ``settings``."""
         super().__init__()
         self.settings = settings
         self.solver = estimation_solver(params, settings)
+        self._options_of: Tuple[Optional[TranslatorSettings], Dict[str, Any],
+                                Optional[np.ndarray]] = (None, {}, None)
 
     def check(self, measured: MeasuredPose) -> None:
         """Raise ValueError for another frame, a non-finite value, a bad quaternion."""
         check_pose(measured, self.settings.base_frame, self.solver.params.stack_height)
 
+    def _options(self) -> Tuple[Dict[str, Any], Optional[np.ndarray]]:
+        """Return (estimate options, assumed pose covariance) of the current settings."""
+        settings, options, covariance = self._options_of
+        if settings is not self.settings:  # a run-time change replaced the snapshot
+            settings, options, covariance = (self.settings, estimate_options(self.settings),
+                                             assumed_pose_covariance(self.settings))
+            self._options_of = (settings, options, covariance)
+        return options, covariance
+
     def estimate(self, measured: MeasuredPose) -> WrenchEstimate:
-        """Estimate the end-disk wrench (warm-started from the last estimate)."""
+        """
+        Estimate the end-disk wrench (warm-started from the last estimate).
+
+        A PoseWithCovarianceStamped's covariance is used as it is; a PoseStamped gets the
+        one the parameters assume (``assumed_pose_covariance``).
+        """
+        options, assumed = self._options()
+        covariance = measured.covariance if measured.covariance is not None else assumed
         return self.solver.estimate_wrench(measured.position, measured.quaternion_xyzw,
-                                           pose_covariance=measured.covariance)
+                                           pose_covariance=covariance, **options)
 
     def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
                 counts: Mapping[str, int]) -> List[Tuple[str, str, dict]]:

@@ -13,10 +13,13 @@ descriptors.
 
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, Iterable, Mapping, Optional, Sequence, Tuple, Union
 
-from ..checks import check_integer, check_number
-from ..errors import ParameterError
+import numpy as np
+
+from ..checks import check_covariance, check_integer, check_number
+from ..errors import InputError, ParameterError
+from ..estimation import Components, estimated_components
 from ..fidelity import FIDELITIES
 from ..params.params_file import layered_values
 from ..params.translator_params import (Accuracy, ACCURACY_KEYS, DEFAULT_PARAMS_PATH,
@@ -25,13 +28,13 @@ from ..params.translator_params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGM
 from ..params.translator_params import TranslatorParams
 from ..robot.params import CDR_NODE_NAME, CDR_NODE_ONLY_KEYS, cdr_values, DeltaParams
 
-__all__ = ['CDR_SPECS', 'CdrSettings', 'check_value', 'MODEL_KEYS', 'ParameterSpec', 'SPECS',
-           'TranslatorSettings']
+__all__ = ['CDR_SPECS', 'CdrSettings', 'check_value', 'ESTIMATE_KEYS', 'estimate_components',
+           'MODEL_KEYS', 'ParameterSpec', 'SPECS', 'TranslatorSettings']
 
 PathLike = Union[str, Path]
 
 #: Units a spec's description may open with, before a comma ('m, radius of ...').
-UNITS = ('m', 'Pa', 'N', 'N m', 's', 'deg')
+UNITS = ('m', 'Pa', 'N', 'N m', 's', 'deg', 'rad')
 
 
 @dataclass(frozen=True)
@@ -137,9 +140,39 @@ _ACCURACY = (
                   read_only=True, bounds=(0.0, 90.0)),
 )
 
+_ESTIMATE = (
+    ParameterSpec('estimate_prior_force_sd', 'N, standard deviation of the zero-mean '
+                  'Gaussian prior on each force component of an estimated wrench',
+                  bounds=(1e-6, 1e6)),
+    ParameterSpec('estimate_prior_moment_sd', 'N m, standard deviation of the prior on each '
+                  'moment component', bounds=(1e-6, 1e6)),
+    ParameterSpec('estimate_prior_covariance', '36 doubles, row-major 6x6 prior covariance of '
+                  '[f; m] (symmetric positive semidefinite); empty: the two prior sds'),
+    ParameterSpec('estimate_target_force_sd', 'N, posterior standard deviation of each '
+                  'estimated force component that meets the accuracy target',
+                  bounds=(1e-6, 1e6)),
+    ParameterSpec('estimate_target_moment_sd', 'N m, the same for each moment component',
+                  bounds=(1e-6, 1e6)),
+    ParameterSpec('estimate_components', "wrench components estimated from a pose: '' (all "
+                  'six), wrench, force, moment, lateral, or names from fx fy fz mx my mz; '
+                  'the others are held at estimate_held_force / estimate_held_moment'),
+    ParameterSpec('estimate_held_force', 'N, [fx, fy, fz] of the force components not '
+                  'estimated'),
+    ParameterSpec('estimate_held_moment', 'N m, [mx, my, mz] of the moment components not '
+                  'estimated'),
+    ParameterSpec('estimate_pose_position_sd', 'm, position standard deviation assumed for a '
+                  'PoseStamped (no covariance); 0 with estimate_pose_orientation_sd 0: exact '
+                  'pose, accuracy not assessed', bounds=(0.0, 1.0)),
+    ParameterSpec('estimate_pose_orientation_sd', 'rad, orientation standard deviation '
+                  'assumed for a PoseStamped (about each base axis)', bounds=(0.0, 3.2)),
+)
+
 #: Every parameter translator_node declares, by name.
-SPECS: Mapping[str, ParameterSpec] = {spec.name: spec
-                                      for spec in _MODEL + _NODE + _FIDELITY + _ACCURACY}
+SPECS: Mapping[str, ParameterSpec] = {
+    spec.name: spec for spec in _MODEL + _NODE + _FIDELITY + _ACCURACY + _ESTIMATE}
+
+#: The estimate's parameters: how a wrench is estimated from a measured pose.
+ESTIMATE_KEYS = frozenset(spec.name for spec in _ESTIMATE)
 
 #: The model's keys (TranslatorParams fields), as opposed to the node-only ones.
 MODEL_KEYS = frozenset(spec.name for spec in _MODEL)
@@ -173,7 +206,58 @@ CDR_SPECS: Mapping[str, ParameterSpec] = {
     **{name: SPECS[name] for name in sorted(CDR_NODE_ONLY_KEYS) if name in SPECS},
     **{spec.name: spec for spec in _GEOMETRY + _CDR_NODE}}
 
+#: The translator_node keys whose values are lists of doubles.
+_LISTS = ('estimate_prior_covariance', 'estimate_held_force', 'estimate_held_moment')
+
 _FRAME_PAIRS = {'base_frame': 'end_disk_frame', 'end_disk_frame': 'base_frame'}
+
+
+def _doubles(name: str, value: Any, sizes: Tuple[int, ...]) -> Tuple[float, ...]:
+    """Return a list of doubles as floats; ParameterError unless ``sizes`` allows its length."""
+    items = [] if value is None else value  # an empty double array ROS holds unset
+    if isinstance(items, (str, bytes)) or not isinstance(items, Sequence) and not hasattr(
+            items, 'tolist'):
+        raise ParameterError(f'{name} must be a list of {" or ".join(map(str, sizes))} '
+                             f'doubles, got {value!r}')
+    items = list(items)
+    if len(items) not in sizes or not all(isinstance(item, float) for item in items):
+        raise ParameterError(f'{name} must be a list of {" or ".join(map(str, sizes))} '
+                             f'doubles (1.0, not 1), got {value!r}')
+    return tuple(check_number(f'{name}[{index}]', item, error=ParameterError)
+                 for index, item in enumerate(items))
+
+
+def estimate_components(choice: str) -> Optional[Components]:
+    """Return ``estimate_components`` as ``estimate=`` takes it; '' (as the pose allows) None."""
+    return choice.strip() or None
+
+
+def _estimate_reason(name: str, value: Any, others: Mapping[str, Any]) -> Optional[str]:
+    """Return why an estimate parameter may not take ``value`` (None if it may)."""
+    values = {**others, name: value}
+    try:
+        if name in ('estimate_held_force', 'estimate_held_moment'):
+            _doubles(name, value, (3,))
+        if name in ('estimate_components', 'estimate_prior_covariance'):
+            choice = values.get('estimate_components', '')
+            if not isinstance(choice, str):
+                return f'estimate_components must be a string, got {choice!r}'
+            try:
+                free = list(estimated_components(estimate_components(choice), True, None,
+                                                 None))
+            except InputError as error:
+                return f'estimate_components: {error}'
+            matrix = _doubles('estimate_prior_covariance',
+                              values.get('estimate_prior_covariance', ()), (0, 36))
+            if matrix:
+                checked = check_covariance('estimate_prior_covariance',
+                                           np.reshape(matrix, (6, 6)), 6, ParameterError)
+                if np.linalg.eigvalsh(checked[np.ix_(free, free)])[0] <= 0.0:
+                    return ('estimate_prior_covariance must be positive definite over the '
+                            f'estimated components ({choice or "wrench"})')
+    except ParameterError as error:
+        return str(error)
+    return None
 
 
 def check_value(name: str, value: Any, others: Mapping[str, Any]) -> Optional[str]:
@@ -181,7 +265,7 @@ def check_value(name: str, value: Any, others: Mapping[str, Any]) -> Optional[st
     Return why ``name`` may not take ``value`` (None if it may), given the other values.
 
     Bounds as the specs give them, and what a bound cannot say: frame names non-empty,
-    without white space and distinct.
+    without white space and distinct; the estimate's lists and components.
     """
     spec = SPECS.get(name) or CDR_SPECS.get(name)
     try:
@@ -189,6 +273,8 @@ def check_value(name: str, value: Any, others: Mapping[str, Any]) -> Optional[st
             spec.check(value)
     except ParameterError as error:
         return str(error)
+    if name in ESTIMATE_KEYS:
+        return _estimate_reason(name, value, others)
     if name in ('base_frame', 'end_disk_frame', 'world_frame'):
         if not isinstance(value, str) or not value.strip():
             return f'{name} must not be empty'
@@ -242,6 +328,16 @@ class TranslatorSettings:
     max_angle_error: float
     accuracy_position_m: float
     accuracy_angle_deg: float
+    estimate_prior_force_sd: float
+    estimate_prior_moment_sd: float
+    estimate_prior_covariance: Tuple[float, ...]  # empty, or 36 (row-major 6x6)
+    estimate_target_force_sd: float
+    estimate_target_moment_sd: float
+    estimate_components: str
+    estimate_held_force: Tuple[float, ...]
+    estimate_held_moment: Tuple[float, ...]
+    estimate_pose_position_sd: float
+    estimate_pose_orientation_sd: float
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> 'TranslatorSettings':
@@ -252,8 +348,10 @@ class TranslatorSettings:
             raise ParameterError(f'{NODE_NAME} parameters: missing {missing}, unknown {unknown}')
         _checked(values, SPECS)
         params = TranslatorParams.from_mapping({key: values[key] for key in MODEL_KEYS})
-        return cls(params=params, **{key: values[key]
-                                     for key in NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS})
+        kept = {key: values[key] for key in NODE_ONLY_KEYS | FIDELITY_KEYS | ACCURACY_KEYS}
+        for key in _LISTS:  # immutable, as the snapshot is
+            kept[key] = _doubles(key, values[key], (0, 3, 36))
+        return cls(params=params, **kept)
 
     @classmethod
     def from_params_files(cls, paths: Iterable[Optional[PathLike]] = (),
@@ -285,6 +383,7 @@ class TranslatorSettings:
         """Return the flat parameter mapping, as written in the params file."""
         flat = {field.name: getattr(self, field.name) for field in fields(self)
                 if field.name != 'params'}
+        flat.update({key: list(flat[key]) for key in _LISTS})
         flat.update(self.params.to_dict())
         return flat
 

@@ -67,7 +67,11 @@ MAX_REFINED_STEPS = MAX_STEPS_PER_SEGMENT
 NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
     'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
-    'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth', 'pending_wrenches'))
+    'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth', 'pending_wrenches',
+    'estimate_prior_force_sd', 'estimate_prior_moment_sd', 'estimate_prior_covariance',
+    'estimate_target_force_sd', 'estimate_target_moment_sd', 'estimate_components',
+    'estimate_held_force', 'estimate_held_moment', 'estimate_pose_position_sd',
+    'estimate_pose_orientation_sd'))
 
 #: Keys of the same params file that choose the fidelity level and its error budget
 #: (read by cdr_translator.fidelity.FidelitySolver.from_params_file, not by TranslatorParams).

@@ -127,9 +127,12 @@ def count_line(what: str, counts: Mapping[str, int], solved: str = 'estimated',
     """
     Return the closing log line of an input stream's counts.
 
-    ``solved`` names what became of the inputs answered; ``skipped`` explains the skipped.
+    ``solved`` names what became of the inputs answered (those of them flagged, not to be
+    acted on, in brackets when the counts have ``flagged``); ``skipped`` explains the
+    skipped.
     """
-    return (f'{what}: {counts["received"]} received, {counts["solved"]} {solved}, '
+    flagged = f' ({counts["flagged"]} flagged)' if 'flagged' in counts else ''
+    return (f'{what}: {counts["received"]} received, {counts["solved"]} {solved}{flagged}, '
             f'{counts["rejected"]} rejected, {counts["not_converged"]} not converged, '
             f'{counts["skipped"]} skipped{skipped}')
 

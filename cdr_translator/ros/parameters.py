@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.parameter import Parameter
 import yaml
 
 from ..errors import ParameterError
@@ -21,7 +22,8 @@ from ..interface.settings import TranslatorSettings
 from ..params.params_file import read_document
 from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
 
-__all__ = ['check_command_line', 'check_value', 'default_values', 'descriptor', 'MODEL_KEYS',
+__all__ = ['check_command_line', 'check_value', 'declare', 'default_values',
+           'descriptor', 'MODEL_KEYS',
            'model_params', 'NodeSettings', 'node_arguments', 'ParameterSpec',
            'ros_parameter_sources', 'SPECS']
 
@@ -46,6 +48,22 @@ def descriptor(spec: ParameterSpec, value: Any) -> ParameterDescriptor:
         described.floating_point_range = [FloatingPointRange(
             from_value=float(low), to_value=float(high), step=0.0)]
     return described
+
+
+def declare(node: Any, spec: ParameterSpec, value: Any) -> Any:
+    """
+    Declare ``spec``'s parameter on ``node`` with the default ``value``; return its value.
+
+    An empty list is declared as an empty double array: rclpy would type ``[]`` a byte
+    array (and refuse doubles later), and rcl reads ``[]`` in a file as not set, which would
+    leave the parameter uninitialized (``ros2 param dump`` then returns nothing).
+    """
+    described = descriptor(spec, value)
+    if isinstance(value, (list, tuple)) and not value:
+        node.declare_parameter(spec.name, Parameter.Type.DOUBLE_ARRAY, described)
+        node.set_parameters([Parameter(spec.name, Parameter.Type.DOUBLE_ARRAY, [])])
+        return []
+    return node.declare_parameter(spec.name, value, described).value
 
 
 def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str, Any]]:

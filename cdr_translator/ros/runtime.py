@@ -28,6 +28,7 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as rclpy_extension
 from rclpy.node import Node
@@ -312,6 +313,14 @@ def log_lost(log: Optional[NodeLog]) -> Dict[str, int]:
     return {'log_records_lost': log.status().lost + log.errors}
 
 
+def _current_value(node: Any, name: str) -> Any:
+    """Return a parameter's value; None while declared by type only (parameters.declare)."""
+    try:
+        return node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return None
+
+
 def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[Any],
                      check: Callable[[str, Any, Mapping[str, Any]], Optional[str]] = check_value
                      ) -> SetParametersResult:
@@ -322,8 +331,7 @@ def check_parameters(node: Any, specs: Mapping[str, Any], parameters: Sequence[A
     the others as they would be after the change; descriptors have already checked
     read-only and ranges.
     """
-    values = {name: node.get_parameter(name).value for name in specs
-              if node.has_parameter(name)}
+    values = {name: _current_value(node, name) for name in specs if node.has_parameter(name)}
     values.update({parameter.name: parameter.value for parameter in parameters})
     for parameter in parameters:
         reason = check(parameter.name, parameter.value, values)

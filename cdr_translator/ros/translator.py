@@ -39,7 +39,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
-from .parameters import descriptor, ros_parameter_sources, SPECS
+from .parameters import declare, ros_parameter_sources, SPECS
 from .runtime import check_parameters, LatestMailbox, log_health, log_lost
 from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
 from .runtime import OUTPUTS, run
@@ -80,8 +80,7 @@ class TranslatorNode(Node):
         settings = TranslatorSettings.from_params_files(
             files, namespace=self.get_namespace(), defaults_path=params_path,
             node_name=self.get_name(), overrides=overrides)
-        values = {name: self.declare_parameter(name, value,
-                                               descriptor(SPECS[name], value)).value
+        values = {name: declare(self, SPECS[name], value)
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)
         self.solver = node_solver(self._settings.params, self._settings)

@@ -11,6 +11,7 @@ from cdr_translator.params.translator_params import NODE_ONLY_KEYS
 from cdr_translator.params.translator_params import ParameterError, read_params_file
 from cdr_translator.robot import DeltaParams, DeltaRobot
 from cdr_translator.robot.params import CDR_NODE_ONLY_KEYS
+import numpy as np
 import pytest
 import yaml
 
@@ -168,3 +169,55 @@ def test_the_shipped_file_is_the_default(tmp_path):
         TranslatorSettings.from_params_file()
     with pytest.raises(ParameterError, match='cannot read parameter file'):
         TranslatorSettings.from_params_file(tmp_path / 'missing.yaml')
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('estimate_prior_force_sd', 0.0, 'estimate_prior_force_sd must lie in'),
+    ('estimate_prior_moment_sd', -1.0, 'estimate_prior_moment_sd must lie in'),
+    ('estimate_target_force_sd', 0.0, 'estimate_target_force_sd must lie in'),
+    ('estimate_target_moment_sd', 0.0, 'estimate_target_moment_sd must lie in'),
+    ('estimate_pose_position_sd', -1e-4, 'estimate_pose_position_sd must lie in'),
+    ('estimate_pose_orientation_sd', 4.0, 'estimate_pose_orientation_sd must lie in'),
+    ('estimate_components', 'fx fq', 'estimate_components: estimate must be one of'),
+    ('estimate_components', 'fx fx', 'estimate_components: estimate names a component twice'),
+    ('estimate_held_force', [1.0, 2.0], 'estimate_held_force must be a list of 3 doubles'),
+    ('estimate_held_moment', [0.0, float('nan'), 0.0], 'estimate_held_moment[1]'),
+    ('estimate_prior_covariance', [1.0] * 35, 'estimate_prior_covariance must be a list of 0 '
+                                              'or 36 doubles'),
+    ('estimate_prior_covariance', [1] * 36, '(1.0, not 1)'),
+    ('estimate_prior_covariance', (np.eye(6) + np.eye(6, k=1)).ravel().tolist(),
+     'estimate_prior_covariance must be symmetric'),
+    ('estimate_prior_covariance', (-np.eye(6)).ravel().tolist(),
+     'estimate_prior_covariance must be positive semidefinite'),
+    ('estimate_prior_covariance', np.diag([1.0] * 5 + [0.0]).ravel().tolist(),
+     'estimate_prior_covariance must be positive definite over the estimated components'),
+])
+def test_bad_estimate_parameters_are_named(name, value, reason):
+    """Each estimate parameter refuses a bad value with a reason naming it, as ParameterError."""
+    settings = TranslatorSettings.from_params_file()
+    assert reason in check_value(name, value, settings.values())
+    with pytest.raises(ParameterError) as error:
+        settings.with_values(**{name: value})
+    assert reason in str(error.value)
+
+
+def test_estimate_parameters_from_a_file(tmp_path):
+    """A prior covariance (36 doubles over an empty default) and held values, from a file."""
+    prior = np.diag([4.0, 4.0, 1.0, 0.01, 0.01, 0.0]).ravel().tolist()
+    path = write(tmp_path, {'translator_node': {'ros__parameters': {
+        'estimate_prior_covariance': prior, 'estimate_components': 'force',
+        'estimate_held_moment': [0.0, 0.01, 0.0], 'estimate_pose_position_sd': 0.0}}})
+    settings = TranslatorSettings.from_params_file(path)
+    assert settings.estimate_prior_covariance == tuple(prior)
+    assert settings.estimate_held_moment == (0.0, 0.01, 0.0)
+    assert settings.estimate_components == 'force'
+    assert settings.values()['estimate_prior_covariance'] == prior
+    assert TranslatorSettings.from_values(settings.values()) == settings
+    # the torsion's zero prior variance is fine while torsion is held, not once estimated
+    with pytest.raises(ParameterError, match='positive definite over the estimated'):
+        settings.with_values(estimate_components='')
+    path = write(tmp_path, {'translator_node': {'ros__parameters': {
+        'estimate_held_force': [1, 0, 0]}}})
+    with pytest.raises(ParameterError, match=r'estimate_held_force must be a double_array, '
+                                             r'got integer_array \[1, 0, 0\]'):
+        TranslatorSettings.from_params_file(path)

@@ -33,6 +33,11 @@ BAD = {
                  'youngs_modulous (did you mean youngs_modulus?)'),
     'integer': ({'/**': {'ros__parameters': {'max_force': 50}}},
                 'max_force must be a double, got integer 50 (write 50.0)'),
+    'components': ({'translator_node': {'ros__parameters': {'estimate_components': 'fx fq'}}},
+                   "estimate_components: estimate must be one of ['force', 'lateral'"),
+    'prior': ({'translator_node': {'ros__parameters': {
+        'estimate_prior_covariance': [1.0] * 35}}},
+        'estimate_prior_covariance must be a list of 0 or 36 doubles'),
 }
 FORCE = (6.0, 0.0, 0.0)
 
