@@ -12,7 +12,8 @@ import time
 from typing import List, Optional
 
 import numpy as np
-from scipy.stats import chi2
+# the chi-square tail from scipy.special: scipy.stats takes about a second to import
+from scipy.special import chdtrc
 
 from .problem import estimated_name, Evaluation, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
@@ -54,7 +55,7 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     error = frame_twist(target.frame, best.frame)
     whitened = weights.pose @ error[rows]
     chi_square = float(whitened @ whitened)
-    tail = float(chi2.sf(chi_square, len(rows))) if target.covariance is not None else math.nan
+    tail = float(chdtrc(len(rows), chi_square)) if target.covariance is not None else math.nan
     deviation = np.zeros(6)
     deviation[free] = np.sqrt(np.maximum(np.diag(posterior), 0.0))
     flags = _flags(found, best, target, deviation, tail)
