@@ -53,7 +53,7 @@ from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
 import numpy as np
 
 from . import auto_batch
-from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, OUTSIDE, TRUSTED
+from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, NO_VERDICT, OUTSIDE, TRUSTED
 from .validation import box_half_widths as validation_half_widths
 from .validation import box_scale, frame_errors
 from .._linalg import norm
@@ -291,10 +291,14 @@ class AutoFidelity:
                 or solver.validation is None):
             level, reason = self.validated_choice(wrench)
             return solver._solve_at(level, reason, wrench, compliance, options)
-        verdict, scale = self._verdict(wrench)
+        # an answer below 'full' carries the verdict of a full solution near it (verdicts.py):
+        # where none is near, the answer is a full solve, which judges itself
+        covered = solver.carried_verdict(wrench) is not None
+        verdict, scale = self._verdict(wrench) if covered else (None, math.nan)
         if verdict == 'take':
             self.served(scale)
-            return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
+            return solver._solve_at('linear', TRUSTED, wrench, compliance, options,
+                                    self.curvature * scale ** 2)
         if verdict == 'check' and self._gain is None:
             return self._first_check(wrench, compliance, options)
         if verdict == 'check':
@@ -307,22 +311,37 @@ class AutoFidelity:
                 return solver._solve_at(
                     'linear', "checked by the full model's residual: error about "
                     f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
-                    options)
+                    options, errors)
             self.counts['failed_checks'] += 1
         levels = self._reduced_candidates(wrench)
+        uncovered = not covered and (bool(levels) or self._verdict(wrench)[0] is not None)
+        if not covered:
+            levels = []
         if self._expansion_pays(wrench, self.costs[levels[0]] if levels else None):
             return self._full(wrench, True, compliance, options, 'an expansion about it pays')
         if not levels:  # the same question as just answered
+            if uncovered and box_scale(wrench) <= 1.0:
+                return self._verdict_solve(wrench, compliance, options)
             return solver._solve_at('full', OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER,
                                     wrench, compliance, options)
+        validation = solver.validation
+        assert validation is not None  # a budget without data answers 'full'
         for level in levels:
             result = solver._solve_at(level, 'validated error inside the budget here', wrench,
-                                      compliance, options)
+                                      compliance, options,
+                                      validation.levels[level].errors_at(box_scale(wrench)))
             if result.converged and not self._refuted(wrench, result):
                 return result
         reason = OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER
         return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
                           reason)
+
+    def _verdict_solve(self, wrench: np.ndarray, compliance: bool,
+                       options: dict) -> SolveResult:
+        """Answer in full for want of a verdict; the reduced answers near it carry its verdict."""
+        result = self.solver._solve_at('full', NO_VERDICT, wrench, compliance, options)
+        self.solver.note_full_answer(wrench, result.stable, result.stability_margin)
+        return result
 
     def _first_check(self, wrench: np.ndarray, compliance: bool,
                      options: dict) -> SolveResult:
@@ -335,6 +354,7 @@ class AutoFidelity:
         residual = self._start_full_at(wrench, unknowns)
         result = solver._solve_at('full', 'the first check of the expansion', wrench,
                                   compliance, options)
+        solver.note_full_answer(wrench, result.stable, result.stability_margin)
         self.counts['checks'] += 1
         if not result.converged or residual <= 0.0:
             self.counts['failed_checks'] += 1

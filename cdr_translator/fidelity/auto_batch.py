@@ -23,6 +23,7 @@ import numpy as np
 
 from . import batch_rows
 from .validation import box_scale, box_scales
+from .verdicts import carried_rows
 from ..batch import BatchResult
 
 if TYPE_CHECKING:
@@ -38,6 +39,8 @@ OUTSIDE = 'wrench outside the validated range'
 NO_CHEAPER = 'no cheaper level meets the budget'
 NO_BUDGET = 'no error budget'
 NO_DATA = 'no validation data for these parameters'
+NO_VERDICT = ('no full solution near enough to carry its stability verdict to a cheaper '
+              'level here')
 
 
 def solve_many(auto: 'AutoFidelity', wrenches: np.ndarray, batch: BatchResult,
@@ -56,15 +59,19 @@ def solve_many(auto: 'AutoFidelity', wrenches: np.ndarray, batch: BatchResult,
         end = row + trusted_rows(auto, wrenches[row:])
         if end > row:
             origin = solver.tangent.origin
-            auto.served(float(box_scales(wrenches[row:end] - origin).max()))
+            scales = box_scales(wrenches[row:end] - origin)
+            auto.served(float(scales.max()))
             batch_rows.solve_run(solver, 'linear', TRUSTED, wrenches, range(row, end),
-                                 batch, compliance)
+                                 batch, compliance, auto.curvature * scales[:, None] ** 2)
             row = end
             continue
         count, level = reduced_rows(auto, wrenches[row:], compliance)
         if count:
+            assert solver.validation is not None  # reduced_rows needs the data
+            estimates = solver.validation.levels[level].errors_at(
+                box_scales(wrenches[row:row + count]))
             row += batch_rows.reduced_run_to_failure(solver, level, wrenches,
-                                                     range(row, row + count), batch)
+                                                     range(row, row + count), batch, estimates)
             if row < len(wrenches):  # the row that failed there (or the next): by solve
                 batch.run(row, _row, wrenches[row], compliance)
                 row += 1
@@ -96,8 +103,15 @@ def _runs(wrenches: np.ndarray, taken) -> int:
     return count
 
 
+def covered(auto: 'AutoFidelity', wrenches: np.ndarray) -> np.ndarray:
+    """Per row: whether a full solution's verdict reaches it (FidelitySolver.carried_verdict)."""
+    solver = auto.solver
+    return carried_rows(wrenches, solver.verdict_references(), solver.load_scale,
+                        solver.params.stack_height) >= 0
+
+
 def trusted_rows(auto: 'AutoFidelity', wrenches: np.ndarray) -> int:
-    """How many leading rows of ``wrenches`` ``auto.linear_verdict`` takes as they are."""
+    """How many leading rows of ``wrenches`` ``auto.solve`` answers by the expansion, unchecked."""
     origin = auto.solver.tangent.origin
     if origin is None or box_scale(origin) > 1.0:
         return 0
@@ -105,7 +119,7 @@ def trusted_rows(auto: 'AutoFidelity', wrenches: np.ndarray) -> int:
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part - origin)
         return ((box_scales(part) <= 1.0) & (scales <= auto.trusted)
-                & auto.within_linear_target(scales))
+                & auto.within_linear_target(scales) & covered(auto, part))
 
     return _runs(wrenches, taken)
 
@@ -154,7 +168,8 @@ def reduced_rows(auto: 'AutoFidelity', wrenches: np.ndarray, compliance: bool
         admitted = (scales <= 1.0) & (scales <= reaches[chosen])
         for level in cheaper:
             admitted &= scales > reaches[level]
-        return admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
+        return (admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
+                & covered(auto, part))
 
     return _runs(wrenches, taken), chosen
 

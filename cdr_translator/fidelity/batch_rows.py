@@ -18,6 +18,7 @@ from typing import Optional, TYPE_CHECKING
 import numpy as np
 
 from .validation import box_scale, box_scales
+from .verdicts import carried_rows, note
 from .. import lean_rows
 from ..batch import BatchResult, RowSolver, SolveDetails
 from ..compliance import ComplianceAnalysis
@@ -36,18 +37,49 @@ def compiled_runs(solver: 'FidelitySolver') -> bool:
 
 
 def solve_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
-              rows: range, batch: BatchResult, compliance: bool) -> None:
-    """Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``."""
+              rows: range, batch: BatchResult, compliance: bool,
+              estimates: Optional[np.ndarray] = None) -> None:
+    """
+    Solve ``rows`` of ``wrenches``, all chosen at ``level`` for ``reason``.
+
+    ``estimates`` (len(rows), 2: m, deg): the reduced rows' errors as 'auto' validated them
+    (``FidelitySolver._solve_at``'s); None: not estimated.
+    """
     if level in solver.reduced and not compliance and compiled_runs(solver):
-        _reduced_run(solver, level, reason, wrenches, rows, batch)
+        _reduced_run(solver, level, reason, wrenches, rows, batch, estimates=estimates)
     elif level == 'linear' and solver.tangent.ready:
-        _linear_run(solver, reason, wrenches, rows, batch, compliance)
+        _linear_run(solver, reason, wrenches, rows, batch, compliance, estimates)
     else:
-        _rows(solver, level, reason, wrenches, rows, batch, compliance)
+        _rows(solver, level, reason, wrenches, rows, batch, compliance, estimates)
+
+
+def judge_rows(solver: 'FidelitySolver', wrenches: np.ndarray, rows: np.ndarray,
+               batch: BatchResult, estimates: Optional[np.ndarray]) -> None:
+    """
+    Give converged reduced ``rows`` their carried verdicts and estimates (verdicts.py).
+
+    As ``FidelitySolver._judge_reduced`` gives a single answer them: a carried verdict wins
+    over the compliance's in ``stable``; ``estimates`` (len(rows), 2) or None.
+    """
+    references = solver.verdict_references()
+    chosen = carried_rows(wrenches[rows], references, solver.load_scale,
+                          solver.params.stack_height)
+    converged = batch.converged[rows].astype(bool)
+    for index, reference in enumerate(references):
+        judged = rows[converged & (chosen == index)]
+        batch.stable[judged] = batch.verdict[judged] = reference.stable
+        batch.stability_margin[judged] = reference.margin
+    if estimates is not None:
+        met = ((estimates[:, 0] <= solver.max_position_error)
+               & (estimates[:, 1] <= solver.max_angle_error_deg))
+        batch.error_estimate_m[rows[converged]] = estimates[converged, 0]
+        batch.error_estimate_deg[rows[converged]] = estimates[converged, 1]
+        batch.accuracy_met[rows[converged]] = [bool(value) for value in met[converged]]
 
 
 def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
-          rows: range, batch: BatchResult, compliance: bool) -> None:
+          rows: range, batch: BatchResult, compliance: bool,
+          estimates: Optional[np.ndarray] = None) -> None:
     """Solve ``rows`` one by one with the row function of ``level``."""
     whole = False
     solve_row: RowSolver
@@ -67,6 +99,10 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
         batch.run(row, solve_row, wrenches[row], compliance)
         if not whole:  # a whole solve's message names its level
             suffix = f' [{batch.fidelity[row]}: {reason}]'
+            if level != 'full' and batch.converged[row]:
+                judge_rows(solver, wrenches, np.array([row]), batch,
+                           None if estimates is None else estimates[row - rows.start:][:1])
+                suffix = note(level, solver.carried_verdict(wrenches[row])) + suffix
             batch.solve_message[row] += suffix
             if batch.message[row]:
                 batch.message[row] += suffix
@@ -75,18 +111,21 @@ def _rows(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarra
 
 
 def reduced_run_to_failure(solver: 'FidelitySolver', level: str, wrenches: np.ndarray,
-                           rows: range, batch: BatchResult) -> int:
+                           rows: range, batch: BatchResult,
+                           estimates: Optional[np.ndarray] = None) -> int:
     """
     Solve the rows of a run at a reduced level up to the first that fails; how many.
 
     That row is left unsolved, the solver as the rows before it left it: 'auto' tries the
     next level there. Without compliance, the level's compiled run (``compiled_runs``).
     """
-    return _reduced_run(solver, level, '', wrenches, rows, batch, stop_at_failure=True)
+    return _reduced_run(solver, level, '', wrenches, rows, batch, stop_at_failure=True,
+                        estimates=estimates)
 
 
 def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np.ndarray,
-                 rows: range, batch: BatchResult, stop_at_failure: bool = False) -> int:
+                 rows: range, batch: BatchResult, stop_at_failure: bool = False,
+                 estimates: Optional[np.ndarray] = None) -> int:
     """
     Solve a run at a reduced level in compiled sequences, as row-by-row solves would.
 
@@ -94,7 +133,7 @@ def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np
     solution (``FidelitySolver._reduced_outcome``): each such row begins a new sequence. A
     row that fails ends its sequence and is solved again by the row function, from the
     state the rows before it left, for its message; with ``stop_at_failure`` the run ends
-    there instead. Returns the number of rows solved.
+    there instead. Returns the number of rows solved. ``estimates``: ``solve_run``'s.
     """
     model = solver.reduced[level]
     run = wrenches[rows.start:rows.stop]
@@ -116,6 +155,9 @@ def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np
             elapsed = time.perf_counter() - started
             batch.record_poses(slice(rows.start + first, rows.start + first + converged),
                                pose, bending, level, elapsed / converged)
+            judge_rows(solver, wrenches,
+                       np.arange(rows.start + first, rows.start + first + converged), batch,
+                       None if estimates is None else estimates[first:first + converged])
             last = first + converged - 1
             solver._previous[level] = (unknowns[converged - 1].copy(), run[last].copy())
             solver._last_wrench, solver._last_level = run[last], level
@@ -124,13 +166,15 @@ def _reduced_run(solver: 'FidelitySolver', level: str, reason: str, wrenches: np
             return first
         if first < stop:  # this row failed: its own solve gives its message
             row = rows.start + first
-            _rows(solver, level, reason, wrenches, range(row, row + 1), batch, False)
+            _rows(solver, level, reason, wrenches, range(row, row + 1), batch, False,
+                  None if estimates is None else estimates[first:first + 1])
             first += 1
     return first
 
 
 def _linear_run(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, rows: range,
-                batch: BatchResult, compliance: bool) -> None:
+                batch: BatchResult, compliance: bool,
+                estimates: Optional[np.ndarray] = None) -> None:
     """Solve a run at 'linear' by the compiled poses; its compliance is the cached one's."""
     analysis: Optional[ComplianceAnalysis] = None
     if compliance:
@@ -139,7 +183,7 @@ def _linear_run(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, row
         except ArithmeticError:
             analysis = None
         if analysis is None or not analysis.stable:  # rows that are not good: one by one
-            _rows(solver, 'linear', reason, wrenches, rows, batch, compliance)
+            _rows(solver, 'linear', reason, wrenches, rows, batch, compliance, estimates)
             return
     started = time.perf_counter()
     pose, bending = solver.tangent.poses(wrenches[rows.start:rows.stop])
@@ -147,6 +191,7 @@ def _linear_run(solver: 'FidelitySolver', reason: str, wrenches: np.ndarray, row
     batch.record_poses(slice(rows.start, rows.stop), pose, bending, 'linear',
                        elapsed / len(rows), None if analysis is None else analysis.stable,
                        None if analysis is None else analysis.matrix)
+    judge_rows(solver, wrenches, np.arange(rows.start, rows.stop), batch, estimates)
     solver._last_wrench, solver._last_level = wrenches[rows[-1]], 'linear'
 
 

@@ -10,9 +10,10 @@ full solution). 'auto' picks, for each wrench, the cheapest level that meets the
 says which level produced it (``result.fidelity``) and why (``result.message``).
 """
 
+import math
 from pathlib import Path
 import time
-from typing import Any, Optional, Tuple, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -22,6 +23,7 @@ from .auto import AutoFidelity
 from .linear import TangentModel
 from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
 from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from .verdicts import carried, FullVerdict, load_scale_at, note, unloaded_verdict
 from .._blas import one_blas_thread
 from ..batch import BatchResult, check_wrenches
 from ..checks import check_number
@@ -41,6 +43,9 @@ FIDELITIES = LEVELS + ('auto',)
 COMPLIANCE_STEPS = (1e-3, 1e-4)
 
 _DEFAULT = object()
+
+#: stability.load_scale of each parameter set the reduced levels' verdicts used (verdicts.py)
+_LOAD_SCALES: Dict[str, float] = {}
 
 
 class FidelitySolver:
@@ -93,6 +98,11 @@ class FidelitySolver:
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench: Optional[np.ndarray] = None
         self._last_level: Optional[str] = None
+        #: the full solutions whose verdicts the reduced levels' answers carry (verdicts.py)
+        self.load_scale = self._measure_load_scale() if fidelity != 'full' else math.nan
+        self._unloaded_verdict = unloaded_verdict()
+        self._full_verdict: Optional[FullVerdict] = None  # of the last full answer
+        self._expansion_verdict: Optional[FullVerdict] = None  # of the expansion's solution
         #: the choices, checks and measured costs of 'auto'
         self.auto = AutoFidelity(self)
         self.auto.measure_costs()
@@ -131,7 +141,48 @@ class FidelitySolver:
         self._previous = dict.fromkeys(self.reduced)
         self._last_wrench = None
         self._last_level = None
+        self._full_verdict = self._expansion_verdict = None
         self.auto.reset()
+
+    def _measure_load_scale(self) -> float:
+        """stability.load_scale of the full model (once per parameter set), the solver reset."""
+        key = f'{self.params!r} {self.full.tolerance!r}'
+        if key not in _LOAD_SCALES:
+            unloaded = self.full.solve(np.zeros(3))
+            self.full.reset()
+            if not unloaded.converged:
+                raise ArithmeticError(f'the unloaded translator does not solve: '
+                                      f'{unloaded.message}')
+            _LOAD_SCALES[key] = load_scale_at(self.full.problem,
+                                              unloaded.unknowns / self.full.problem.x_scale)
+        return _LOAD_SCALES[key]
+
+    # stability verdicts of the reduced levels (verdicts.py) -------------------------------------
+    def verdict_references(self) -> List[FullVerdict]:
+        """Return the full solutions whose verdicts a reduced answer may carry (verdicts.py)."""
+        references = [self._unloaded_verdict]
+        for reference in (self._expansion_verdict, self._full_verdict):
+            if reference is not None:
+                references.append(reference)
+        return references
+
+    def carried_verdict(self, wrench: np.ndarray) -> Optional[FullVerdict]:
+        """Return the full solution whose verdict an answer at ``wrench`` carries (None: none)."""
+        return carried(wrench, self.verdict_references(), self.load_scale,
+                       self.params.stack_height)
+
+    def note_full_answer(self, wrench: np.ndarray, stable: Optional[bool],
+                         margin: float) -> None:
+        """
+        Keep the verdict of a full answer at ``wrench`` (none kept when it has none).
+
+        Kept: the expansions' solutions and the full answers 'auto' gives for a verdict
+        (``AutoFidelity.solve``): answers a batch gives alike, row by row.
+        """
+        if stable is not None:
+            self._full_verdict = FullVerdict(
+                wrench.copy(), bool(stable), float(margin),
+                f'the last full answer, at {np.round(wrench, 4).tolist()}')
 
     # level choice -----------------------------------------------------------------------------
     def choose(self, wrench: np.ndarray) -> Tuple[str, str]:
@@ -193,8 +244,14 @@ class FidelitySolver:
         return batch
 
     def _solve_at(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
-                  compliance_options: dict) -> SolveResult:
-        """Solve at the chosen ``level`` (for ``reason``, which ends the message)."""
+                  compliance_options: dict,
+                  estimate: Optional[np.ndarray] = None) -> SolveResult:
+        """
+        Solve at the chosen ``level`` (for ``reason``, which ends the message).
+
+        ``estimate``: the reduced answer's error (m, deg) as 'auto' validated or checked it,
+        which the result then carries with the verdict on the budget; None: not estimated.
+        """
         if level == 'linear' and not self.tangent.ready:
             result = self.cache_full_solution(wrench, compliance, **compliance_options)
             result.message += '; linear level: no cached solution yet, solved in full'
@@ -204,10 +261,25 @@ class FidelitySolver:
             result = self._solve_linear(wrench, compliance, compliance_options)
         else:
             result = self._solve_reduced(level, wrench, compliance, compliance_options)
+        if result.fidelity != 'full' and result.converged:
+            self._judge_reduced(result, wrench, estimate)
         result.message += f' [{result.fidelity}: {reason}]'
         self._last_wrench = wrench
         self._last_level = result.fidelity
         return result
+
+    def _judge_reduced(self, result: SolveResult, wrench: np.ndarray,
+                       estimate: Optional[np.ndarray]) -> None:
+        """Give a converged reduced answer its carried verdict and its estimate (if any)."""
+        reference = self.carried_verdict(wrench)
+        if reference is not None:
+            result.stable, result.stability_margin = reference.stable, reference.margin
+        result.message += note(result.fidelity, reference)
+        if estimate is not None:
+            result.error_estimate_m, result.error_estimate_deg = float(estimate[0]), float(
+                estimate[1])
+            result.accuracy_met = bool(estimate[0] <= self.max_position_error
+                                       and estimate[1] <= self.max_angle_error_deg)
 
     def cache_full_solution(self, wrench: np.ndarray, compliance: bool = False,
                             **compliance_options: float) -> SolveResult:
@@ -216,12 +288,18 @@ class FidelitySolver:
         # warm start, compliance and verify given by position: the options are only floats
         result = self.full.solve(wrench[:3], wrench[3:], True, compliance, False,
                                  **compliance_options)
+        self.note_full_answer(wrench, result.stable, result.stability_margin)
         if result.converged:
             try:
                 self.tangent.build(result.unknowns / self.full.problem.x_scale, wrench)
             except ArithmeticError as error:
                 self.tangent.clear()
+                self._expansion_verdict = None
                 result.message += f'; no linear expansion here: {error}'
+            else:
+                self._expansion_verdict = None if result.stable is None else FullVerdict(
+                    wrench.copy(), bool(result.stable), float(result.stability_margin),
+                    f"the linear level's expansion point {self.tangent.origin_text}")
         result.solve_time_s = time.perf_counter() - started
         return result
 

@@ -63,6 +63,8 @@ def test_failed_check_escalates(params, full):
     linear = solver._solve_linear(wrench, False, {})
     assert errors(linear, full, wrench)[0] > BUDGET[0]  # the linear answer would miss
     failed = solver.auto.counts['failed_checks']
+    here = full.solve(wrench[:3], wrench[3:])  # a verdict at hand: else 'full' answers for it
+    solver.note_full_answer(wrench, here.stable, here.stability_margin)
     result = solver.solve(wrench[:3], wrench[3:])
     assert solver.auto.counts['failed_checks'] == failed + 1
     assert result.fidelity != 'linear' and result.converged, result.message
@@ -132,20 +134,27 @@ def test_batch_equals_single_solves_with_checks(params):
     assert batched.auto.counts['checks'] == single.auto.counts['checks'] > 0
 
 
-@pytest.mark.parametrize('budget, levels', [((1e-5, 0.01), {'full'}), ((1e-2, 3.0), {'cc'})])
-def test_batch_equals_single_solves_in_runs(params, budget, levels):
+@pytest.mark.parametrize('budget, level', [((1e-5, 0.01), 'full'), ((1e-2, 3.0), 'cc')])
+def test_batch_equals_single_solves_in_runs(params, budget, level):
     """
-    Rows run at full (a tight budget) or at one reduced level (a wide one) in a batch.
+    Rows run at full (a tight budget) or mostly below it (a wide one) in a batch.
 
     Each run is one call of that level's batch path; the rows still equal single solves,
-    and the solver is left as they leave it.
+    and the solver is left as they leave it. At the wide budget a full answer now and then
+    gives the reduced answers near it their stability verdict.
     """
     forces, moments = sequence(60)
     single, batched = (FidelitySolver(params, max_position_error=budget[0],
                                       max_angle_error_deg=budget[1]) for _ in range(2))
     results = [single.solve(force, moment) for force, moment in zip(forces, moments)]
     batch = batched.solve_many(forces, moments)
-    assert set(batch.fidelity.tolist()) == levels
+    levels = batch.fidelity.tolist()
+    assert level in levels
+    if level != 'full':  # a few full answers: verdicts (and expansions, when they pay)
+        assert levels.count('full') < 0.2 * len(levels), levels
+    else:
+        assert set(levels) == {'full'}
+    assert all(result.stable is not None for result in results)
     assert batch.fidelity.tolist() == [result.fidelity for result in results]
     assert_rows_equal(batch, results)
     assert batched._last_level == single._last_level
