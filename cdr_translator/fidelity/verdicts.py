@@ -19,21 +19,23 @@ answer. Where none is near enough the answer has no verdict (``stable`` None) an
 
 from dataclasses import dataclass
 import math
-from typing import Optional, Sequence
+from typing import Iterable, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .. import stability
 from .._linalg import factorize
+from ..batch import BatchResult
 from ..branch import LOAD_FLOOR, RECHECK_MARGIN, STALE_WRENCH
 from ..problem import Problem
+from ..result import SolveResult
 
 #: The message tail of an answer no full solution's verdict reaches.
 NOT_ASSESSED = ('; stability not assessed: the {level} level has no stability analysis of '
                 'its own and no full solution lies near enough to carry its verdict here')
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # one per full solution: equal only to itself
 class FullVerdict:
     """The verdict of one full solution: its wrench (6,), verdict, margin and what it is."""
 
@@ -104,3 +106,76 @@ def note(level: str, reference: Optional[FullVerdict]) -> str:
         return NOT_ASSESSED.format(level=level)
     return (f"; stable by the full model's verdict at {reference.name} (stability margin "
             f'{reference.margin:.3g})')
+
+
+class Judge(NamedTuple):
+    """
+    How the answers below the full model are judged: verdicts carried, errors against a budget.
+
+    ``references``: the full solutions at hand; ``load_scale`` w* (N) and ``length`` H (m)
+    of the drift rule; the budget (m, deg) the errors 'auto' validated are held against.
+    """
+
+    references: Tuple[FullVerdict, ...]
+    load_scale: float
+    length: float
+    max_position_error: float = 0.0
+    max_angle_error_deg: float = 0.0
+
+    @classmethod
+    def of(cls, references: Iterable[Optional[FullVerdict]], load_scale: float, length: float,
+           budget: Tuple[float, float] = (0.0, 0.0)) -> 'Judge':
+        """Return the Judge of the ``references`` that exist (None: not at hand)."""
+        return cls(tuple(reference for reference in references if reference is not None),
+                   load_scale, length, *budget)
+
+    def carried(self, wrench: np.ndarray) -> Optional[FullVerdict]:
+        """Return the full solution whose verdict an answer at ``wrench`` carries (or None)."""
+        return carried(wrench, self.references, self.load_scale, self.length)
+
+    def covered(self, wrenches: np.ndarray) -> np.ndarray:
+        """Per row of ``wrenches`` (n, 6): whether some full solution's verdict reaches it."""
+        return carried_rows(wrenches, self.references, self.load_scale, self.length) >= 0
+
+    def note(self, level: str, wrench: np.ndarray) -> str:
+        """Return the message tail of an answer of ``level`` at ``wrench`` (its verdict's)."""
+        return note(level, self.carried(wrench))
+
+    def answer(self, result: SolveResult, wrench: np.ndarray,
+               estimate: Optional[np.ndarray]) -> None:
+        """
+        Judge a converged answer below the full model at ``wrench``.
+
+        Its carried verdict and margin (the message names their solution, or says there is
+        none) and ``estimate`` (m, deg; None: none) with ``accuracy_met`` on the budget.
+        """
+        reference = self.carried(wrench)
+        if reference is not None:
+            result.stable, result.stability_margin = reference.stable, reference.margin
+        result.message += note(result.fidelity, reference)
+        if estimate is not None:
+            result.error_estimate_m = float(estimate[0])
+            result.error_estimate_deg = float(estimate[1])
+            result.accuracy_met = bool(estimate[0] <= self.max_position_error
+                                       and estimate[1] <= self.max_angle_error_deg)
+
+    def rows(self, batch: BatchResult, wrenches: np.ndarray, rows: np.ndarray,
+             estimates: Optional[np.ndarray]) -> None:
+        """
+        Judge the converged ``rows`` of ``batch`` as ``answer`` judges single answers.
+
+        A carried verdict wins over the compliance's in ``stable``, as in ``to_dict``;
+        ``estimates`` (len(rows), 2) or None.
+        """
+        chosen = carried_rows(wrenches[rows], self.references, self.load_scale, self.length)
+        converged = batch.converged[rows].astype(bool)
+        for index, reference in enumerate(self.references):
+            judged = rows[converged & (chosen == index)]
+            batch.stable[judged] = batch.verdict[judged] = reference.stable
+            batch.stability_margin[judged] = reference.margin
+        if estimates is not None:
+            met = ((estimates[:, 0] <= self.max_position_error)
+                   & (estimates[:, 1] <= self.max_angle_error_deg))
+            batch.error_estimate_m[rows[converged]] = estimates[converged, 0]
+            batch.error_estimate_deg[rows[converged]] = estimates[converged, 1]
+            batch.accuracy_met[rows[converged]] = [bool(value) for value in met[converged]]

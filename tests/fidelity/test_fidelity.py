@@ -180,7 +180,7 @@ def _judged_here(solver, reference, wrench):
     """Give ``solver`` the full model's verdict at ``wrench``, as a full answer there would."""
     solver.reset()
     full = solve(reference, wrench)
-    solver.note_full_answer(wrench, full.stable, full.stability_margin)
+    solver.auto.note_full_answer(wrench, full.stable, full.stability_margin)
 
 
 def test_loose_budget_picks_the_cheapest_level_within_its_measured_error(
