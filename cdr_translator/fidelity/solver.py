@@ -114,7 +114,7 @@ class FidelitySolver:
 
     @property
     def tangent(self) -> TangentModel:
-        """The 'linear' level's expansion (its cached full solution and sensitivities)."""
+        """Return the 'linear' level's expansion (its cached full solution, sensitivities)."""
         return self._linear.tangent
 
     @property
