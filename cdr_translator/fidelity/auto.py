@@ -37,34 +37,33 @@ The candidates, tried in this order:
   answers are plain full solves. A full solve one wrench step after the last full answer
   starts from that; after other answers, from the expansion's prediction.
 
-Batches: ``auto_batch``.
+Every answer below 'full' carries the stability verdict of a full solution near it
+(fidelity.verdicts): where none is near enough, the answer is a full solve (NO_VERDICT),
+and the reduced answers near it carry its verdict.
 
-Costs are measured once per process and parameter set, when the first 'auto' solver with a
-budget is made (``measure_costs``: the fastest of CALIBRATION_REPEATS timings, robust to a
-busy machine), and kept: the choices then depend on the wrenches alone, so that a batch
-takes the levels its single solves take.
+Which levels the validation data admit: ``admission``. Batches: ``auto_runs``. Costs are
+measured once per process and parameter set, when the first 'auto' solver with a budget is
+made (``auto_costs``), and kept: the choices then depend on the wrenches alone, so that a
+batch takes the levels its single solves take.
 
 Reduced levels and the expansion are used only inside the largest validated wrench box.
 """
 
 import math
-from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
+from typing import Callable, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from . import auto_batch
-from .auto_batch import NO_BUDGET, NO_CHEAPER, NO_DATA, OUTSIDE, TRUSTED
-from .validation import box_half_widths as validation_half_widths
-from .validation import box_scale, frame_errors
+from .admission import Admission, OUTSIDE
+from .auto_costs import measure_costs
+from .level import Asked, Level
+from .linear_level import LinearLevel
+from .validation import box_scale, frame_errors, Validation
+from .verdicts import FullVerdict, Judge, unloaded_verdict
 from .._linalg import norm
 from ..solve.batch import BatchResult
 from ..solve.result import FRAME_NAMES, SolveResult
-
-if TYPE_CHECKING:
-    from .solver import FidelitySolver
-
-#: Reduced levels, cheapest first (the order the validated choice tries them).
-LEVEL_COST_ORDER = ('linear', 'cc', 'rod')
+from ..solve.solver import TranslatorSolver
 
 #: Share of the budget a linear answer's estimated (or checked) error may use.
 LINEAR_TARGET = 0.7
@@ -81,21 +80,8 @@ MAX_RADIUS_GROWTH = 4.0
 #: The check's error estimate is its measured gain times this.
 GAIN_MARGIN = 1.25
 
-#: Timings per level whose fastest is its cost; the wrench step an expansion is timed at,
-#: and the small step a warm full solve is timed at (box scales).
-CALIBRATION_REPEATS = 5
-CALIBRATION_STEP = 0.1
-CALIBRATION_SMALL_STEP = 0.005
-
 #: Offsets served by this many past expansions make the reach a new one is expected to have.
 REACH_MEMORY = 3
-
-#: Where the costs are timed: a load of this box scale along CALIBRATION_DIRECTION.
-CALIBRATION_SCALE = 0.2
-CALIBRATION_DIRECTION = np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
-
-#: Costs measured so far, per parameter set (``measure_costs``).
-_MEASURED_COSTS: Dict[str, Dict[str, float]] = {}
 
 #: An expansion must promise this many times its own cost in savings (counted at the
 #: fastest warm full step: along a sequence the full level's periodic checks cost more) ...
@@ -104,8 +90,19 @@ EXPANSION_MARGIN = 1.0
 #: ... and at least this many answers at the wrench's current pace.
 MIN_EXPANSION_REUSE = 4.0
 
+#: Reasons of 'auto' answers: a linear answer taken unchecked; full answers without an
+#: expansion (besides admission's: nothing cheaper admitted, no full solution near enough
+#: to carry a verdict to a cheaper level).
+TRUSTED = 'inside the trust region of the expansion about the last full solution'
+NO_CHEAPER = 'no cheaper level meets the budget'
+NO_VERDICT = ('no full solution near enough to carry its stability verdict to a cheaper '
+              'level here')
 
-def validated_curvature(validation) -> np.ndarray:
+#: Why a reduced level answers inside its validated range.
+VALIDATED = 'validated error inside the budget here'
+
+
+def validated_curvature(validation: Optional[Validation]) -> np.ndarray:
     """Largest validated error of 'linear' per squared offset scale: (m, deg); inf: none."""
     bound = None if validation is None else validation.levels.get('linear')
     if bound is None:
@@ -116,93 +113,129 @@ def validated_curvature(validation) -> np.ndarray:
 
 
 class AutoFidelity:
-    """The choices, checks, trust region and measured costs of one FidelitySolver's 'auto'."""
+    """
+    The policy of 'auto' over the levels, with its memory.
 
-    def __init__(self, solver: 'FidelitySolver') -> None:
-        """Bind ``solver`` (its budget, validation, levels and expansion)."""
-        self.solver = solver
+    It remembers the trust region of the expansion, the measured costs, how often each
+    event happened, the last answer (its wrench and level) and the verdict of the last full
+    answer it gave for a verdict (which the reduced answers near it carry: verdicts.py).
+    It reads the levels through the level protocol and the 'linear' level's expansion.
+    """
+
+    def __init__(self, levels: Mapping[str, Level], linear: LinearLevel,
+                 full: TranslatorSolver, validation: Optional[Validation],
+                 max_position_error: float, max_angle_error_deg: float,
+                 load_scale: float) -> None:
+        """
+        Decide over ``levels`` (by name; ``linear`` the 'linear' one, ``full`` the full model).
+
+        ``validation`` (None: no data), the budget (m, deg) and w* (stability.load_scale:
+        the reduced answers' verdicts) are the policy's.
+        """
+        self.levels = levels
+        self.linear = linear
+        self.full = full
+        self.validation = validation
+        self.max_position_error = max_position_error
+        self.max_angle_error_deg = max_angle_error_deg
+        self.load_scale = load_scale
         #: each level's measured cost (s), and the expansion's ('expansion'); none until
         #: ``measure_costs``
         self.costs: Dict[str, float] = {}
         #: how often each event happened: checks made and failed, reduced answers refuted,
         #: expansions made
         self.counts = dict.fromkeys(('checks', 'failed_checks', 'refuted', 'expansions'), 0)
-        self._reaches_for: Optional[tuple] = None
-        self._reach_by_level: Dict[str, float] = {}
+        self._unloaded = unloaded_verdict()
+        self._judge_of: Tuple[Optional[FullVerdict], Optional[FullVerdict]] = (None, None)
+        self._judge = Judge.of((self._unloaded,), load_scale, full.params.stack_height,
+                               (max_position_error, max_angle_error_deg))
+        #: which levels the validation data admit under the budget
+        self.admission = Admission(validation, max_position_error, max_angle_error_deg)
         self._reaches_served: List[float] = []  # farthest offset each past expansion served
         self._origin: Optional[np.ndarray] = None  # the expansion's wrench last looked at
         self._origin_inside = False  # and whether it lies inside the validated box
         self._target = LINEAR_TARGET * self.budget  # (m, deg) a linear answer may use ...
-        self._target_for = (solver.max_position_error, solver.max_angle_error_deg)  # ... here
+        self._target_for = (max_position_error, max_angle_error_deg)  # ... at this budget
         self._validated_radius: Tuple[tuple, float] = ((), math.nan)  # (budget, radius)
         self.reset()
 
-    def measure_costs(self) -> None:
-        """Measure the levels' costs (``measure_costs``) if the choices need them."""
-        solver = self.solver
-        if (solver.fidelity == 'auto' and solver.validation is not None
-                and solver.max_position_error > 0.0 and solver.max_angle_error_deg > 0.0):
-            self.costs = measure_costs(solver)
+    def measure_costs(self, reset: Callable[[], None], key: str) -> None:
+        """
+        Measure the levels' costs (auto_costs.measure_costs) if the choices need them.
+
+        ``reset`` forgets every level's memory and this policy's; ``key`` names the
+        parameter set the costs hold for.
+        """
+        if (self.validation is not None and self.max_position_error > 0.0
+                and self.max_angle_error_deg > 0.0):
+            self.costs = measure_costs(self.levels, self.linear, lambda: self.asked(''),
+                                       reset, key)
 
     def reset(self) -> None:
-        """Forget the trust region (the solver forgot its expansion)."""
-        self.curvature = validated_curvature(self.solver.validation)
+        """Forget the trust region, the last answer and the last full verdict."""
+        self.curvature = validated_curvature(self.validation)
         self.trusted = 0.0
         self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
         self._served = 0.0  # farthest offset a linear answer took on the expansion
         self._gain: Optional[np.ndarray] = None  # the check's gain on this expansion
+        #: the wrench (6,) and level of the last answer (None: none since the reset)
+        self.last_wrench: Optional[np.ndarray] = None
+        self.last_level: Optional[str] = None
+        #: the verdict of the last full answer given for a verdict, a check or an expansion
+        self.full_verdict: Optional[FullVerdict] = None
+
+    # answers through the levels -----------------------------------------------------------------
+    def judge(self) -> Judge:
+        """Return how answers below 'full' are judged now (verdicts.Judge, the budget)."""
+        at_hand = (self.linear.verdict, self.full_verdict)
+        if at_hand != self._judge_of:
+            self._judge_of = at_hand
+            self._judge = Judge.of((self._unloaded,) + at_hand, self.load_scale,
+                                   self.full.params.stack_height,
+                                   (self.max_position_error, self.max_angle_error_deg))
+        return self._judge
+
+    def asked(self, reason: str, estimates: Optional[np.ndarray] = None,
+              stop_at_failure: bool = False) -> Asked:
+        """Return what an answer for ``reason`` asks of a level now (level.Asked)."""
+        return Asked(reason, self.judge(), self.full.time_limit_s, estimates, stop_at_failure)
+
+    def answer(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
+               options: Mapping[str, float],
+               estimate: Optional[np.ndarray] = None) -> SolveResult:
+        """Answer ``wrench`` at ``level`` for ``reason`` (with its validated ``estimate``)."""
+        result = self.levels[level].solve(wrench, compliance, options,
+                                          self.asked(reason, estimate))
+        self.last_wrench, self.last_level = wrench, result.fidelity
+        return result
+
+    def run(self, level: str, reason: str, wrenches: np.ndarray, rows: range,
+            batch: BatchResult, compliance: bool, estimates: Optional[np.ndarray] = None,
+            stop_at_failure: bool = False) -> int:
+        """Answer ``rows`` at ``level`` by one call of its solve_many; return how many."""
+        count = self.levels[level].solve_many(wrenches, rows, batch, compliance,
+                                              self.asked(reason, estimates, stop_at_failure))
+        if count:
+            last = rows.start + count - 1
+            self.last_wrench, self.last_level = wrenches[last], str(batch.fidelity[last])
+        return count
+
+    def note_full_answer(self, wrench: np.ndarray, stable: Optional[bool],
+                         margin: float) -> None:
+        """Keep the verdict of a full answer at ``wrench`` (none kept when it has none)."""
+        if stable is not None:
+            self.full_verdict = FullVerdict(
+                wrench.copy(), bool(stable), float(margin),
+                f'the last full answer, at {np.round(wrench, 4).tolist()}')
 
     @property
     def budget(self) -> np.ndarray:
         """Return the largest position (m) and angle (deg) errors allowed."""
-        return np.array([self.solver.max_position_error, self.solver.max_angle_error_deg])
+        return np.array([self.max_position_error, self.max_angle_error_deg])
 
-    # the validated choice ---------------------------------------------------------------------
     def validated_choice(self, wrench: np.ndarray) -> Tuple[str, str]:
-        """
-        Return (level, reason): the cheapest level whose validated error meets the budget.
-
-        For 'linear' the offset from the expansion's wrench must lie in a validated offset
-        box; ``solve`` widens that by checks.
-        """
-        solver = self.solver
-        if solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0:
-            return 'full', NO_BUDGET
-        if solver.validation is None:
-            return 'full', NO_DATA
-        reaches = self.reaches()
-        scale = box_scale(wrench)
-        for level in LEVEL_COST_ORDER:
-            if level == 'linear' and not solver.tangent.ready:
-                continue
-            reach = reaches.get(level, -math.inf)
-            origin = solver.tangent.origin
-            if math.isnan(reach):  # bounds that do not grow: the box-by-box rule
-                admitted = solver.validation.admissible(
-                    level, wrench, solver.max_position_error, solver.max_angle_error_deg,
-                    origin=origin)
-            elif level == 'linear':
-                admitted = (origin is not None and box_scale(origin) <= 1.0
-                            and box_scale(wrench - origin) <= reach)
-            else:
-                admitted = scale <= reach
-            if admitted:
-                return level, 'the cheapest level whose validated error meets the budget'
-        if scale > 1.0:
-            return 'full', OUTSIDE
-        return 'full', 'no reduced level meets the budget here'
-
-    def reaches(self) -> Dict[str, float]:
-        """Each level's validated reach under the budget (LevelBound.reach), made once."""
-        solver = self.solver
-        assert solver.validation is not None
-        key = (solver.max_position_error, solver.max_angle_error_deg, id(solver.validation))
-        if self._reaches_for != key:
-            self._reach_by_level = {
-                level: bound.reach(solver.max_position_error, solver.max_angle_error_deg)
-                for level, bound in solver.validation.levels.items()}
-            self._reaches_for = key
-        return self._reach_by_level
+        """Return (level, reason): the cheapest level admitted at ``wrench`` (admission.py)."""
+        return self.admission.choice(wrench, self.linear.tangent.origin)
 
     # the trust region of 'linear' -------------------------------------------------------------
     def radius(self, curvature: np.ndarray) -> float:
@@ -216,7 +249,7 @@ class AutoFidelity:
 
     def _verdict(self, wrench: np.ndarray) -> Tuple[Optional[str], float]:
         """(``linear_verdict``, the offset scale from the expansion's wrench; NaN: none)."""
-        origin = self.solver.tangent.origin
+        origin = self.linear.tangent.origin
         if origin is None:
             return None, math.nan
         if origin is not self._origin:  # a new expansion (TangentModel.build copies w0)
@@ -224,9 +257,8 @@ class AutoFidelity:
         if not self._origin_inside or box_scale(wrench) > 1.0:
             return None, math.nan
         scale = box_scale(wrench - origin)
-        solver = self.solver
-        if self._target_for != (solver.max_position_error, solver.max_angle_error_deg):
-            self._target_for = (solver.max_position_error, solver.max_angle_error_deg)
+        if self._target_for != (self.max_position_error, self.max_angle_error_deg):
+            self._target_for = (self.max_position_error, self.max_angle_error_deg)
             self._target = LINEAR_TARGET * self.budget
         # as within_linear_target computes it, in floats
         square, curvature, target = scale * scale, self.curvature, self._target
@@ -252,7 +284,7 @@ class AutoFidelity:
 
     def prediction_residual(self, wrench: np.ndarray, unknowns: np.ndarray) -> float:
         """Norm of the full model's nondimensional residual at predicted SI ``unknowns``."""
-        problem = self.solver.full.problem
+        problem = self.full.problem
         return norm(problem.residual(unknowns / problem.x_scale, wrench))
 
     def check_prediction(self, wrench: np.ndarray, unknowns: np.ndarray) -> np.ndarray:
@@ -272,7 +304,7 @@ class AutoFidelity:
 
     def _new_expansion(self) -> None:
         """Start the trust region of a new expansion from the last one's curvature."""
-        floor = validated_curvature(self.solver.validation) / MAX_RADIUS_GROWTH ** 2
+        floor = validated_curvature(self.validation) / MAX_RADIUS_GROWTH ** 2
         if self._measured is not None:
             self.curvature = np.maximum(self._measured, floor)
         self._measured = None
@@ -284,57 +316,77 @@ class AutoFidelity:
         self.counts['expansions'] += 1
 
     # solving ----------------------------------------------------------------------------------
-    def solve(self, wrench: np.ndarray, compliance: bool, options: dict) -> SolveResult:
+    def solve(self, wrench: np.ndarray, compliance: bool,
+              options: Mapping[str, float]) -> SolveResult:
         """Answer ``wrench`` at the cheapest level that meets the budget (module docstring)."""
-        solver = self.solver
-        if (solver.max_position_error <= 0.0 or solver.max_angle_error_deg <= 0.0
-                or solver.validation is None):
+        if (self.max_position_error <= 0.0 or self.max_angle_error_deg <= 0.0
+                or self.validation is None):
             level, reason = self.validated_choice(wrench)
-            return solver._solve_at(level, reason, wrench, compliance, options)
-        verdict, scale = self._verdict(wrench)
+            return self.answer(level, reason, wrench, compliance, options)
+        # an answer below 'full' carries the verdict of a full solution near it (verdicts.py):
+        # where none is near, the answer is a full solve, which judges itself
+        covered = self.judge().carried(wrench) is not None
+        verdict, scale = self._verdict(wrench) if covered else (None, math.nan)
         if verdict == 'take':
             self.served(scale)
-            return solver._solve_at('linear', TRUSTED, wrench, compliance, options)
+            return self.answer('linear', TRUSTED, wrench, compliance, options,
+                               self.curvature * scale ** 2)
         if verdict == 'check' and self._gain is None:
             return self._first_check(wrench, compliance, options)
         if verdict == 'check':
-            errors = self.check_prediction(wrench, solver.tangent.unknowns(wrench))
+            errors = self.check_prediction(wrench, self.linear.tangent.unknowns(wrench))
             self.counts['checks'] += 1
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
                 self.trusted = max(self.trusted, CHECK_GROWTH * scale)
                 self.served(scale)
-                return solver._solve_at(
+                return self.answer(
                     'linear', "checked by the full model's residual: error about "
                     f'{1e3 * errors[0]:.3g} mm, {errors[1]:.3g} deg', wrench, compliance,
-                    options)
+                    options, errors)
             self.counts['failed_checks'] += 1
-        levels = self._reduced_candidates(wrench)
+        levels = sorted(self.admission.reduced(wrench), key=self.costs.__getitem__)
+        uncovered = not covered and (bool(levels) or self._verdict(wrench)[0] is not None)
+        if not covered:
+            levels = []
         if self._expansion_pays(wrench, self.costs[levels[0]] if levels else None):
-            return self._full(wrench, True, compliance, options, 'an expansion about it pays')
+            return self.answer_in_full(wrench, True, compliance, options,
+                                       'an expansion about it pays')
         if not levels:  # the same question as just answered
-            return solver._solve_at('full', OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER,
-                                    wrench, compliance, options)
+            if uncovered and box_scale(wrench) <= 1.0:
+                return self._verdict_solve(wrench, compliance, options)
+            return self.answer('full', OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER,
+                               wrench, compliance, options)
+        validation = self.validation
+        assert validation is not None  # a budget without data answers 'full'
         for level in levels:
-            result = solver._solve_at(level, 'validated error inside the budget here', wrench,
-                                      compliance, options)
+            result = self.answer(level, VALIDATED, wrench, compliance, options,
+                                 validation.levels[level].errors_at(box_scale(wrench)))
             if result.converged and not self._refuted(wrench, result):
                 return result
         reason = OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER
-        return self._full(wrench, self._expansion_pays(wrench, None), compliance, options,
-                          reason)
+        return self.answer_in_full(wrench, self._expansion_pays(wrench, None), compliance,
+                                   options, reason)
+
+    def _verdict_solve(self, wrench: np.ndarray, compliance: bool,
+                       options: Mapping[str, float]) -> SolveResult:
+        """Answer in full for want of a verdict; the reduced answers near it carry its verdict."""
+        result = self.answer('full', NO_VERDICT, wrench, compliance, options)
+        self.note_full_answer(wrench, result.stable, result.stability_margin)
+        return result
 
     def _first_check(self, wrench: np.ndarray, compliance: bool,
-                     options: dict) -> SolveResult:
+                     options: Mapping[str, float]) -> SolveResult:
         """Check an expansion the first time: a full solve, which measures the check's gain."""
-        solver = self.solver
-        origin = solver.tangent.origin
+        tangent = self.linear.tangent
+        origin = tangent.origin
         assert origin is not None
         scale = box_scale(wrench - origin)
-        unknowns, frames = solver.tangent.unknowns(wrench), solver.tangent.frames(wrench)
+        unknowns, frames = tangent.unknowns(wrench), tangent.frames(wrench)
         residual = self._start_full_at(wrench, unknowns)
-        result = solver._solve_at('full', 'the first check of the expansion', wrench,
-                                  compliance, options)
+        result = self.answer('full', 'the first check of the expansion', wrench, compliance,
+                             options)
+        self.note_full_answer(wrench, result.stable, result.stability_margin)
         self.counts['checks'] += 1
         if not result.converged or residual <= 0.0:
             self.counts['failed_checks'] += 1
@@ -357,35 +409,15 @@ class AutoFidelity:
         The prediction is a nearer start than the last full solution, and the expansion's
         factorization serves its first chord steps.
         """
-        solver, tangent = self.solver, self.solver.tangent
+        tangent = self.linear.tangent
         assert tangent.origin is not None
-        solver.full.start_at(unknowns / solver.full.problem.x_scale, wrench,
-                             (tangent.factorization, tangent.pose_jacobian, tangent.origin))
+        self.full.start_at(unknowns / self.full.problem.x_scale, wrench,
+                           (tangent.factorization, tangent.pose_jacobian, tangent.origin))
         return self.prediction_residual(wrench, unknowns)
-
-    def solve_many(self, wrenches: np.ndarray, batch: BatchResult, compliance: bool) -> None:
-        """Solve the rows of ``wrenches`` into ``batch`` as consecutive ``solve`` calls would."""
-        auto_batch.solve_many(self, wrenches, batch, compliance)
-
-    def _reduced_candidates(self, wrench: np.ndarray) -> List[str]:
-        """'cc' and 'rod' where their validated errors meet the budget, cheapest first."""
-        if box_scale(wrench) > 1.0:
-            return []
-        reaches = self.reaches()
-        scale = box_scale(wrench)
-        solver = self.solver
-        assert solver.validation is not None  # a budget without data answers 'full'
-        admitted = []
-        for level in ('cc', 'rod'):
-            reach = reaches.get(level, -math.inf)
-            if (scale <= reach if not math.isnan(reach) else solver.validation.admissible(
-                    level, wrench, solver.max_position_error, solver.max_angle_error_deg)):
-                admitted.append(level)
-        return sorted(admitted, key=self.costs.__getitem__)
 
     def _refuted(self, wrench: np.ndarray, result: SolveResult) -> bool:
         """Whether the expansion's prediction proves ``result`` outside the budget."""
-        tangent = self.solver.tangent
+        tangent = self.linear.tangent
         if not tangent.ready:
             return False
         scale = box_scale(wrench - tangent.origin)
@@ -404,7 +436,7 @@ class AutoFidelity:
         ``alternative``: the cost of the level that would answer instead (None: a warm full
         solve's). Each answer the expansion serves saves that cost less a linear answer's.
         """
-        last = self.solver._last_wrench
+        last = self.last_wrench
         if last is None or box_scale(wrench) > 1.0:
             return False
         reach, growth, saving, pays = self._expansion_terms(alternative)
@@ -432,67 +464,31 @@ class AutoFidelity:
             return sum(self._reaches_served) / len(self._reaches_served), 1.0, saving, pays
         # the first expansion, to learn what one serves: in place of full solves if the
         # largest trust region it may open pays, of a reduced level if the validated one does
-        key = (self.solver.max_position_error, self.solver.max_angle_error_deg,
-               id(self.solver.validation))
+        key = (self.max_position_error, self.max_angle_error_deg, id(self.validation))
         if self._validated_radius[0] != key:
-            self._validated_radius = (key, self.radius(
-                validated_curvature(self.solver.validation)))
+            self._validated_radius = (key, self.radius(validated_curvature(self.validation)))
         growth = MAX_RADIUS_GROWTH if alternative is None else 1.0
         return self._validated_radius[1], growth, saving, pays
 
-    def _full(self, wrench: np.ndarray, expand: bool, compliance: bool, options: dict,
-              reason: str) -> SolveResult:
+    def answer_in_full(self, wrench: np.ndarray, expand: bool, compliance: bool,
+                       options: Mapping[str, float], reason: str) -> SolveResult:
         """Solve the full model at ``wrench``; expand about its solution when ``expand``."""
-        solver = self.solver
         if not expand:
-            return solver._solve_at('full', reason, wrench, compliance, options)
-        tangent = solver.tangent
+            return self.answer('full', reason, wrench, compliance, options)
+        tangent = self.linear.tangent
         previous = None
         if tangent.origin is not None:  # the old expansion's error here, measured
             unknowns, frames = tangent.unknowns(wrench), tangent.frames(wrench)
-            if solver._last_level != 'full':  # else the last full solution is one step away
+            if self.last_level != 'full':  # else the last full solution is one step away
                 self._start_full_at(wrench, unknowns)
             previous = (box_scale(wrench - tangent.origin), frames)
-        result = solver.cache_full_solution(wrench, compliance, **options)
+        result = self.linear.expand(wrench, compliance, options)
         result.message += f' [full: {reason}]'
-        solver._last_wrench, solver._last_level = wrench, 'full'
+        self.last_wrench, self.last_level = wrench, 'full'
+        self.note_full_answer(wrench, result.stable, result.stability_margin)
         if previous is not None and result.converged:
             frames = np.stack([result.frames[name] for name in FRAME_NAMES])
             position, angle = frame_errors(previous[1], frames)
             self._learn(previous[0], np.array([position, math.degrees(angle)]))
         self._new_expansion()
         return result
-
-
-def measure_costs(solver: 'FidelitySolver') -> Dict[str, float]:
-    """
-    Time each level of ``solver`` (s per answer; 'expansion': one expansion), once per process.
-
-    'full', 'cc' and 'rod' answer a step of CALIBRATION_STEP box scales from a solution at
-    CALIBRATION_SCALE; 'full step' a further step of CALIBRATION_SMALL_STEP (a warm solve
-    along a slow sequence); 'expansion' expands about the full solution, and 'linear'
-    answers one more such step from it. The fastest of
-    CALIBRATION_REPEATS; the solver is reset afterwards.
-    """
-    key = f'{solver.params!r} {solver.rod_steps} {solver.full.tolerance!r}'
-    if key not in _MEASURED_COSTS:
-        direction = CALIBRATION_DIRECTION * validation_half_widths()
-        start = CALIBRATION_SCALE * direction
-        end = start + CALIBRATION_STEP * direction
-        times: Dict[str, List[float]] = {level: [] for level in (
-            'full', 'full step', 'expansion', 'linear', 'cc', 'rod')}
-        for _ in range(CALIBRATION_REPEATS):
-            solver.reset()
-            for level in ('full', 'cc', 'rod'):
-                solver._solve_at(level, '', start, False, {})
-                times[level].append(solver._solve_at(level, '', end, False, {}).solve_time_s)
-            further = end + CALIBRATION_SMALL_STEP * direction
-            result = solver._solve_at('full', '', further, False, {})
-            times['full step'].append(result.solve_time_s)
-            solver.tangent.build(result.unknowns / solver.full.problem.x_scale, further)
-            times['expansion'].append(solver.tangent.build_time_s)
-            nearby = further + CALIBRATION_SMALL_STEP * direction
-            times['linear'].append(solver._solve_at('linear', '', nearby, False, {}).solve_time_s)
-        _MEASURED_COSTS[key] = {level: min(values) for level, values in times.items()}
-        solver.reset()
-    return dict(_MEASURED_COSTS[key])

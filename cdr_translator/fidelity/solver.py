@@ -3,33 +3,38 @@ FidelitySolver: one solve interface over every fidelity level, and the error bud
 
 Levels: 'full' (TranslatorSolver, the paper's model), 'rod' (equivalent rod, 7 unknowns),
 'cc' (constant-curvature virtual work, 8), 'linear' (first-order expansion about a cached
-full solution). 'auto' picks, for each wrench, the cheapest level that meets the budget
-(``max_position_error`` m, ``max_angle_error_deg`` deg) by its validated error
-(``fidelity.validation``), the errors it checks as it goes and the costs it measures
-(``fidelity.auto``), and falls back to 'full' outside every validated range. Every result
-says which level produced it (``result.fidelity``) and why (``result.message``).
+full solution), each behind the level protocol (``fidelity.level``). 'auto' picks, for each
+wrench, the cheapest level that meets the budget (``max_position_error`` m,
+``max_angle_error_deg`` deg) by its validated error (``fidelity.validation``), the errors
+it checks as it goes and the costs it measures (``fidelity.auto``), and falls back to
+'full' outside every validated range. Every result says which level produced it
+(``result.fidelity``) and why (``result.message``), how stable and how accurate it is, or
+that it was not assessed (``fidelity.verdicts``).
 """
 
 from pathlib import Path
-import time
-from typing import Any, Optional, Tuple, Union
+from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import batch_rows
+from . import auto_runs
 from .auto import AutoFidelity
+from .full_level import FullLevel
+from .level import Asked, Level
 from .linear import TangentModel
-from .reduced import ReducedModel, ReducedOutcome, ROD_STEPS
-from .validation import box_scale, DEFAULT_VALIDATION_PATH, Validation
+from .linear_level import LinearLevel
+from .reduced import ReducedModel, ROD_STEPS
+from .reduced_level import ReducedLevel
+from .validation import DEFAULT_VALIDATION_PATH, Validation
+from .verdicts import Judge, load_scale_at, unloaded_verdict
 from .._blas import one_blas_thread
-from ..analysis.compliance import analyse, ComplianceAnalysis, frame_twist
-from ..bvp.problem import RESIDUAL_KINDS
+from ..analysis.compliance import ComplianceAnalysis
 from ..checks import check_number
 from ..params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH, translator_values,
                                         TranslatorParams)
 from ..solve.batch import BatchResult, check_wrenches
-from ..solve.result import FRAME_NAMES, SolveResult
+from ..solve.result import SolveResult
 from ..solve.solver import check_wrench, NO_MOMENT, TranslatorSolver
 
 #: The levels a solve can use.
@@ -38,10 +43,10 @@ LEVELS = ('full', 'rod', 'cc', 'linear')
 #: Values of the ``fidelity`` parameter: a level, or 'auto' (the error budget decides).
 FIDELITIES = LEVELS + ('auto',)
 
-#: Wrench steps of the finite-difference compliance of a reduced level (N, N m).
-COMPLIANCE_STEPS = (1e-3, 1e-4)
-
 _DEFAULT = object()
+
+#: stability.load_scale of each parameter set the reduced levels' verdicts used (verdicts.py)
+_LOAD_SCALES: Dict[str, float] = {}
 
 
 class FidelitySolver:
@@ -80,23 +85,48 @@ class FidelitySolver:
                                      accuracy=accuracy)
         self.params = self.full.params
         self.fidelity = fidelity
-        self.max_position_error = float(max_position_error)
-        self.max_angle_error_deg = float(max_angle_error_deg)
         self.rod_steps = rod_steps
+        #: the reduced models of 'cc' and 'rod'
         self.reduced = {'cc': ReducedModel.constant_curvature(self.params),
                         'rod': ReducedModel.equivalent_rod(self.params, rod_steps)}
-        self.tangent = TangentModel(self.full.problem)
+        self._linear = LinearLevel(self.full)
+        #: the levels by name (fidelity.level's protocol)
+        self.levels: Dict[str, Level] = {
+            'full': FullLevel(self.full), 'linear': self._linear,
+            **{name: ReducedLevel(model, self.params.stack_height)
+               for name, model in self.reduced.items()}}
         if validation is _DEFAULT:
             validation = Validation.load(DEFAULT_VALIDATION_PATH)
         if validation is not None and not validation.matches(self.params, rod_steps):
             validation = None
         self.validation: Optional[Validation] = validation
-        self._previous = dict.fromkeys(self.reduced)
-        self._last_wrench: Optional[np.ndarray] = None
-        self._last_level: Optional[str] = None
-        #: the choices, checks and measured costs of 'auto'
-        self.auto = AutoFidelity(self)
-        self.auto.measure_costs()
+        #: w* (stability.load_scale): how far a full solution's verdict reaches (verdicts.py)
+        self.load_scale = self._measure_load_scale() if fidelity != 'full' else float('nan')
+        self._unloaded = unloaded_verdict()
+        self._judge_of: Tuple[object, ...] = ()
+        self._judge = Judge.of((self._unloaded,), self.load_scale, self.params.stack_height)
+        #: the choices, checks and measured costs of 'auto', with its memory
+        self.auto = AutoFidelity(self.levels, self._linear, self.full, validation,
+                                 float(max_position_error), float(max_angle_error_deg),
+                                 self.load_scale)
+        if fidelity == 'auto':
+            self.auto.measure_costs(self.reset,
+                                    f'{self.params!r} {rod_steps} {self.full.tolerance!r}')
+
+    @property
+    def tangent(self) -> TangentModel:
+        """Return the 'linear' level's expansion (its cached full solution, sensitivities)."""
+        return self._linear.tangent
+
+    @property
+    def max_position_error(self) -> float:
+        """Position budget (m) of 'auto' (0: none)."""
+        return self.auto.max_position_error
+
+    @property
+    def max_angle_error_deg(self) -> float:
+        """Angle budget (deg) of 'auto' (0: none)."""
+        return self.auto.max_angle_error_deg
 
     @property
     def time_limit_s(self) -> float:
@@ -109,7 +139,7 @@ class FidelitySolver:
 
     @classmethod
     def from_params_file(cls, path: Union[str, Path] = DEFAULT_PARAMS_PATH,
-                         **options) -> 'FidelitySolver':
+                         **options: Any) -> 'FidelitySolver':
         """
         Build from a params file: the model, ``fidelity`` and the budget.
 
@@ -126,13 +156,23 @@ class FidelitySolver:
         return cls(TranslatorParams.from_yaml(path), **settings)
 
     def reset(self) -> None:
-        """Forget every previous solution and the cached tangent: the next solve is cold."""
-        self.full.reset()
-        self.tangent.clear()
-        self._previous = dict.fromkeys(self.reduced)
-        self._last_wrench = None
-        self._last_level = None
+        """Forget every previous solution and the expansion: the next solve is cold."""
+        for level in self.levels.values():
+            level.reset()
         self.auto.reset()
+
+    def _measure_load_scale(self) -> float:
+        """Return stability.load_scale of the full model (once per parameter set), reset."""
+        key = f'{self.params!r} {self.full.tolerance!r}'
+        if key not in _LOAD_SCALES:
+            unloaded = self.full.solve(np.zeros(3))
+            self.full.reset()
+            if not unloaded.converged:
+                raise ArithmeticError(f'the unloaded translator does not solve: '
+                                      f'{unloaded.message}')
+            _LOAD_SCALES[key] = load_scale_at(self.full.problem,
+                                              unloaded.unknowns / self.full.problem.x_scale)
+        return _LOAD_SCALES[key]
 
     # level choice -----------------------------------------------------------------------------
     def choose(self, wrench: np.ndarray) -> Tuple[str, str]:
@@ -140,7 +180,8 @@ class FidelitySolver:
         Return (level, reason) for ``wrench``: the fixed level, or the validated choice.
 
         The validated choice is the cheapest level whose validated error meets the budget
-        (``AutoFidelity.validated_choice``); 'auto' solves start there and widen the
+        (``AutoFidelity.validated_choice``); 'auto' solves start there, answer in full
+        where no full solution's stability verdict reaches a cheaper answer, and widen the
         'linear' level's range by checks (``fidelity.auto``).
         """
         if self.fidelity != 'auto':
@@ -148,6 +189,15 @@ class FidelitySolver:
         return self.auto.validated_choice(wrench)
 
     # solving --------------------------------------------------------------------------------
+    def _asked(self) -> Asked:
+        """Return what a fixed level is asked: its reason, the verdicts at hand, the limit."""
+        at_hand = (self._linear.verdict,)
+        if at_hand != self._judge_of:
+            self._judge_of = at_hand
+            self._judge = Judge.of((self._unloaded,) + at_hand, self.load_scale,
+                                   self.params.stack_height)
+        return Asked(f'fidelity fixed to {self.fidelity}', self._judge, self.full.time_limit_s)
+
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False,
               **compliance_options: float) -> SolveResult:
@@ -162,8 +212,8 @@ class FidelitySolver:
             self.reset()
         if self.fidelity == 'auto':
             return self.auto.solve(wrench, compliance, compliance_options)
-        return self._solve_at(self.fidelity, f'fidelity fixed to {self.fidelity}', wrench,
-                              compliance, compliance_options)
+        return self.levels[self.fidelity].solve(wrench, compliance, compliance_options,
+                                                self._asked())
 
     @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,
@@ -172,159 +222,31 @@ class FidelitySolver:
         Solve the rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
         The rows equal N consecutive ``solve`` calls, and the solver is left as they would
-        leave it; a run of rows at one reduced level goes to that level's compiled sequence
-        (``batch_rows.solve_run``), which writes the pose columns without a SolveResult. A
-        failing row is flagged, not raised (TranslatorSolver.solve_many).
+        leave it; a run of rows at one level goes to that level's ``solve_many`` (compiled
+        where the level has a compiled sequence), which writes the pose columns without a
+        SolveResult. A failing row is flagged, not raised (TranslatorSolver.solve_many).
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
         if self.fidelity == 'auto':
-            self.auto.solve_many(wrenches, batch, compliance)
+            auto_runs.solve_many(self.auto, wrenches, batch, compliance)
             return batch
-        reason = f'fidelity fixed to {self.fidelity}'
         if not len(wrenches):
             return batch
+        level = self.levels[self.fidelity]
         first = 0
-        if self.fidelity == 'linear' and not self.tangent.ready:
+        if self.fidelity == 'linear' and not self._linear.ready:
             # the first row makes the expansion the others use
-            batch_rows.solve_run(self, 'linear', reason, wrenches, range(1), batch, compliance)
-            first = 1
-        batch_rows.solve_run(self, self.fidelity, reason, wrenches, range(first, len(wrenches)),
-                             batch, compliance)
+            first = level.solve_many(wrenches, range(1), batch, compliance, self._asked())
+        level.solve_many(wrenches, range(first, len(wrenches)), batch, compliance,
+                         self._asked())
         return batch
-
-    def _solve_at(self, level: str, reason: str, wrench: np.ndarray, compliance: bool,
-                  compliance_options: dict) -> SolveResult:
-        """Solve at the chosen ``level`` (for ``reason``, which ends the message)."""
-        if level == 'linear' and not self.tangent.ready:
-            result = self.cache_full_solution(wrench, compliance, **compliance_options)
-            result.message += '; linear level: no cached solution yet, solved in full'
-        elif level == 'full':
-            result = self._solve_full(wrench, compliance, compliance_options)
-        elif level == 'linear':
-            result = self._solve_linear(wrench, compliance, compliance_options)
-        else:
-            result = self._solve_reduced(level, wrench, compliance, compliance_options)
-        result.message += f' [{result.fidelity}: {reason}]'
-        self._last_wrench = wrench
-        self._last_level = result.fidelity
-        return result
 
     def cache_full_solution(self, wrench: np.ndarray, compliance: bool = False,
                             **compliance_options: float) -> SolveResult:
         """Solve the full model at ``wrench`` and expand the linear level about it."""
-        started = time.perf_counter()
-        # warm start, compliance and verify given by position: the options are only floats
-        result = self.full.solve(wrench[:3], wrench[3:], True, compliance, False,
-                                 **compliance_options)
-        if result.converged:
-            try:
-                self.tangent.build(result.unknowns / self.full.problem.x_scale, wrench)
-            except ArithmeticError as error:
-                self.tangent.clear()
-                result.message += f'; no linear expansion here: {error}'
-        result.solve_time_s = time.perf_counter() - started
-        return result
+        return self._linear.expand(wrench, compliance, compliance_options)
 
-    def _solve_full(self, wrench: np.ndarray, compliance: bool,
-                    compliance_options: dict) -> SolveResult:
-        """Solve the full model (an expansion about it, if 'auto' wants one: fidelity.auto)."""
-        return self.full.solve(wrench[:3], wrench[3:], compliance=compliance,
-                               **compliance_options)
-
-    def _solve_linear(self, wrench: np.ndarray, compliance: bool,
-                      compliance_options: dict) -> SolveResult:
-        """Return the expansion's frames; its unknowns, points and dictionaries when read."""
-        started = time.perf_counter()
-        frames = self.tangent.frames(wrench)
-        elapsed = time.perf_counter() - started
-        unknowns, points = self.tangent.unknowns_and_points(wrench)
-        offset = max(map(abs, (wrench - self.tangent.origin).tolist()))
-        # the level solves no equations: its residual is zero by construction
-        result = SolveResult.deferred(
-            {'frames': lambda: dict(zip(FRAME_NAMES, frames)), 'backbones': points,
-             'unknowns': unknowns,
-             'residual_by_type': lambda: dict.fromkeys(RESIDUAL_KINDS, 0.0)},
-            converged=True, message=f'first-order expansion about the full solution at '
-            f'{self.tangent.origin_text} (largest offset {offset:.3g})', iterations=0,
-            residual_norm=0.0, force=wrench[:3].copy(), moment=wrench[3:].copy(),
-            solve_time_s=elapsed, method='fast', fidelity='linear')
-        if compliance:
-            result.compliance = self.tangent.compliance(**compliance_options)
-        return result
-
-    def _solve_reduced(self, level: str, wrench: np.ndarray, compliance: bool,
-                       compliance_options: dict) -> SolveResult:
-        outcome, elapsed = self._reduced_outcome(level, wrench)
-        result = self._reduced_result(level, outcome, wrench, elapsed)
-        if compliance and outcome.converged:
-            result.compliance, failure = self._reduced_compliance(level, outcome, wrench,
-                                                                  compliance_options)
-            result.message += failure
-        return result
-
-    def _reduced_outcome(self, level: str, wrench: np.ndarray) -> Tuple[ReducedOutcome, float]:
-        """Solve a reduced level from its last solution (or unloaded); (outcome, time)."""
-        model = self.reduced[level]
-        started = time.perf_counter()
-        start = self._previous[level]
-        if start is not None and box_scale(wrench - start[1]) > box_scale(wrench):
-            start = None  # the unloaded state is nearer than the last solution
-        outcome = model.solve(wrench, start, started + self.time_limit_s)
-        if not outcome.converged and start is not None:
-            # the warm start may sit too far away: restart from the unloaded state
-            restart = model.solve(wrench, None, started + self.time_limit_s)
-            restart.iterations += outcome.iterations
-            if restart.converged:
-                outcome = restart
-        elapsed = time.perf_counter() - started
-        if outcome.converged:
-            self._previous[level] = (outcome.x, wrench)
-        return outcome, elapsed
-
-    def _reduced_result(self, level: str, outcome: ReducedOutcome, wrench: np.ndarray,
-                        elapsed: float) -> SolveResult:
-        """Return a reduced solve's result; its shape and residual dictionary made when read."""
-        model, x, rs = self.reduced[level], outcome.x, outcome.rs
-        return SolveResult.deferred(
-            {'frames': lambda: dict(zip(FRAME_NAMES, model.frames(x, wrench))),
-             'backbones': lambda: model.points(x, wrench),
-             'residual_by_type': lambda: model.residual_by_kind(rs)},
-            converged=outcome.converged, message=outcome.message,
-            iterations=outcome.iterations, residual_norm=float(np.sqrt(rs @ rs)),
-            force=wrench[:3].copy(), moment=wrench[3:].copy(), solve_time_s=elapsed,
-            method='fast', unknowns=x * model.unknown_scale, fidelity=level)
-
-    def _reduced_compliance(self, level: str, outcome: ReducedOutcome, wrench: np.ndarray,
-                            options: dict) -> Tuple[Optional[ComplianceAnalysis], str]:
-        """(compliance of a converged reduced solve, or None and the message tail saying why)."""
-        model = self.reduced[level]
-        try:
-            analysis: Optional[ComplianceAnalysis] = _reduced_compliance(
-                model, outcome.x, wrench, self.params.stack_height, options)
-            failure = ''
-        except ArithmeticError as error:
-            analysis, failure = None, f'; no compliance: {error}'
-        self._previous[level] = (outcome.x, wrench)  # the differences moved the model
-        return analysis, failure
-
-
-def _reduced_compliance(model: ReducedModel, x: np.ndarray, wrench: np.ndarray,
-                        characteristic_length: float,
-                        options: dict) -> ComplianceAnalysis:
-    """Compliance of a reduced level by central differences of its own solves."""
-    started = time.perf_counter()
-    matrix = np.empty((6, 6))
-    deadline = started + 10.0
-    for column in range(6):
-        offset = np.zeros(6)
-        offset[column] = COMPLIANCE_STEPS[column // 3]
-        ends = []
-        for sign in (1.0, -1.0):
-            outcome = model.solve(wrench + sign * offset, (x, wrench), deadline)
-            if not outcome.converged:
-                raise ArithmeticError(f'{model.name} compliance solve failed: {outcome.message}')
-            ends.append(model.frames(outcome.x, wrench + sign * offset)[3])
-        matrix[:, column] = frame_twist(ends[1], ends[0]) / (2.0 * offset[column])
-    return analyse(matrix, characteristic_length, method=f'{model.name} finite differences',
-                   time_s=time.perf_counter() - started, **options)
+    def compliance(self, answer: SolveResult, **options: float) -> ComplianceAnalysis:
+        """Return the end-disk compliance of a converged ``answer`` by the level that gave it."""
+        return self.levels[answer.fidelity].compliance(answer, options)

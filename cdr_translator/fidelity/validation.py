@@ -195,6 +195,19 @@ class LevelBound:
             reach = bound * (1.0 + 1e-12)
         return reach
 
+    def errors_at(self, scales: Union[float, np.ndarray]) -> np.ndarray:
+        """
+        Return the validated errors (..., 2: m, deg) of the boxes holding ``scales`` (inf: none).
+
+        The box ``within`` judges a scale by: the smallest that holds it.
+        """
+        limits = np.array(self.scales) * (1.0 + 1e-12)
+        index = np.searchsorted(limits, np.asarray(scales, dtype=float), side='left')
+        table = np.vstack([np.column_stack([self.max_position_error_m,
+                                            self.max_angle_error_deg]),
+                           np.full((1, 2), math.inf)])
+        return table[np.minimum(index, len(self.scales))]
+
     def largest_scale(self, max_position_error: float, max_angle_error_deg: float) -> float:
         """Largest box scale whose errors stay inside the budget (0 if none)."""
         admissible = [bound for index, bound in enumerate(self.scales)

@@ -55,8 +55,8 @@ class BatchRow:
                                'Estimated end-disk position error (m; NaN: none).')
     error_estimate_deg = _column('error_estimate_deg', float,
                                  'Estimated angle error (deg; NaN: none).')
-    accuracy_met = _column('accuracy_met', lambda met: True if met is None else bool(met),
-                           'Whether the estimate meets the accuracy target (True: none made).')
+    accuracy_met = _column('accuracy_met', _optional_bool,
+                           'Whether the estimate meets its target (None: none made).')
     steps_per_segment = _column('steps_per_segment', int,
                                 "RK4 steps per disk interval of the row's error estimate.")
     force = _column('force', np.copy, 'The force solved for (N, base frame).')

@@ -293,7 +293,9 @@ def solve_diagnostic_values(result: Solved) -> dict:
     if math.isfinite(getattr(result, 'error_estimate_m', math.nan)):
         values['error_estimate_m'] = float(result.error_estimate_m)
         values['error_estimate_deg'] = float(result.error_estimate_deg)
-        values['accuracy_met'] = bool(result.accuracy_met)
+        met = getattr(result, 'accuracy_met', None)
+        if met is not None:  # None: no target was checked, which is no "met"
+            values['accuracy_met'] = bool(met)
         values['steps_per_segment'] = int(result.steps_per_segment)
     return values
 
@@ -312,7 +314,8 @@ def solve_level(result: Solved) -> int:
     if stable is None:
         compliance = getattr(result, 'compliance', None)
         stable = compliance.stable if compliance is not None else True
-    return OK if stable and getattr(result, 'accuracy_met', True) else WARN
+    # accuracy_met None (nothing estimated) is no shortfall; only False warns
+    return OK if stable and getattr(result, 'accuracy_met', None) is not False else WARN
 
 
 def output_messages(result: Solved, stamp: Mapping[str, int], base_frame: str, *,

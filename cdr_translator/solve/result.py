@@ -79,17 +79,27 @@ class SolveResult:
     #: cdr_translator.fidelity ('cc', 'rod', 'linear')
     fidelity: str = 'full'
     #: stability verdict of the equilibrium (cdr_translator.analysis.stability; docs/explanation):
-    #: None when not assessed (not converged, or the paper's method)
+    #: None when not assessed (not converged, or the paper's method; the message says why).
+    #: A reduced level ('rod', 'cc', 'linear') has no stability analysis of its own: its
+    #: answer carries the verdict of a full solution near it (cdr_translator.fidelity's
+    #: borrowed verdict: the unloaded state, the linear expansion's solution or the last
+    #: full answer), kept by the rule the full model keeps a verdict made at another wrench
+    #: by, and its message names that solution; None, with the message saying so, when no
+    #: full solution lies near enough
     stable: Optional[bool] = None
     #: smallest generalized eigenvalue of the end-disk stiffness against the unloaded one:
-    #: 1 unloaded, 0 at a bifurcation, negative past it (NaN when not assessed)
+    #: 1 unloaded, 0 at a bifurcation, negative past it (NaN when not assessed); for a
+    #: reduced level, the margin of the full solution whose verdict it carries
     stability_margin: float = math.nan
-    #: estimated discretization error of the end-disk pose (and of what ``verify`` checks),
-    #: m and deg (cdr_translator.analysis.accuracy; NaN when not estimated)
+    #: estimated error of the end-disk pose (and of what ``verify`` checks), m and deg: the
+    #: full model's discretization error (cdr_translator.analysis.accuracy); for a reduced level
+    #: under an error budget, the level's validated or checked error there
+    #: (cdr_translator.fidelity); NaN when not estimated
     error_estimate_m: float = math.nan
     error_estimate_deg: float = math.nan
-    #: whether the estimate is within the solver's accuracy target
-    accuracy_met: bool = True
+    #: whether the estimate is within its target: the solver's accuracy target (full), the
+    #: error budget (a reduced level under 'auto'); None when nothing was estimated
+    accuracy_met: Optional[bool] = None
     #: RK4 steps per disk interval of this result (more than the parameters' after an
     #: automatic refinement; 0 when not recorded)
     steps_per_segment: int = 0
@@ -198,10 +208,9 @@ class SolveResult:
             **(self.verification.to_dict() if self.verification is not None else {}),
             'error_estimate_m': _finite_or_none(self.error_estimate_m),
             'error_estimate_deg': _finite_or_none(self.error_estimate_deg),
-            # null when not assessed: no estimate (a reduced fidelity level, the paper's
-            # method, no convergence) is no evidence that the target was met
-            'accuracy_met': (bool(self.accuracy_met) if math.isfinite(self.error_estimate_m)
-                             else None),
+            # null when not assessed: no estimate (a reduced fidelity level without a
+            # budget, the paper's method, no convergence) is no evidence of the target met
+            'accuracy_met': None if self.accuracy_met is None else bool(self.accuracy_met),
             'steps_per_segment': int(self.steps_per_segment),
             # the solve's own verdict (docs/explanation) wins over the compliance's; null
             # when neither was assessed

@@ -47,7 +47,7 @@ def test_check_measures_the_linear_error(params, full):
     for size in (0.02, 0.06, 0.12):
         wrench = origin + size * box_half_widths() * np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
         estimate = solver.auto.check_prediction(wrench, solver.tangent.unknowns(wrench))
-        linear = solver._solve_linear(wrench, False, {})
+        linear = solver.levels['linear'].answer(wrench, False, {})
         position, angle = errors(linear, full, wrench)
         assert 0.5 < estimate[0] / position < 2.0, (size, estimate, position)
         assert 0.3 < estimate[1] / angle < 3.0, (size, estimate, angle)
@@ -60,9 +60,11 @@ def test_failed_check_escalates(params, full):
     origin = solver.tangent.origin
     wrench = origin + 0.3 * box_half_widths() * np.array([1.0, 0.5, -0.5, 0.3, 0.2, 0.4])
     assert solver.auto.linear_verdict(wrench) == 'check'
-    linear = solver._solve_linear(wrench, False, {})
+    linear = solver.levels['linear'].answer(wrench, False, {})
     assert errors(linear, full, wrench)[0] > BUDGET[0]  # the linear answer would miss
     failed = solver.auto.counts['failed_checks']
+    here = full.solve(wrench[:3], wrench[3:])  # a verdict at hand: else 'full' answers for it
+    solver.auto.note_full_answer(wrench, here.stable, here.stability_margin)
     result = solver.solve(wrench[:3], wrench[3:])
     assert solver.auto.counts['failed_checks'] == failed + 1
     assert result.fidelity != 'linear' and result.converged, result.message
@@ -78,7 +80,8 @@ def test_passed_checks_widen_the_trust_region(params):
     """
     solver = learned_solver(params)
     origin = np.array([14.0, 1.0, 0.0, 0.02, 0.0, 0.0])
-    solver.auto._full(origin, True, False, {}, 'a new expansion')  # trusts half its radius
+    # a new expansion trusts half its radius
+    solver.auto.answer_in_full(origin, True, False, {}, 'a new expansion')
     assert not np.isfinite(solver.auto.gain).any()
     direction = box_half_widths() * np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     results = []
@@ -132,22 +135,29 @@ def test_batch_equals_single_solves_with_checks(params):
     assert batched.auto.counts['checks'] == single.auto.counts['checks'] > 0
 
 
-@pytest.mark.parametrize('budget, levels', [((1e-5, 0.01), {'full'}), ((1e-2, 3.0), {'cc'})])
-def test_batch_equals_single_solves_in_runs(params, budget, levels):
+@pytest.mark.parametrize('budget, level', [((1e-5, 0.01), 'full'), ((1e-2, 3.0), 'cc')])
+def test_batch_equals_single_solves_in_runs(params, budget, level):
     """
-    Rows run at full (a tight budget) or at one reduced level (a wide one) in a batch.
+    Rows run at full (a tight budget) or mostly below it (a wide one) in a batch.
 
     Each run is one call of that level's batch path; the rows still equal single solves,
-    and the solver is left as they leave it.
+    and the solver is left as they leave it. At the wide budget a full answer now and then
+    gives the reduced answers near it their stability verdict.
     """
     forces, moments = sequence(60)
     single, batched = (FidelitySolver(params, max_position_error=budget[0],
                                       max_angle_error_deg=budget[1]) for _ in range(2))
     results = [single.solve(force, moment) for force, moment in zip(forces, moments)]
     batch = batched.solve_many(forces, moments)
-    assert set(batch.fidelity.tolist()) == levels
+    levels = batch.fidelity.tolist()
+    assert level in levels
+    if level != 'full':  # a few full answers: verdicts (and expansions, when they pay)
+        assert levels.count('full') < 0.2 * len(levels), levels
+    else:
+        assert set(levels) == {'full'}
+    assert all(result.stable is not None for result in results)
     assert batch.fidelity.tolist() == [result.fidelity for result in results]
     assert_rows_equal(batch, results)
-    assert batched._last_level == single._last_level
-    assert np.array_equal(batched._last_wrench, single._last_wrench)
+    assert batched.auto.last_level == single.auto.last_level
+    assert np.array_equal(batched.auto.last_wrench, single.auto.last_wrench)
     assert batched.auto.counts == single.auto.counts

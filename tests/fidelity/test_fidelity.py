@@ -176,16 +176,31 @@ def _unseen(scale, count, seed):
     return rng.uniform(-1.0, 1.0, (count, 6)) * scale * validation.box_half_widths()
 
 
+def _judged_here(solver, reference, wrench):
+    """Give ``solver`` the full model's verdict at ``wrench``, as a full answer there would."""
+    solver.reset()
+    full = solve(reference, wrench)
+    solver.auto.note_full_answer(wrench, full.stable, full.stability_margin)
+
+
 def test_loose_budget_picks_the_cheapest_level_within_its_measured_error(
         params, reference, stored):
-    """The cheapest admissible level is chosen and stays inside its measured error."""
+    """
+    The cheapest admissible level is chosen and stays inside its measured error.
+
+    With no full solution near, the answer is full: it carries its own verdict.
+    """
     cc = stored.levels['cc']
     budget = (cc.max_position_error_m[-1], cc.max_angle_error_deg[-1])
     solver = FidelitySolver(params, max_position_error=budget[0], max_angle_error_deg=budget[1])
     for wrench in _unseen(1.0, 6, seed=2024):
         solver.reset()
+        alone = solver.solve(wrench[:3], wrench[3:])
+        assert alone.fidelity == 'full' and alone.stable is not None, alone.message
+        _judged_here(solver, reference, wrench)
         result = solver.solve(wrench[:3], wrench[3:])
         assert result.fidelity == 'cc', result.message
+        assert result.stable is True and "full model's verdict" in result.message
         position, angle = pose_errors(result, solve(reference, wrench))
         assert position <= budget[0] and math.degrees(angle) <= budget[1]
 
@@ -206,7 +221,7 @@ def test_middle_budget_picks_rod_where_cc_is_too_coarse(params, reference, store
         scale = validation.box_scale(wrench)
         if not inner < scale <= outer or cc.within(scale, *budget):
             continue
-        solver.reset()
+        _judged_here(solver, reference, wrench)
         result = solver.solve(wrench[:3], wrench[3:])
         assert result.fidelity == 'rod', result.message
         position, angle = pose_errors(result, solve(reference, wrench))
@@ -237,9 +252,10 @@ def test_auto_uses_linear_near_a_cached_solution(params, reference, stored):
     assert levels[0] == 'full' and 'linear' in levels
 
 
-def test_outside_the_validated_range_falls_back_to_full(params, stored):
+def test_outside_the_validated_range_falls_back_to_full(params, reference, stored):
     """Past the largest validated box every budget gives the full model."""
     solver = FidelitySolver(params, max_position_error=1.0, max_angle_error_deg=180.0)
+    _judged_here(solver, reference, np.array([10.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
     inside = solver.solve([10.0, 0.0, 0.0])
     outside = solver.solve([1.5 * validation.BOX_FORCE_N[0], 0.0, 0.0])
     assert inside.fidelity in ('cc', 'rod', 'linear')

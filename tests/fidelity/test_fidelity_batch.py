@@ -148,7 +148,8 @@ def test_batch_leaves_the_solver_as_single_solves_do(params, level):
     for result, expected in zip(after, results[25:]):
         assert np.array_equal(result.unknowns, expected.unknowns)
     if level != 'linear':
-        assert np.array_equal(batched._previous[level][0], single._previous[level][0])
+        assert np.array_equal(batched.levels[level].previous[0],
+                              single.levels[level].previous[0])
 
 
 @pytest.mark.parametrize('level', ['cc', 'rod'])
@@ -160,6 +161,6 @@ def test_reduced_runs_are_compiled(params, level, monkeypatch):
     def refuse(*_):
         raise AssertionError('a row was solved one by one')
 
-    monkeypatch.setattr(solver, '_reduced_outcome', refuse)
+    monkeypatch.setattr(solver.levels[level], 'outcome', refuse)
     batch = solver.solve_many(forces, moments)
     assert batch.converged.all() and (batch.solve_time_s > 0.0).all(), set(batch.message)

@@ -50,9 +50,6 @@ KNOWN_CYCLES: Dict[str, FrozenSet[str]] = {
         'cdr_translator.solve.solver', 'cdr_translator.solve.lean_rows',
         'cdr_translator.solve.refinement',
         'cdr_translator.solve.given_unknowns', 'cdr_translator.solve.wrench_estimation'}),
-    'fidelity solver, auto and batch rows': frozenset({
-        'cdr_translator.fidelity.solver', 'cdr_translator.fidelity.auto',
-        'cdr_translator.fidelity.auto_batch', 'cdr_translator.fidelity.batch_rows'}),
     'delta robot and payload estimate': frozenset({
         'cdr_translator.robot.delta', 'cdr_translator.robot.payload_estimate'}),
 }

@@ -1,50 +1,40 @@
 """
-Batches of the 'auto' fidelity: runs of rows that one compiled call answers, as solves would.
+Batches of the 'auto' fidelity: runs of rows that one level answers in one call, as solves would.
 
-``AutoFidelity.solve`` decides row by row, but two kinds of run can be told in advance from
-the wrenches alone, since neither changes the state the decisions read (the expansion, its
-trust region, the measured costs):
+``AutoFidelity.solve`` decides row by row, but three kinds of run can be told in advance
+from the wrenches alone, since none changes the state the decisions read (the expansion,
+its trust region, the verdicts at hand, the measured costs):
 
-* rows inside the trust region of the expansion: the expansion's compiled poses
-  (``batch_rows.solve_run`` at 'linear');
+* rows inside the trust region of the expansion: the 'linear' level's compiled poses;
+* without an expansion, rows that one reduced level is the first choice for: its compiled
+  sequence, up to the first row it fails;
 * rows that ``solve`` answers by a full solve without a new expansion -- no linear answer
   or check is possible, no reduced level is admitted, and an expansion would not pay for
-  itself (``AutoFidelity.expansion_pays``) -- and every row of a solver without a budget or
-  validation data: the full model's batch rows (``batch_rows.solve_run`` at 'full', whose
-  rows equal its single solves).
+  itself (``AutoFidelity.expansion_pays_at``) -- and every row of a solver without a budget
+  or validation data: the full level's rows, which equal its single solves.
 
-Every other row is one ``solve``.
+Every other row is one ``solve``. The runs go through ``AutoFidelity.run`` (the level's
+``solve_many``), which keeps the policy's memory as the single answers would.
 """
 
 import math
-from typing import Optional, Tuple, TYPE_CHECKING
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 
-from . import batch_rows
+from .admission import NO_BUDGET, NO_DATA, OUTSIDE
+from .auto import AutoFidelity, NO_CHEAPER, TRUSTED
+from .reduced_level import compiled_runs
 from .validation import box_scale, box_scales
 from ..solve.batch import BatchResult
-
-if TYPE_CHECKING:
-    from .auto import AutoFidelity
 
 #: Rows a batch looks ahead at first for a run it can tell in advance.
 WINDOW = 16
 
-#: Reasons of 'auto' answers: a linear answer taken unchecked; full answers without an
-#: expansion (outside every validated range, nothing cheaper admitted, no budget, no data).
-TRUSTED = 'inside the trust region of the expansion about the last full solution'
-OUTSIDE = 'wrench outside the validated range'
-NO_CHEAPER = 'no cheaper level meets the budget'
-NO_BUDGET = 'no error budget'
-NO_DATA = 'no validation data for these parameters'
 
-
-def solve_many(auto: 'AutoFidelity', wrenches: np.ndarray, batch: BatchResult,
+def solve_many(auto: AutoFidelity, wrenches: np.ndarray, batch: BatchResult,
                compliance: bool) -> None:
     """Solve the rows of ``wrenches`` into ``batch`` as consecutive ``auto.solve`` would."""
-    solver = auto.solver
-
     def _row(batch: BatchResult, row: int, wrench: np.ndarray, compliance: bool) -> float:
         """One row by ``solve``."""
         result = auto.solve(wrench, compliance, {})
@@ -55,31 +45,33 @@ def solve_many(auto: 'AutoFidelity', wrenches: np.ndarray, batch: BatchResult,
     while row < len(wrenches):
         end = row + trusted_rows(auto, wrenches[row:])
         if end > row:
-            origin = solver.tangent.origin
-            auto.served(float(box_scales(wrenches[row:end] - origin).max()))
-            batch_rows.solve_run(solver, 'linear', TRUSTED, wrenches, range(row, end),
-                                 batch, compliance)
+            scales = box_scales(wrenches[row:end] - auto.linear.tangent.origin)
+            auto.served(float(scales.max()))
+            auto.run('linear', TRUSTED, wrenches, range(row, end), batch, compliance,
+                     auto.curvature * scales[:, None] ** 2)
             row = end
             continue
         count, level = reduced_rows(auto, wrenches[row:], compliance)
         if count:
-            row += batch_rows.reduced_run_to_failure(solver, level, wrenches,
-                                                     range(row, row + count), batch)
+            assert auto.validation is not None  # reduced_rows needs the data
+            estimates = auto.validation.levels[level].errors_at(
+                box_scales(wrenches[row:row + count]))
+            row += auto.run(level, '', wrenches, range(row, row + count), batch, False,
+                            estimates, stop_at_failure=True)
             if row < len(wrenches):  # the row that failed there (or the next): by solve
                 batch.run(row, _row, wrenches[row], compliance)
                 row += 1
             continue
         count, reason = full_rows(auto, wrenches[row:])
         if count:
-            batch_rows.solve_run(solver, 'full', reason, wrenches, range(row, row + count),
-                                 batch, compliance)
+            auto.run('full', reason, wrenches, range(row, row + count), batch, compliance)
             row += count
             continue
         batch.run(row, _row, wrenches[row], compliance)
         row += 1
 
 
-def _runs(wrenches: np.ndarray, taken) -> int:
+def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray]) -> int:
     """
     How many leading rows of ``wrenches`` ``taken(part, first)`` takes.
 
@@ -96,29 +88,31 @@ def _runs(wrenches: np.ndarray, taken) -> int:
     return count
 
 
-def trusted_rows(auto: 'AutoFidelity', wrenches: np.ndarray) -> int:
-    """How many leading rows of ``wrenches`` ``auto.linear_verdict`` takes as they are."""
-    origin = auto.solver.tangent.origin
+def trusted_rows(auto: AutoFidelity, wrenches: np.ndarray) -> int:
+    """How many leading rows of ``wrenches`` ``auto.solve`` answers by the expansion, unchecked."""
+    origin = auto.linear.tangent.origin
     if origin is None or box_scale(origin) > 1.0:
         return 0
+    judge = auto.judge()
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part - origin)
         return ((box_scales(part) <= 1.0) & (scales <= auto.trusted)
-                & auto.within_linear_target(scales))
+                & auto.within_linear_target(scales) & judge.covered(part))
 
     return _runs(wrenches, taken)
 
 
-def _stepped(auto: 'AutoFidelity', wrenches: np.ndarray, first: int, part: np.ndarray,
+def _stepped(auto: AutoFidelity, wrenches: np.ndarray, first: int, part: np.ndarray,
              alternative: Optional[float]) -> np.ndarray:
     """
     Per row of ``part`` (rows ``first`` on of ``wrenches``): whether an expansion pays there.
 
-    As ``AutoFidelity._expansion_pays`` decides after the row before it (the solver's last
-    wrench for the first row) with the state unchanged; rows outside the box count too.
+    As ``AutoFidelity.solve`` decides whether an expansion pays after the row before it (the
+    policy's last wrench for the first row), the state unchanged; rows outside the box count
+    too.
     """
-    before = wrenches[first - 1] if first else auto.solver._last_wrench
+    before = wrenches[first - 1] if first else auto.last_wrench
     if before is None:  # the first solve of a solver: no step, no expansion
         expands = np.zeros(len(part), bool)
         expands[1:] = auto.expansion_pays_at(box_scales(np.diff(part, axis=0)), alternative)
@@ -127,7 +121,7 @@ def _stepped(auto: 'AutoFidelity', wrenches: np.ndarray, first: int, part: np.nd
                                   alternative)
 
 
-def reduced_rows(auto: 'AutoFidelity', wrenches: np.ndarray, compliance: bool
+def reduced_rows(auto: AutoFidelity, wrenches: np.ndarray, compliance: bool
                  ) -> Tuple[int, str]:
     """
     (count, level): the leading rows ``auto.solve`` first tries at one reduced level.
@@ -136,11 +130,10 @@ def reduced_rows(auto: 'AutoFidelity', wrenches: np.ndarray, compliance: bool
     and for compiled runs; each row is taken while that level answers it (the run stops
     at a row it fails, which ``solve`` then answers by the next level).
     """
-    solver = auto.solver
-    if (solver.tangent.ready or compliance or not batch_rows.compiled_runs(solver)
+    if (auto.linear.tangent.ready or compliance or not compiled_runs(auto.full.time_limit_s)
             or not auto.costs):
         return 0, ''
-    reaches = auto.reaches()
+    reaches = auto.admission.reaches
     levels = [level for level in sorted(('cc', 'rod'), key=auto.costs.__getitem__)
               if not math.isnan(reaches.get(level, -math.inf))]
     scale = box_scale(wrenches[0])
@@ -148,18 +141,20 @@ def reduced_rows(auto: 'AutoFidelity', wrenches: np.ndarray, compliance: bool
     if len(levels) < 2 or chosen is None or scale > 1.0:
         return 0, ''
     cheaper = levels[:levels.index(chosen)]
+    judge = auto.judge()
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part)
         admitted = (scales <= 1.0) & (scales <= reaches[chosen])
         for level in cheaper:
             admitted &= scales > reaches[level]
-        return admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
+        return (admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
+                & judge.covered(part))
 
     return _runs(wrenches, taken), chosen
 
 
-def full_rows(auto: 'AutoFidelity', wrenches: np.ndarray) -> Tuple[int, str]:
+def full_rows(auto: AutoFidelity, wrenches: np.ndarray) -> Tuple[int, str]:
     """
     (count, reason): the leading rows ``auto.solve`` answers by a full solve, as it is.
 
@@ -167,14 +162,13 @@ def full_rows(auto: 'AutoFidelity', wrenches: np.ndarray) -> Tuple[int, str]:
     answered otherwise, or its decision is not one this tells in advance (bounds that do
     not grow with the box scale).
     """
-    solver = auto.solver
     level, reason = auto.validated_choice(wrenches[0])
     if reason in (NO_BUDGET, NO_DATA):
         return len(wrenches), reason
-    reaches = auto.reaches()
+    reaches = auto.admission.reaches
     if any(math.isnan(reaches.get(level, -math.inf)) for level in ('cc', 'rod')):
         return 0, ''
-    origin = solver.tangent.origin
+    origin = auto.linear.tangent.origin
     outside = box_scale(wrenches[0]) > 1.0
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
