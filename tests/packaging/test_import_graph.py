@@ -46,15 +46,9 @@ LAYERS = {'ground': 0, 'params': 1, 'bvp': 2, 'analysis': 3, 'estimation': 4, 's
 #: joining one of these), and ``test_known_cycles_are_still_there`` on an entry whose
 #: cycle is gone (remove it: a stale entry would let the cycle come back unnoticed).
 KNOWN_CYCLES: Dict[str, FrozenSet[str]] = {
-    'solver and its row, refinement and estimation helpers': frozenset({
-        'cdr_translator.solve.solver', 'cdr_translator.solve.lean_rows',
-        'cdr_translator.solve.refinement',
-        'cdr_translator.solve.given_unknowns', 'cdr_translator.solve.wrench_estimation'}),
     'fidelity solver, auto and batch rows': frozenset({
         'cdr_translator.fidelity.solver', 'cdr_translator.fidelity.auto',
         'cdr_translator.fidelity.auto_batch', 'cdr_translator.fidelity.batch_rows'}),
-    'delta robot and payload estimate': frozenset({
-        'cdr_translator.robot.delta', 'cdr_translator.robot.payload_estimate'}),
 }
 
 
