@@ -118,7 +118,12 @@ class Engine:
     # the warm start ---------------------------------------------------------------------------
     @property
     def has_warm_start(self) -> bool:
-        """Whether a converged solve (or ``start_at``/``start_from``) left a warm start."""
+        """
+        Whether the next warm solve continues from a state (not from nothing, after ``reset``).
+
+        A converged solve, ``start_at``/``start_from``, or a continuation that stalled
+        (the state it reached; the unloaded one when it made no progress) leaves one.
+        """
         return self._state.previous is not None
 
     @property

@@ -192,7 +192,7 @@ class TranslatorSolver:
 
     @property
     def has_warm_start(self) -> bool:
-        """Whether the next solve with ``warm_start`` starts from a previous solution."""
+        """Whether the next warm solve continues from a state (Engine.has_warm_start)."""
         return self.engine.has_warm_start
 
     @property
