@@ -26,8 +26,7 @@ from bench.speed_vs_error import wrench_sequence
 from cdr_translator import TranslatorParams
 from cdr_translator.fidelity import FidelitySolver, reduced
 from cdr_translator.fidelity.linear import TangentModel
-from cdr_translator.solve import warm_rows
-from cdr_translator.solve import warm_step
+from cdr_translator.solve import warm_fast_path
 import numpy as np
 
 #: Where the tables go.
@@ -41,7 +40,7 @@ LEVELS: Dict[str, Dict[str, Any]] = {
 
 #: Where each level's kernels live: (object, attribute) pairs timed while the sequence runs
 #: (the full model's usual warm row is the batch's compiled row, any other its warm step).
-KERNELS = {'full': ((warm_rows, '_warm_rows'), (warm_step, '_warm_step')),
+KERNELS = {'full': ((warm_fast_path, '_warm_rows'), (warm_fast_path, '_warm_step')),
            'cc': ((reduced.newton, 'continue_to'),), 'rod': ((reduced.newton, 'continue_to'),),
            'linear': ((TangentModel, 'frames'),)}
 

@@ -81,21 +81,22 @@ def _instrument(solver: TranslatorSolver, spent: List[float]) -> None:
 
     The solver is put on its general path (no compiled usual row, whose kept verdict and
     estimate cannot be timed apart). A warm step there makes its estimate inside one
-    compiled call (warm_step.py): the same estimate is made again alone
-    (``_estimate_at``) and that time is counted instead.
+    compiled call (warm_fast_path.py): the same estimate is made again alone
+    (``Engine.estimate_at``) and that time is counted instead.
     """
-    solver._usual_solve = lambda wrench, started: (None, None)  # type: ignore[method-assign]
-    for name in ('_stability', '_estimate_error'):
-        original = getattr(solver, name)
+    engine = solver.engine
+    engine.usual_solve = lambda wrench, started: (None, None)  # type: ignore[method-assign]
+    for name in ('stability', 'estimate_error'):
+        original = getattr(engine, name)
 
         def timed(*args, _original=original, _name=name, **kwargs):
             started = time.perf_counter()
-            if _name == '_estimate_error' and args[1].estimate is not None:
-                solver._estimate_at(args[1], args[0], args[2])
+            if _name == 'estimate_error' and args[1].estimate is not None:
+                engine.estimate_at(args[1], args[0], args[2])
             value = _original(*args, **kwargs)
             spent.append(time.perf_counter() - started)
             return value
-        setattr(solver, name, timed)
+        setattr(engine, name, timed)
 
 
 def _sequence_times(solvers: Dict[str, TranslatorSolver], sequence: np.ndarray,
@@ -124,8 +125,8 @@ def _sequence_times(solvers: Dict[str, TranslatorSolver], sequence: np.ndarray,
             extras[name].append(sum(spent[name]) if spent is not None else 0.0)
             assert result.converged, result.message
     for solver in solvers.values():
-        for method in ('_stability', '_estimate_error', '_usual_solve'):
-            solver.__dict__.pop(method, None)
+        for method in ('stability', 'estimate_error', 'usual_solve'):
+            solver.engine.__dict__.pop(method, None)
     return times, extras
 
 

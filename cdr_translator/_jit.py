@@ -93,7 +93,7 @@ FASTMATH = frozenset({'contract', 'reassoc', 'arcp', 'nsz'})
 #: numba's options for every kernel. ``nogil`` stays False: releasing the GIL in every kernel
 #: let translator_node's callback run during a solve but cost the solver the GIL back after
 #: each kernel; at 1-2 kHz it answered 30-50 % fewer wrenches (bench/results/node_rate.md).
-#: The one exception is ``jit_releasing_gil``: a single call per solve (warm_step.py).
+#: The one exception is ``jit_releasing_gil``: a single call per solve (warm_fast_path.py).
 JIT_OPTIONS: Dict[str, Any] = {'cache': True, 'error_model': 'numpy', 'fastmath': FASTMATH,
                                'nogil': False}
 

@@ -3,7 +3,7 @@ Dense linear algebra of the solvers: LU factorization and solves, residual norms
 
 ``factorize`` and ``solve_lu`` call LAPACK (getrf, getrs) directly from Python;
 ``lu_solve`` and ``norm`` are compiled and are also called from other kernels (chord.py,
-accuracy.py, warm_step.py, robot/kernels.py), so they stay numba functions; ``residual_norm``
+accuracy.py, warm_fast_path.py, robot/kernels.py), so they stay numba functions; ``residual_norm``
 is ``norm`` for Python callers.
 """
 

@@ -317,7 +317,7 @@ def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
     Solves once at every fidelity level, with each Jacobian, and the CDR; a cold solve with
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
     warm solves along a path the extrapolating predictor (chord.extrapolate), a batch
-    after them the compiled run of warm rows (warm_rows.py).
+    after them the compiled run of warm rows (solve/warm_fast_path.py).
     """
     # 'auto' under a budget, so that it looks up the validated ranges (a compiled lookup)
     leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES

@@ -38,7 +38,7 @@ def bending_angle_and_direction(rotation: np.ndarray) -> Tuple[float, float]:
 
 
 @jit
-def _bending_between_frames(frame_a: np.ndarray, frame_b: np.ndarray) -> Tuple[float, float]:
+def bending_between_frames(frame_a: np.ndarray, frame_b: np.ndarray) -> Tuple[float, float]:
     """``bending_between``'s work: the z axis of R_a^T R_b is R_a^T times b's z axis."""
     axis = [frame_a[0, row] * frame_b[0, 2] + frame_a[1, row] * frame_b[1, 2]
             + frame_a[2, row] * frame_b[2, 2] for row in range(3)]
@@ -52,8 +52,8 @@ def bending_between(frame_a: np.ndarray, frame_b: np.ndarray) -> Tuple[float, fl
     ``bending_angle_and_direction(relative_rotation(frame_a, frame_b))`` in one compiled
     call: a SolveResult's joint angles are read once per wrench on the node's path.
     """
-    return _bending_between_frames(np.ascontiguousarray(frame_a, dtype=float),
-                                   np.ascontiguousarray(frame_b, dtype=float))
+    return bending_between_frames(np.ascontiguousarray(frame_a, dtype=float),
+                                  np.ascontiguousarray(frame_b, dtype=float))
 
 
 def rotation_angle(rotation: np.ndarray) -> float:
@@ -89,7 +89,7 @@ def _orthonormal(m: np.ndarray) -> bool:
 
 
 @jit
-def _quaternion_of_rotation(rotation: np.ndarray, quaternion: np.ndarray) -> bool:
+def quaternion_of_rotation(rotation: np.ndarray, quaternion: np.ndarray) -> bool:
     """
     Write the (x, y, z, w >= 0) quaternion of ``rotation`` into ``quaternion``; say if it could.
 
@@ -140,14 +140,14 @@ def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
     """
     Return the unit quaternion (x, y, z, w) of a rotation matrix, w >= 0.
 
-    Compiled (``_quaternion_of_rotation``: 1-2 us instead of 0.4-1 ms for scipy's
+    Compiled (``quaternion_of_rotation``: 1-2 us instead of 0.4-1 ms for scipy's
     Rotation; the node converts one per wrench). A matrix further from a rotation than
     PROJECTION_RANGE, or an improper one, goes to scipy itself, which projects (or
     refuses) it.
     """
     m = np.ascontiguousarray(rotation, dtype=float)
     quaternion = np.empty(4)
-    if m.shape == (3, 3) and _quaternion_of_rotation(m, quaternion):
+    if m.shape == (3, 3) and quaternion_of_rotation(m, quaternion):
         return quaternion
     from scipy.spatial.transform import Rotation  # rare; importing it takes ~1 s
     quaternion = Rotation.from_matrix(m).as_quat()

@@ -237,7 +237,7 @@ def energy_hessian(x, data, hessian):
 
 
 @jit
-def _joint_twists(bx, by, psi, length, nominal):
+def joint_twists(bx, by, psi, length, nominal):
     """
     Pose of a joint and its first derivatives as twists, in scalars (no arrays: hot loop).
 
@@ -293,9 +293,9 @@ def cc_residual(x, data, out):
     wrench turned into {pm}, R1^T f and R1^T m.
     """
     length = data[JOINT_LENGTH]
-    rot1, tip1, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = _joint_twists(
+    rot1, tip1, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = joint_twists(
         x[0], x[1], x[4], length * (1.0 + x[6]), length)
-    rot2, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = _joint_twists(
+    rot2, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = joint_twists(
         x[2], x[3], x[5], length * (1.0 + x[7]), length)
     f = (data[WRENCH], data[WRENCH + 1], data[WRENCH + 2])
     m = (data[WRENCH + 3], data[WRENCH + 4], data[WRENCH + 5])

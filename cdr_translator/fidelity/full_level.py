@@ -2,18 +2,17 @@
 The 'full' level: the paper's model (TranslatorSolver) behind the level protocol (level.py).
 
 Its answers judge themselves (stability verdict, error estimate and refinement:
-TranslatorSolver.solve); a run of rows is the full model's batch rows (lean_rows: runs of
-usual warm rows in one compiled call), which equal its single solves.
+TranslatorSolver.solve); a run of rows is the full model's batch rows
+(TranslatorSolver.solve_batch_rows: runs of usual warm rows in one compiled call), which
+equal its single solves.
 """
 
-from functools import partial
 from typing import Any, Dict, Mapping
 
 import numpy as np
 
 from .level import Asked, run_rows, tail
 from ..analysis.compliance import compliance_analysis, ComplianceAnalysis
-from ..solve import lean_rows
 from ..solve.batch import BatchResult
 from ..solve.result import SolveResult
 from ..solve.solver import TranslatorSolver
@@ -40,7 +39,7 @@ class FullLevel:
                    compliance: bool, asked: Asked) -> int:
         """Answer ``rows``: several in one run of the full model's rows, one by its row."""
         if len(rows) > 1:
-            lean_rows.solve_rows(self.solver, batch, wrenches, rows, compliance)
+            self.solver.solve_batch_rows(batch, wrenches, rows, compliance)
             suffix = tail('full', asked.reason)
             for row in rows:
                 if batch.message[row]:
@@ -48,7 +47,7 @@ class FullLevel:
                 batch.solve_message[row] += suffix
         else:
             run_rows('full', asked, wrenches, rows, batch, compliance,
-                     partial(lean_rows.solve_row, self.solver))
+                     self.solver.solve_batch_row)
         return len(rows)
 
     def compliance(self, answer: SolveResult,

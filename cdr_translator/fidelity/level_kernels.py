@@ -21,7 +21,7 @@ from .cc import cc_frames
 from .equivalent_rod import rod_frames
 from .newton import continue_to, CONVERGED, ROD
 from .._jit import jit
-from ..geometry import _bending_between_frames, _quaternion_of_rotation
+from ..geometry import bending_between_frames, quaternion_of_rotation
 
 #: Columns of a pose row: end-disk position (3), then its quaternion x, y, z, w.
 POSE_SIZE = 7
@@ -99,10 +99,10 @@ def frames_pose(frames, pose, bending):
     """
     for c in range(3):
         pose[c] = frames[3, c, 3]
-    if not _quaternion_of_rotation(frames[3, :3, :3].copy(), pose[3:7]):
+    if not quaternion_of_rotation(frames[3, :3, :3].copy(), pose[3:7]):
         pose[3:7] = math.nan
-    bending[0], bending[1] = _bending_between_frames(frames[0], frames[1])
-    bending[2], bending[3] = _bending_between_frames(frames[2], frames[3])
+    bending[0], bending[1] = bending_between_frames(frames[0], frames[1])
+    bending[2], bending[3] = bending_between_frames(frames[2], frames[3])
 
 
 @jit

@@ -77,7 +77,7 @@ def stamp_from_ns(time_ns: int) -> dict:
     return {'sec': seconds, 'nanosec': nanoseconds}
 
 
-def _get(message: Any, name: str) -> Any:
+def message_field(message: Any, name: str) -> Any:
     """Return field ``name`` of a message given as a dict or as an object with attributes."""
     if type(message) is dict or isinstance(message, Mapping):  # a dict: no ABC check
         return message[name]
@@ -86,7 +86,7 @@ def _get(message: Any, name: str) -> Any:
 
 def stamp_to_ns(stamp: Any) -> int:
     """Return integer nanoseconds of a Time given as a dict or a decoded/rclpy message."""
-    return int(_get(stamp, 'sec')) * 1_000_000_000 + int(_get(stamp, 'nanosec'))
+    return int(message_field(stamp, 'sec')) * 1_000_000_000 + int(message_field(stamp, 'nanosec'))
 
 
 def header(stamp: Mapping[str, int], frame_id: str) -> dict:
@@ -114,14 +114,15 @@ def wrench_from_message(message: Any) -> Tuple[np.ndarray, np.ndarray, str, dict
     The values are returned as given (NaN included): validation is the solver's
     ``check_wrench``. ``stamp`` is a ``{'sec', 'nanosec'}`` dict.
     """
-    head = _get(message, 'header')
-    wrench = _get(message, 'wrench')
-    force, torque = _get(wrench, 'force'), _get(wrench, 'torque')
-    stamp = _get(head, 'stamp')
-    return (np.array([float(_get(force, axis)) for axis in 'xyz']),
-            np.array([float(_get(torque, axis)) for axis in 'xyz']),
-            str(_get(head, 'frame_id')),
-            {'sec': int(_get(stamp, 'sec')), 'nanosec': int(_get(stamp, 'nanosec'))})
+    head = message_field(message, 'header')
+    wrench = message_field(message, 'wrench')
+    force, torque = message_field(wrench, 'force'), message_field(wrench, 'torque')
+    stamp = message_field(head, 'stamp')
+    return (np.array([float(message_field(force, axis)) for axis in 'xyz']),
+            np.array([float(message_field(torque, axis)) for axis in 'xyz']),
+            str(message_field(head, 'frame_id')),
+            {'sec': int(message_field(stamp, 'sec')),
+             'nanosec': int(message_field(stamp, 'nanosec'))})
 
 
 def _pose(frame: np.ndarray) -> dict:

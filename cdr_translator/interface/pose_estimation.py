@@ -57,7 +57,7 @@ def pose_from_message(message: Any) -> MeasuredPose:
 
     The values are returned as given (NaN included): ``measured_target`` checks them.
     """
-    get = messages._get
+    get = messages.message_field
     head = get(message, 'header')
     pose = get(message, 'pose')
     covariance = None

@@ -82,13 +82,13 @@ def target_from_point(message: Any) -> Tuple[np.ndarray, str, dict]:
 
     Values as given (NaN included): the inverse solver validates them.
     """
-    head = messages._get(message, 'header')
-    point = messages._get(message, 'point')
-    stamp = messages._get(head, 'stamp')
-    return (np.array([float(messages._get(point, axis)) for axis in 'xyz']),
-            str(messages._get(head, 'frame_id')),
-            {'sec': int(messages._get(stamp, 'sec')),
-             'nanosec': int(messages._get(stamp, 'nanosec'))})
+    head = messages.message_field(message, 'header')
+    point = messages.message_field(message, 'point')
+    stamp = messages.message_field(head, 'stamp')
+    return (np.array([float(messages.message_field(point, axis)) for axis in 'xyz']),
+            str(messages.message_field(head, 'frame_id')),
+            {'sec': int(messages.message_field(stamp, 'sec')),
+             'nanosec': int(messages.message_field(stamp, 'nanosec'))})
 
 
 def point_message(target: Sequence[float], stamp: Mapping[str, int], frame_id: str) -> dict:

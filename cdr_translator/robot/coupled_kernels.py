@@ -37,7 +37,7 @@ from .reduced_kernels import (determinant_sign, leg_compliance, leg_frames, move
                               platform_jacobian, scaled_norm)
 from .._jit import jit
 from ..fidelity.cc import BENDING_STIFFNESS, JOINT_LENGTH, TUBE_LENGTH
-from ..fidelity.cc_derivatives import _joint_twists
+from ..fidelity.cc_derivatives import joint_twists
 from ..fidelity.level_kernels import frames_pose
 from ..fidelity.newton import CC, lu_factor, lu_solve, residual, system
 
@@ -63,15 +63,15 @@ def cc_twist(x, data, twist):
 
     Column c: [dp/dx_c; vee(dR/dx_c R^T)].
 
-    From each joint's first derivatives as twists (cc_derivatives._joint_twists): the end
+    From each joint's first derivatives as twists (cc_derivatives.joint_twists): the end
     disk is at p = p1 + R1 (L_m e_z + p2) with R = R1 R2 (fidelity.cc's kinematics), so a
     proximal unknown with tip velocity v and angular velocity w moves it by v + w x r
     (r = R1 (L_m e_z + p2)) and turns it by w; a distal one by R1 v and R1 w.
     """
     length = data[JOINT_LENGTH]
-    rot1, _, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = _joint_twists(
+    rot1, _, d_bx1, d_by1, d_e1, turn_bx1, turn_by1, turn_psi1 = joint_twists(
         x[0], x[1], x[4], length * (1.0 + x[6]), length)
-    _, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = _joint_twists(
+    _, tip2, d_bx2, d_by2, d_e2, turn_bx2, turn_by2, turn_psi2 = joint_twists(
         x[2], x[3], x[5], length * (1.0 + x[7]), length)
     lever = (tip2[0], tip2[1], tip2[2] + data[TUBE_LENGTH])
     r = (rot1[0] * lever[0] + rot1[1] * lever[1] + rot1[2] * lever[2],

@@ -65,6 +65,7 @@ from .reduced_batch import solve_rows
 from .reduced_legs import ReducedLegs
 from .result import DeltaResult
 from .._blas import one_blas_thread
+from ..checks import check_number
 from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
 from ..solve.result import SolveResult
 from ..solve.solver import check_wrench, TranslatorSolver
@@ -154,7 +155,8 @@ class DeltaRobot:
     def solve(self, sliders: ArrayLike, payload_force: ArrayLike,
               payload_moment: ArrayLike = (0.0, 0.0, 0.0),
               payload_offset: ArrayLike = (0.0, 0.0, 0.0),
-              warm_start: bool = True, compliance: bool = False) -> DeltaResult:
+              warm_start: bool = True, compliance: bool = False,
+              time_limit_s: Optional[float] = None) -> DeltaResult:
         """
         Solve the platform pose for slider positions (m) and a payload on the platform.
 
@@ -166,10 +168,13 @@ class DeltaRobot:
         there (within linearization.REUSE_DISTANCE), else three exact leg Jacobians (one
         tangent-linear shot each; the dominant cost of a warm solve with ``compliance``),
         which the next solve then iterates on; the first one also finds the legs' held
-        buckling load (held.held_critical_load, not in ``solve_time_s``). Bad input raises
+        buckling load (held.held_critical_load, not in ``solve_time_s``). ``time_limit_s``
+        caps this solve (default: the attribute ``time_limit_s``). Bad input raises
         ValueError; non-convergence is a result.
         """
         inputs = self._inputs(sliders, payload_force, payload_moment, payload_offset)
+        limit = (self.time_limit_s if time_limit_s is None
+                 else check_number('time_limit_s', time_limit_s, low=0.0))
         # made once, apart from the solve's time (the legs' held buckling load)
         held = self._held_reference() if compliance else None
         started = time.perf_counter()
@@ -177,16 +182,16 @@ class DeltaRobot:
             tolerances = np.array((self.equilibrium_tolerance, self.position_tolerance,
                                    self.rotation_tolerance))
             reduced = self._reduced.solve(inputs, warm_start, tolerances, held, started,
-                                          self.time_limit_s)
+                                          limit)
             if reduced is not None:
                 return reduced
-        return self._solve_full(inputs, warm_start, held, started)
+        return self._solve_full(inputs, warm_start, held, started, limit)
 
     @one_blas_thread
     def _solve_full(self, inputs: np.ndarray, warm_start: bool, held: Optional[HeldReference],
-                    started: float) -> DeltaResult:
-        """Solve with full legs (``solve``'s inputs checked, ``held`` made)."""
-        self._chain_legs.begin(started, self.time_limit_s)
+                    started: float, time_limit_s: float) -> DeltaResult:
+        """Solve with full legs (``solve``'s inputs checked, ``held`` made) within a limit."""
+        self._chain_legs.begin(started, time_limit_s)
         self._newton.limits = self._limits()
         path = self._continuation
         if not (warm_start and path.previous is not None):
@@ -301,10 +306,25 @@ class DeltaRobot:
         components. ``covariance`` (6x6 or, for a position, 3x3) is propagated to the
         estimate's. Flagged, not raised, when no payload matches; see robot/payload_estimate.py.
         """
-        return estimate_payload(self, platform_position, sliders, platform_quaternion_xyzw,
+        return estimate_payload(self, self._solve_with_compliance,
+                                self.leg_solvers[0].unloaded_reference(), len(self.leg_solvers),
+                                self.params.stack_height, self.geometry.slider_stroke,
+                                self.time_limit_s, self.has_warm_start, self.reset,
+                                platform_position, sliders, platform_quaternion_xyzw,
                                 covariance=covariance)
 
+    @property
+    def has_warm_start(self) -> bool:
+        """Whether the next solve with ``warm_start`` starts from a previous solution."""
+        return self._continuation.previous is not None
+
     # private ---------------------------------------------------------------------------------
+    def _solve_with_compliance(self, sliders: np.ndarray, payload: np.ndarray,
+                               time_limit_s: float) -> DeltaResult:
+        """Solve under ``payload`` (6) at ``sliders`` with the compliance, within a limit."""
+        return self.solve(sliders, payload[:3], payload[3:], compliance=True,
+                          time_limit_s=time_limit_s)
+
     def _inputs(self, sliders: ArrayLike, payload_force: ArrayLike, payload_moment: ArrayLike,
                 payload_offset: ArrayLike) -> np.ndarray:
         """

@@ -147,10 +147,8 @@ class ChainLegs:
             for solver, start in zip(self.solvers, self.starts):
                 solver.start_at(*start)
             self.starts = None
-        solver = self.solvers[k]
-        solver.time_limit_s = remaining
         self.counts['leg_solves'] += 1
-        return solver.solve(wrench[:3], wrench[3:])
+        return self.solvers[k].solve(wrench[:3], wrench[3:], time_limit_s=remaining)
 
     def results(self, state: ChainState,
                 factorization: Optional[ChainFactors]) -> Sequence[SolveResult]:

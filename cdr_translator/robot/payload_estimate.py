@@ -17,20 +17,20 @@ verdict covers the platform stiffness and each leg held at both ends (robot/line
 
 from dataclasses import dataclass, field, fields, replace
 import time
-from typing import Any, Dict, Optional, TYPE_CHECKING
+from typing import Any, Callable, Dict, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .params import check_sliders
-from .result import INPUT_NAMES
+from .result import DeltaResult, INPUT_NAMES
 from ..analysis.compliance import analyse
-from ..analysis.stability import load_scale
+from ..analysis.stability import load_scale, Reference
 from ..estimation import (estimate_along, Evaluation, json_safe, LOAD_LIMIT, measured_target,
                           WrenchEstimate)
 
-if TYPE_CHECKING:
-    from .delta import DeltaRobot
+#: A robot solve with the compliance: (sliders (3, m), payload (6), time limit in s) -> result.
+SolveWithCompliance = Callable[[np.ndarray, np.ndarray, float], DeltaResult]
 
 __all__ = ['estimate_payload', 'PayloadEstimate']
 
@@ -56,41 +56,44 @@ class PayloadEstimate(WrenchEstimate):
         return {**super().to_dict(), 'sliders': json_safe(self.sliders)}
 
 
-def _evaluation(robot: 'DeltaRobot', sliders: np.ndarray, payload: np.ndarray,
-                deadline: float) -> Optional[Evaluation]:
+def _evaluation(solve: SolveWithCompliance, length: float, sliders: np.ndarray,
+                payload: np.ndarray, deadline: float) -> Optional[Evaluation]:
     """Solve the robot under ``payload`` with its linearization (None: failed)."""
-    limit = robot.time_limit_s
-    robot.time_limit_s = max(deadline - time.perf_counter(), 0.0)
-    try:
-        result = robot.solve(sliders, payload[:3], payload[3:], compliance=True)
-    finally:
-        robot.time_limit_s = limit
+    result = solve(sliders, payload, max(deadline - time.perf_counter(), 0.0))
     if not result.converged or result.input_sensitivity is None:
         return None
     frame = np.eye(4)
     frame[:3, :3], frame[:3, 3] = result.platform_rotation, result.platform_position
     sensitivity = result.input_sensitivity[:, 3:9].copy()
-    analysis = analyse(sensitivity, robot.params.stack_height)
+    analysis = analyse(sensitivity, length)
     return Evaluation(payload.copy(), frame, sensitivity, result.stable, float('nan'),
                       True, result.message, analysis, result)
 
 
-def estimate_payload(robot: 'DeltaRobot', platform_position: ArrayLike, sliders: ArrayLike,
-                     platform_quaternion_xyzw: Optional[ArrayLike] = None, *,
-                     covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
-    """Return the payload matching a measured platform pose (DeltaRobot's method)."""
+def estimate_payload(owner: object, solve: SolveWithCompliance, leg_reference: Reference,
+                     legs: int, length: float, slider_stroke: float, time_limit_s: float,
+                     warm: bool, reset: Callable[[], None], platform_position: ArrayLike,
+                     sliders: ArrayLike, platform_quaternion_xyzw: Optional[ArrayLike] = None,
+                     *, covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
+    """
+    Return the payload matching a measured platform pose (DeltaRobot.estimate_payload).
+
+    The robot comes as callables: ``solve`` (with the compliance, within a time limit),
+    ``reset`` (forget the warm start; ``warm``: whether there is one); the unloaded
+    ``leg_reference`` of one of its ``legs`` legs, the stack height ``length`` (m) and the
+    ``slider_stroke`` (m). ``owner`` keys the last estimate, the next one's warm start
+    (estimation.estimate_along). The whole estimate is limited to ``time_limit_s``.
+    """
     started = time.perf_counter()
-    sliders = check_sliders(sliders, robot.geometry.slider_stroke)
-    length = robot.params.stack_height
-    legs = len(robot.leg_solvers)
+    sliders = check_sliders(sliders, slider_stroke)
     target = replace(measured_target(platform_position, platform_quaternion_xyzw, covariance,
                                      None, None, length, PAYLOAD_LABELS,
                                      ('platform_position', 'platform_quaternion_xyzw',
                                       'covariance')),
-                     load_limit=legs * LOAD_LIMIT * load_scale(robot.leg_solvers[0]._origin()))
-    deadline = started + robot.time_limit_s
-    found = estimate_along(robot, lambda payload: _evaluation(robot, sliders, payload, deadline),
-                           target, started, deadline,
-                           robot._continuation.previous is not None, robot.reset)
+                     load_limit=legs * LOAD_LIMIT * load_scale(leg_reference))
+    deadline = started + time_limit_s
+    found = estimate_along(
+        owner, lambda payload: _evaluation(solve, length, sliders, payload, deadline),
+        target, started, deadline, warm, reset)
     values = {item.name: getattr(found, item.name) for item in fields(WrenchEstimate)}
     return PayloadEstimate(**values, sliders=sliders)

@@ -139,7 +139,7 @@ class TranslatorNode(Node):
         """
         Solve along a short path and build every output (compiles or loads the kernels).
 
-        Four solves: the fourth is the usual warm solve of a stream (warm_step.py), whose
+        Four solves: the fourth is the usual warm solve of a stream (warm_fast_path.py), whose
         kernel would otherwise load while a wrench waits; then a wrench estimate from the
         last pose. Then the solvers forget them.
         """

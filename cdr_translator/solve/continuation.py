@@ -17,8 +17,8 @@ import numpy as np
 
 from . import path_following
 from .correctors import CHORD_RATE, LiftedNodes, LiftedState, Limits, Outcome, Pose
-from .warm_step import settings_array as warm_step_settings, warm_step as warm_step_kernel
-from .warm_step import WarmStep
+from .warm_fast_path import settings_array as warm_step_settings, warm_step as warm_step_kernel
+from .warm_fast_path import WarmStep
 from .. import _linalg
 from .._linalg import residual_norm
 from ..bvp import chord
@@ -76,7 +76,7 @@ class PathState:
     unloaded_lu: Optional[tuple] = None
     unloaded_pose: Optional[Pose] = None
     #: a warm step already taken at the next wrench, (wrench, step, unknowns, residual) as
-    #: warm_step.warm_step returns them (a batch's compiled run stopped there): the next
+    #: warm_fast_path.warm_step returns them (a batch's compiled run stopped there): the next
     #: ``warm_step`` at that wrench goes on from it instead of taking it again
     handed_over: Optional[Tuple[np.ndarray, WarmStep, np.ndarray, np.ndarray]] = None
     #: warm_step's settings array and the (tolerance, max_iterations, judge) it was made for
@@ -225,7 +225,7 @@ def warm_step(problem: Problem, state: PathState, max_iterations: int, settings:
               wrench: np.ndarray, deadline: float,
               newton: Corrector) -> Tuple[Optional[Outcome], int]:
     """
-    Solve the usual warm case in one compiled call (warm_step.py); None if not usual.
+    Solve the usual warm case in one compiled call (warm_fast_path.py); None if not usual.
 
     Applies when the previous solution has a stored exact factorization: then the
     prediction (the path's extrapolation, else first order), the chord steps on that

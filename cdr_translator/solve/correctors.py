@@ -61,7 +61,7 @@ class Outcome:
     #: (the unknowns it belongs to, centre lines, frames) recorded by the last shot, if any
     shape: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
     #: the error estimate and largest residuals by kind, when the iteration made them
-    #: (warm_step.py); None: computed from the rest
+    #: (warm_fast_path.py); None: computed from the rest
     estimate: Optional[ErrorEstimate] = None
     residual_by_kind: Optional[dict] = None
     #: whether the fallback continuation (path_following.track) found it

@@ -3,30 +3,24 @@ Accuracy of a converged solve: its error estimate, and refinement until the targ
 
 docs/explanation/solution_quality.md.
 
-A solve whose estimate (accuracy.py) misses the target is re-solved by solvers of the same
-structure at more steps per segment, each warm-started from the previous one (``refine``);
-a warm sequence then keeps the refined steps (``solve_kept``). The refined solvers and the
-kept steps are a ``Refinements``, owned by the solver.
+A solve whose estimate (accuracy.py) misses the target is re-solved at more steps per
+segment, each re-solve warm-started from the previous one: ``refine`` is that policy (the
+steps, when to stop, the message), the re-solves a callable. The engine (engine.py) owns
+the refined solvers and the steps a warm sequence keeps.
 """
 
-from dataclasses import dataclass, field
 import math
 import time
-from typing import Dict, Optional, TYPE_CHECKING
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 
-from .branch import STALE_WRENCH
 from .correctors import Outcome
 from .result import FRAME_NAMES, SolveResult
-from ..analysis.accuracy import (ErrorEstimate, estimate as estimate_error, kept_steps, MAX_GROWTH,
-                                 meets)
+from ..analysis.accuracy import ErrorEstimate, estimate as estimate_error, MAX_GROWTH, meets
 from ..analysis.accuracy import refined_steps
 from ..bvp.problem import Problem
 from ..params.translator_params import Accuracy, MAX_REFINED_STEPS
-
-if TYPE_CHECKING:
-    from .solver import TranslatorSolver
 
 #: Refined re-solves at most. Each aims at the target from the error's law, but the steps
 #: grow at most MAX_GROWTH times per re-solve: from 8 steps a result that needs about 1000
@@ -37,43 +31,9 @@ MAX_REFINEMENTS = 8
 RK4_ORDER = 4.0
 
 
-@dataclass
-class Refinements:
-    """
-    The solvers at other steps per segment and what the next warm solve starts at.
-
-    ``solvers`` are the owner's solvers at other steps per segment; ``kept`` is the
-    steps per segment the next warm solve starts at (a key of ``solvers``), kept from the
-    refinement of an earlier one, None: the owner's own; ``last_estimate`` the estimate
-    of the owner's last judged solve.
-    """
-
-    solvers: Dict[int, 'TranslatorSolver'] = field(default_factory=dict)
-    kept: Optional[int] = None
-    last_estimate: Optional[ErrorEstimate] = None
-
-    def solver(self, owner: 'TranslatorSolver', steps: int) -> 'TranslatorSolver':
-        """Return ``owner``'s solver at ``steps`` steps per segment, without a target."""
-        made = self.solvers.get(steps)
-        if made is None:
-            made = self.solvers[steps] = type(owner)(
-                owner.params.with_changes(steps_per_segment=steps), tolerance=owner.tolerance,
-                max_iterations=owner.max_iterations, jacobian=owner.jacobian,
-                accuracy=Accuracy(0.0, 0.0), follow_stable_branch=owner.follow_stable_branch)
-        return made
-
-
-def take_over(solver: 'TranslatorSolver', source: 'TranslatorSolver') -> None:
-    """
-    Warm-start ``solver``'s next solve from ``source``'s last solution and factorization.
-
-    ``source`` solves the same structure at other steps per segment: the unknowns mean
-    the same, and its factorization (the Jacobian differs by the discretization error)
-    serves the chord steps and the stability verdict as a stale one would.
-    """
-    state, other = solver._state, source._state
-    state.previous, state.lu, state.pose = other.previous, other.lu, other.pose
-    solver._refinements.kept = None
+#: One refined solve: (steps per segment, from the unloaded state?, time limit in s) -> its
+#: result and, when it converged, its error estimate.
+Attempt = Callable[[int, bool, float], Tuple[SolveResult, Optional[ErrorEstimate]]]
 
 
 def estimate_at(problem: Problem, outcome: Outcome, result: SolveResult,
@@ -99,29 +59,25 @@ def accuracy_shortfall(result: SolveResult) -> str:
             'segment')
 
 
-def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstimate,
-           source: 'TranslatorSolver', wrench: np.ndarray, deadline: float,
-           compliance: bool, verify: bool, compliance_options: dict,
-           tracked: bool = False) -> Optional[SolveResult]:
+def refine(result: SolveResult, estimate: ErrorEstimate, target: Accuracy, deadline: float,
+           time_limit_s: float, attempt: Attempt, tracked: bool = False) -> Optional[SolveResult]:
     """
-    Re-solve with more steps per segment until ``owner``'s accuracy target is met.
+    Re-solve with more steps per segment until the accuracy ``target`` is met.
 
-    ``result`` (with its ``estimate``) is the solve of ``source`` (``owner``, or a
-    refined solver of a kept solve). Each refined solve starts from the previous one's
-    solution and factorization (the unknowns mean the same at any discretization, and
-    the Jacobians differ by the discretization error: its chord steps converge). A result
-    the fallback continuation found (``tracked``) is refined by that continuation alone
-    (path='tracking'), from the unloaded state while the estimates are not yet falling
-    with the steps (a coarse solution of so sensitive a shot is no warm start for a finer
-    grid), then from the last refined solution. The steps follow ``next_steps``; each
-    refined solve gets the time left, and the message says why refinement stopped short
-    of the target. Returns the last converged refined result (its message says whether
-    the target was met), or None when no refinement converged; the next warm solve starts
-    at its steps.
+    ``result`` (with its ``estimate``) is the solve to refine; ``attempt(steps, cold,
+    time_limit_s)`` solves again at ``steps`` steps per segment, warm from the last
+    converged solve (the unknowns mean the same at any discretization, and the Jacobians
+    differ by the discretization error: its chord steps converge) or, with ``cold``, from
+    the unloaded state. A result the fallback continuation found (``tracked``) is refined
+    by that continuation alone, cold while the estimates are not yet falling with the
+    steps (a coarse solution of so sensitive a shot is no warm start for a finer grid),
+    then from the last refined solution. The steps follow ``next_steps``; each refined
+    solve gets the time left before ``deadline`` (of a solve limited to ``time_limit_s``),
+    and the message says why refinement stopped short of the target. Returns the last
+    converged refined result (its message says whether the target was met), or None when
+    no refinement converged.
     """
-    refinements = owner._refinements
     refined = None
-    target = owner.accuracy
     coarser: Optional[ErrorEstimate] = None
     cold = tracked
     stop = ''
@@ -131,26 +87,17 @@ def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstima
         if steps <= estimate.steps:
             break
         if remaining <= 0.0:
-            stop = (f'; the time limit of {owner.time_limit_s} s was reached before the '
+            stop = (f'; the time limit of {time_limit_s} s was reached before the '
                     f'refinement to {steps} steps per segment')
             break
-        solver = refinements.solver(owner, steps)
-        solver.time_limit_s = remaining
-        take_over(solver, source)
-        solver.path = 'tracking' if tracked else 'default'
-        try:
-            attempt = solver.solve(wrench[:3], wrench[3:], warm_start=not cold,
-                                   compliance=compliance, verify=verify, **compliance_options)
-        finally:
-            solver.path = 'default'
-        if not attempt.converged:
+        tried, finer = attempt(steps, cold, remaining)
+        if not tried.converged:
             stop = (f'; the refinement to {steps} steps per segment did not converge: '
-                    f'{attempt.message}')
+                    f'{tried.message}')
             break
-        refined = attempt
-        source = solver
-        assert solver._refinements.last_estimate is not None
-        coarser, estimate = estimate, solver._refinements.last_estimate
+        refined = tried
+        assert finer is not None
+        coarser, estimate = estimate, finer
         cold = cold and not _error_ratio(estimate, target) < _error_ratio(coarser, target)
         refined.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
         if refined.accuracy_met:
@@ -161,7 +108,6 @@ def refine(owner: 'TranslatorSolver', result: SolveResult, estimate: ErrorEstima
         if stop:
             result.message += stop
         return None
-    refinements.kept = refined.steps_per_segment
     refined.iterations += result.iterations
     extra = '' if refined.message == 'converged' else f' ({refined.message})'
     refined.message = result.message + extra
@@ -207,64 +153,3 @@ def next_steps(coarser: Optional[ErrorEstimate], current: ErrorEstimate,
         return steps
     wanted = min(MAX_GROWTH, 1.25 * now ** (1.0 / order))
     return min(MAX_REFINED_STEPS, max(steps, math.ceil(wanted * current.steps)))
-
-
-def solve_kept(owner: 'TranslatorSolver', wrench: np.ndarray, started: float,
-               compliance: bool, verify: bool,
-               compliance_options: dict) -> Optional[SolveResult]:
-    """
-    Warm solve at the steps per segment kept from an earlier refinement.
-
-    A warm sequence that needed refinement usually needs it again: solving at the kept
-    steps directly skips ``owner``'s own solve and the refined one after it. The solve is
-    judged at those steps: refined further when its estimate misses the target
-    (``refine``), and the next solve steps down (accuracy.kept_steps) when it has room.
-    Returns None, forgetting the kept steps, when that solve did not converge or the
-    wrench moved by more than STALE_WRENCH (relative) since the last one (a long
-    continuation, cheaper at the owner's steps): the owner then solves as usual, from
-    the last solution.
-    """
-    refinements = owner._refinements
-    steps = refinements.kept
-    assert steps is not None
-    solver = refinements.solvers[steps]
-    refinements.kept = None
-    previous = solver._state.previous
-    if previous is None or float(np.linalg.norm(wrench - previous[1])) > \
-            STALE_WRENCH * float(np.linalg.norm(wrench)):
-        return None  # not a warm sequence: a long continuation is cheaper at fewer steps
-    solver.time_limit_s = owner.time_limit_s
-    attempt = solver.solve(wrench[:3], wrench[3:], compliance=compliance, verify=verify,
-                           **compliance_options)
-    if not attempt.converged:
-        return None
-    estimate = solver._refinements.last_estimate
-    assert solver._state.previous is not None and estimate is not None
-    owner._state.previous = solver._state.previous
-    refinements.last_estimate = estimate
-    target = owner.accuracy
-    attempt.accuracy_met = meets(estimate, target.position_m, target.angle_deg)
-    extra = '' if attempt.message == 'converged' else f' ({attempt.message})'
-    attempt.message = (f'converged{extra} at {steps} steps per segment, kept from the '
-                       'refinement of an earlier solve')
-    result = attempt
-    if not attempt.accuracy_met:
-        refined = refine(owner, attempt, estimate, solver, wrench,
-                         started + owner.time_limit_s, compliance, verify, compliance_options)
-        if refined is not None:
-            result = refined
-        else:
-            refinements.kept = steps
-            result.message += accuracy_shortfall(result)
-    else:
-        fewer = kept_steps(estimate, target.position_m, target.angle_deg,
-                           owner.params.steps_per_segment)
-        if fewer == steps:
-            refinements.kept = steps
-        elif fewer > owner.params.steps_per_segment:
-            refinements.kept = fewer
-            take_over(refinements.solver(owner, fewer), solver)
-        else:
-            take_over(owner, solver)
-    result.solve_time_s = time.perf_counter() - started
-    return result

@@ -11,34 +11,29 @@ source run interpreted, Levenberg-Marquardt (Eq. 13) with a finite-difference Ja
 of one residual per column, stopping at the paper's tolerances. It is the baseline that
 benchmarks divide by.
 
-The solver is the front of its parts: continuation.py (the load path, with the state
-carried between solves), correctors.py, branch.py (stability verdict, stable branch),
-refinement.py (error estimate, accuracy target), given_unknowns.py (``result_at``) and
-wrench_estimation.py (the wrench from a measured pose, by cdr_translator.estimation).
+The solver is the face of its engine (engine.py), which owns the solve state (the last
+solution, the factorization, the verdicts, the refinement memory) and carries a solve
+through continuation.py, correctors.py, branch.py and refinement.py. The face checks the
+input, owns the time limit (a solve's ``time_limit_s`` argument, else the attribute) and
+hands the translator to wrench_estimation.py as callables (the wrench from a measured pose,
+by cdr_translator.estimation).
 """
 
-from contextlib import nullcontext
-from functools import partial
 import math
 import time
-from typing import Optional, Tuple
+from typing import Any, Optional, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import (branch, continuation, correctors, given_unknowns, lean_rows, refinement,
-               wrench_estimation)
+from . import wrench_estimation
 from .batch import BatchResult, check_wrenches
-from .continuation import LIFT_FROM_SPACERS, PathState
-from .correctors import Limits, Outcome, Pose
+from .continuation import LIFT_FROM_SPACERS
+from .engine import Engine, Factorization, Options
 from .result import SolveResult
-from .verify import verify as verify_result
 from .. import estimation
 from .._blas import one_blas_thread
-from .._jit import interpreted_kernels
-from .._linalg import residual_norm
-from ..analysis.accuracy import ErrorEstimate
-from ..analysis.stability import Reference, Stability
+from ..analysis.stability import Reference
 from ..bvp.problem import JACOBIANS, Problem
 from ..checks import check_integer, check_number, check_vector
 from ..params.translator_params import Accuracy, TranslatorParams
@@ -74,6 +69,18 @@ def check_wrench(force: ArrayLike, moment: ArrayLike = NO_MOMENT) -> np.ndarray:
         if wrench is not None and math.isfinite(wrench.dot(wrench)):  # else: name the bad one
             return wrench
     return np.concatenate([check_vector('force', force), check_vector('moment', moment)])
+
+
+def _option(name: str, doc: str) -> Any:
+    """Return a property reading and writing the engine's option ``name``."""
+    def read(solver: 'TranslatorSolver') -> Any:
+        """Return the option."""
+        return getattr(solver.engine.options, name)
+
+    def write(solver: 'TranslatorSolver', value: Any) -> None:
+        """Set the option for the next solves."""
+        setattr(solver.engine.options, name, value)
+    return property(read, write, doc=doc)
 
 
 class TranslatorSolver:
@@ -138,43 +145,68 @@ class TranslatorSolver:
         if accuracy is not None and not isinstance(accuracy, Accuracy):
             raise ValueError(f'accuracy must be an Accuracy(position_m, angle_deg), got '
                              f'{type(accuracy).__name__} {accuracy!r}')
-        self.params = params if params is not None else TranslatorParams.from_yaml()
-        self.method = method
+        params = params if params is not None else TranslatorParams.from_yaml()
         if max_iterations is None:
             max_iterations = 30 if method == 'paper' else 12
-        self.max_iterations = check_integer('max_iterations', max_iterations, low=1)
+        max_iterations = check_integer('max_iterations', max_iterations, low=1)
         self.time_limit_s = check_number('time_limit_s', time_limit_s, low=0.0)
-        self.tolerance = check_number('tolerance', tolerance, low=0.0, low_open=True)
-        if method == 'paper':
-            jacobian = 'fd'
-        self.jacobian = jacobian
-        kernel = interpreted_kernels() if method == 'paper' else None
-        self.problem = (Problem(self.params, jacobian=jacobian) if kernel is None
-                        else Problem(self.params, kernel, jacobian))
-        self._state = PathState(self.problem.size)
-        self._verdicts = branch.Verdicts()
-        self._refinements = refinement.Refinements()
-        self.accuracy = accuracy if accuracy is not None else Accuracy.from_yaml()
-        self.follow_stable_branch = follow_stable_branch
-        self.judge = judge
-        self.fallback = fallback
-        self.path = path
-        #: cold continuations correct by lifted Newton from this many spacer disks per joint
-        #: on (None: never); LIFT_FROM_SPACERS unless changed (benchmarks compare both)
-        self.lift_from_spacers = LIFT_FROM_SPACERS
-        if method == 'fast':
-            continuation.unloaded(self.problem, self._state)  # compiles the kernels now
+        options = Options(check_number('tolerance', tolerance, low=0.0, low_open=True),
+                          max_iterations,
+                          accuracy if accuracy is not None else Accuracy.from_yaml(),
+                          follow_stable_branch, judge, fallback, path, LIFT_FROM_SPACERS)
+        #: the engine: the solve state and the steps of a solve (engine.py)
+        self.engine = Engine(params, method, 'fd' if method == 'paper' else jacobian, options)
+
+    tolerance = _option('tolerance', 'The largest nondimensional residual of a converged solve.')
+    max_iterations = _option('max_iterations', 'Newton (or Levenberg-Marquardt) iterations of '
+                             'one continuation step at most.')
+    accuracy = _option('accuracy', 'The discretization-error target of every solve.')
+    follow_stable_branch = _option('follow_stable_branch', 'Whether an unstable solution is '
+                                   'perturbed onto the stable branch.')
+    judge = _option('judge', 'Whether solves get a stability verdict and an error estimate.')
+    fallback = _option('fallback', 'Whether a stalled continuation goes on by path following.')
+    path = _option('path', 'How a solve follows the load path: one of PATHS.')
+    lift_from_spacers = _option('lift_from_spacers', 'Cold continuations correct by lifted '
+                                'Newton from this many spacer disks per joint on (None: never; '
+                                'LIFT_FROM_SPACERS unless changed: benchmarks compare both).')
 
     @property
-    def _previous(self) -> Optional[Tuple[np.ndarray, np.ndarray]]:
-        """(unknowns, wrench) of the last converged solve, the next warm start."""
-        return self._state.previous
+    def params(self) -> TranslatorParams:
+        """Return the translator's parameters."""
+        return self.engine.params
+
+    @property
+    def method(self) -> str:
+        """'fast' or 'paper' (METHODS)."""
+        return self.engine.method
+
+    @property
+    def jacobian(self) -> str:
+        """'exact' or 'fd' (always 'fd' for ``method='paper'``)."""
+        return self.engine.jacobian
+
+    @property
+    def problem(self) -> Problem:
+        """Return the boundary-value problem solved (cdr_translator.bvp.problem)."""
+        return self.engine.problem
+
+    @property
+    def has_warm_start(self) -> bool:
+        """Whether the next warm solve continues from a state (Engine.has_warm_start)."""
+        return self.engine.has_warm_start
+
+    @property
+    def previous_solution(self) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+        """(nondimensional unknowns, wrench) the next warm solve starts from (None: cold)."""
+        return self.engine.previous_solution
+
+    def unloaded_reference(self) -> Reference:
+        """Return the unloaded state's stiffness and det J sign (analysis.stability)."""
+        return self.engine.unloaded_reference()
 
     def reset(self) -> None:
         """Forget the previous solution: the next solve starts cold."""
-        state = self._state
-        state.previous, state.lu, state.pose = None, None, None
-        self._refinements.kept = None
+        self.engine.reset()
 
     def start_from(self, result: SolveResult, keep_factorization: bool = False) -> None:
         """
@@ -182,22 +214,18 @@ class TranslatorSolver:
 
         The unknowns mean the same at any ``steps_per_segment``; only the number of spacer
         disks (and so their count) must match. With ``keep_factorization`` the solver's own
-        factorization from its previous solve stays for the chord steps (refinement does
-        this: its solver, reused solve after solve, then rarely rebuilds a Jacobian).
+        factorization from its previous solve stays for the chord steps.
         """
         unknowns = np.asarray(result.unknowns, dtype=float)
         if unknowns.shape != (self.problem.size,) or not np.all(np.isfinite(unknowns)):
             raise ValueError(f'cannot start from a result with {unknowns.shape} unknowns '
                              f'(finite ones, {self.problem.size} expected)')
-        state = self._state
-        state.previous = (unknowns / self.problem.x_scale,
-                          np.concatenate([result.force, result.moment]))
-        self._refinements.kept = None
-        if not keep_factorization:
-            state.lu, state.pose = None, None
+        self.engine.start_from(unknowns / self.problem.x_scale,
+                               np.concatenate([result.force, result.moment]),
+                               keep_factorization)
 
     def start_at(self, xs: np.ndarray, wrench: np.ndarray,
-                 factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None) -> None:
+                 factorization: Optional[Factorization] = None) -> None:
         """
         Warm-start the next solve from nondimensional unknowns ``xs`` at ``wrench`` (SI).
 
@@ -207,19 +235,12 @@ class TranslatorSolver:
         derivative ``problem.pose_jacobian``, the wrench it was made at) is used for both and
         for chord steps; without one, the stability verdict factors an exact Jacobian.
         """
-        state = self._state
-        state.previous = (np.array(xs, dtype=float), check_wrench(wrench[:3], wrench[3:]))
-        self._refinements.kept = None
-        if factorization is None:
-            state.lu, state.pose = None, None
-        else:
-            lu, pose, made_at = factorization
-            state.lu, state.pose = lu, (pose, np.array(made_at, dtype=float))
+        self.engine.start_at(np.array(xs, dtype=float), check_wrench(wrench[:3], wrench[3:]),
+                             factorization)
 
     @one_blas_thread
     def result_at(self, xs: np.ndarray, wrench: np.ndarray,
-                  factorization: Optional[Tuple[tuple, np.ndarray, np.ndarray]] = None
-                  ) -> SolveResult:
+                  factorization: Optional[Factorization] = None) -> SolveResult:
         """
         Return the SolveResult at nondimensional unknowns ``xs`` under ``wrench`` (SI).
 
@@ -234,11 +255,11 @@ class TranslatorSolver:
         gives ``converged`` False and a message. The solver's warm start and stored
         factorization are unchanged.
         """
-        return given_unknowns.result_at(self, xs, check_wrench(wrench[:3], wrench[3:]),
-                                        factorization)
+        return self.engine.result_at(xs, check_wrench(wrench[:3], wrench[3:]), factorization)
 
     def solve(self, force: ArrayLike, moment: ArrayLike = NO_MOMENT,
               warm_start: bool = True, compliance: bool = False, verify: bool = False,
+              time_limit_s: Optional[float] = None,
               **compliance_options: float) -> SolveResult:
         """
         Solve for an end-disk wrench (N, N m) in {pe} applied at the end-disk centre.
@@ -249,31 +270,16 @@ class TranslatorSolver:
         by implicit differentiation at the converged solution, timed apart from the solve.
         With ``verify`` the result is re-checked independently (``cdr_translator.solve.verify``:
         ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
+        ``time_limit_s`` caps this solve (default: the attribute ``time_limit_s``).
         A warm solve after a refined one solves at the refined steps per segment directly
-        (``refinement.solve_kept``, docs/explanation/solution_quality.md).
+        (docs/explanation/solution_quality.md).
         """
         wrench = check_wrench(force, moment)
         started = time.perf_counter()
-        if warm_start and not (compliance or verify) and self._refinements.kept is None:
-            return lean_rows.solve_warm(self, wrench, started, compliance_options)
-        return self._solve(wrench, started, warm_start, compliance, verify,
-                           compliance_options)
-
-    @one_blas_thread
-    def _solve(self, wrench: np.ndarray, started: float, warm_start: bool, compliance: bool,
-               verify: bool, compliance_options: dict) -> SolveResult:
-        """Solve at ``wrench`` by the general path (``solve``), BLAS on one thread."""
-        refinements = self._refinements
-        if refinements.kept is not None and not warm_start:
-            refinements.kept = None  # a cold solve starts over at this solver's steps
-        elif refinements.kept is not None:
-            kept = refinement.solve_kept(self, wrench, started, compliance, verify,
-                                         compliance_options)
-            if kept is not None:
-                return kept
-        outcome = self._correct(wrench, warm_start, started)
-        return self._judged(outcome, self._verdict(outcome, wrench), wrench, started,
-                            compliance, verify, compliance_options)
+        limit = (self.time_limit_s if time_limit_s is None
+                 else check_number('time_limit_s', time_limit_s, low=0.0))
+        return self.engine.solve(wrench, started, limit, warm_start, compliance, verify,
+                                 compliance_options)
 
     @one_blas_thread
     def estimate_wrench(self, position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None,
@@ -304,7 +310,9 @@ class TranslatorSolver:
         unmatched pose is a flagged result, bad input an InputError (a ValueError).
         """
         return wrench_estimation.estimate_wrench(
-            self, position, quaternion_xyzw, pose_covariance=pose_covariance, moment=moment,
+            self, self._solve_with_compliance, self.unloaded_reference(),
+            self.params.stack_height, self.time_limit_s, self.has_warm_start, self.reset,
+            position, quaternion_xyzw, pose_covariance=pose_covariance, moment=moment,
             force=force, estimate=estimate, prior_mean=prior_mean,
             prior_covariance=prior_covariance, target_force_sd=target_force_sd,
             target_moment_sd=target_moment_sd)
@@ -316,178 +324,25 @@ class TranslatorSolver:
         Solve the wrenches of rows (N, 3) of ``forces`` and ``moments`` (default none) in order.
 
         The rows equal N consecutive ``solve`` calls (runs of usual warm rows: one compiled
-        loop, lean_rows.solve_rows). A failing row is flagged (``converged`` False,
+        loop, ``Engine.solve_rows``). A failing row is flagged (``converged`` False,
         ``message``), never raised; InputError (a ValueError) names a bad input row.
         """
         wrenches = check_wrenches(forces, moments)
         batch = BatchResult.empty(wrenches, compliance)
-        lean_rows.solve_rows(self, batch, wrenches, range(len(wrenches)), compliance)
+        self.engine.solve_rows(batch, wrenches, range(len(wrenches)), compliance,
+                               self.time_limit_s)
         return batch
 
-    def _correct(self, wrench: np.ndarray, warm_start: bool, started: float) -> Outcome:
-        """Converge at ``wrench``: the warm step, else continuation, restart, fallback."""
-        state = self._state
-        state.exact_at = None  # the unknowns state.lu is exact at, once known
-        deadline = started + self.time_limit_s
-        corrector = self._levenberg_marquardt if self.method == 'paper' else self._newton
-        warm = warm_start and state.previous is not None and bool(state.previous[1].any())
-        begin = state.previous[0] if warm and state.previous is not None else None
-        usual, spent = (self._warm_step(wrench, deadline)  # compiled: nothing to silence
-                        if warm and self.method == 'fast' and self.path != 'tracking'
-                        else (None, 0))
-        # numpy's errstate costs 5 us: only the general path has rejected steps that overflow
-        with nullcontext() if usual is not None else np.errstate(over='ignore', invalid='ignore'):
-            if usual is not None:
-                outcome = usual
-            elif self.path == 'tracking' and self.method == 'fast':
-                outcome = continuation.track_only(self.problem, state, self._limits(),
-                                                  wrench, warm, deadline)
-            else:
-                outcome = self._continuation(wrench, warm_start, deadline, corrector)
-            outcome.iterations += spent
-            # a warm sequence the default continuation followed (the paper's baseline and
-            # the tracking path keep their first-order predictor): the path extrapolated
-            continued = outcome.converged and self.path != 'tracking' and self.method == 'fast'
-            if warm and not outcome.converged and time.perf_counter() < deadline:
-                # the warm start may sit on another branch or too far away: restart cold
-                restart = self._continuation(wrench, False, deadline, corrector)
-                restart.iterations += outcome.iterations
-                restart.message += ' (after a restart from the unloaded state)'
-                if restart.converged or residual_norm(restart.rs) < residual_norm(outcome.rs):
-                    outcome = restart
-            if (not outcome.converged and self.fallback and self.method == 'fast'
-                    and outcome.reached is not None and time.perf_counter() < deadline):
-                outcome = continuation.track(self.problem, state, self._limits(), outcome,
-                                             wrench, deadline)
-        if outcome.converged:
-            state.previous = (outcome.xs, wrench)
-            continuation.extend_path(state, outcome.xs, wrench,
-                                     continued and state.path_last is begin)
-        return outcome
+    def solve_batch_rows(self, batch: BatchResult, wrenches: np.ndarray, rows: range,
+                         compliance: bool) -> None:
+        """Solve ``rows`` of checked ``wrenches`` (N, 6) into ``batch`` as ``solve_many`` does."""
+        self.engine.solve_rows(batch, wrenches, rows, compliance, self.time_limit_s)
 
-    def _verdict(self, outcome: Outcome, wrench: np.ndarray) -> Optional[Stability]:
-        """Stability verdict of a converged fast solve that is judged, else None."""
-        if not (outcome.converged and self.method == 'fast' and self.judge):
-            return None
-        if outcome.shape is None or outcome.shape[0] is not outcome.xs:
-            outcome.shape = (outcome.xs, *self.problem.shape(outcome.xs, wrench))
-        return self._stability(outcome, wrench, outcome.shape[2][3][:3, :3])
+    def solve_batch_row(self, batch: BatchResult, row: int, wrench: np.ndarray,
+                        compliance: bool) -> float:
+        """Solve row ``row`` of ``batch`` at checked ``wrench`` as ``solve``; its time (s)."""
+        return self.engine.solve_row(batch, row, wrench, compliance, self.time_limit_s)
 
-    def _judged(self, outcome: Outcome, verdict: Optional[Stability], wrench: np.ndarray,
-                started: float, compliance: bool, verify: bool,
-                compliance_options: dict) -> SolveResult:
-        """Return the result of ``outcome`` given its verdict: branch, estimate, refinement."""
-        state, refinements = self._state, self._refinements
-        deadline = started + self.time_limit_s
-        result = outcome.result(self.problem, wrench, self.method)
-        if verdict is not None:
-            if (not verdict.stable and self.follow_stable_branch
-                    and time.perf_counter() < deadline):
-                stable, verdict = branch.follow_stable_branch(  # Newton as the corrector
-                    state, self.params.stack_height,
-                    partial(self._continuation, corrector=self._newton), self._stability,
-                    outcome, verdict, wrench, deadline)
-                if stable is not outcome:
-                    outcome, result = stable, stable.result(self.problem, wrench, self.method)
-        if verdict is not None:
-            branch.apply_verdict(result, verdict)
-        if outcome.converged and not self.judge:
-            # converged is all this result claims: it must not read as verified accurate
-            result.accuracy_met = False
-            result.message += '; not judged (judge=False): no stability verdict or error estimate'
-        if outcome.converged and self.judge:
-            self._estimate_error(result, outcome, wrench)
-            if not result.accuracy_met and self.method == 'fast':
-                assert refinements.last_estimate is not None  # set by _estimate_error
-                refined = refinement.refine(self, result, refinements.last_estimate, self,
-                                            wrench, deadline, compliance, verify,
-                                            compliance_options, outcome.tracked)
-                if refined is not None:
-                    refined.solve_time_s = time.perf_counter() - started
-                    return refined
-            if not result.accuracy_met:
-                result.message += refinement.accuracy_shortfall(result)
-        result.solve_time_s = time.perf_counter() - started
-        if compliance and outcome.converged:
-            try:
-                result.compliance = lean_rows.compliance_at(
-                    self, outcome, wrench, result.frames['de'][:3, :3], **compliance_options)
-            except ArithmeticError as error:
-                result.message += f'; no compliance: {error}'
-        if verify:
-            result.verification = verify_result(result, self.params)
-        return result
-
-    # the parts, bound to this solver's problem, limits and state ------------------------------
-    def _limits(self) -> Limits:
-        """Return what ends a corrector now (the time limit may have been changed)."""
-        return Limits(self.tolerance, self.time_limit_s)
-
-    def _lifting(self) -> bool:
-        """Say whether cold continuations correct by lifted Newton (multiple shooting)."""
-        return (self.lift_from_spacers is not None and self.method == 'fast'
-                and self.jacobian == 'exact'
-                and self.params.spacers_per_joint >= self.lift_from_spacers)
-
-    def _newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                lu: Optional[tuple], max_iterations: int, pose_in: Optional[Pose] = None,
-                known: Optional[Tuple[np.ndarray, int]] = None) -> Outcome:
-        """Correct by correctors.newton."""
-        return correctors.newton(self.problem, self._limits(), xs, wrench, deadline, lu,
-                                 max_iterations, pose_in, known)
-
-    def _levenberg_marquardt(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                             lu: Optional[tuple], max_iterations: int,
-                             pose_in: Optional[Pose] = None) -> Outcome:
-        """Correct by correctors.levenberg_marquardt (``lu``, ``pose_in``: not used)."""
-        return correctors.levenberg_marquardt(self.problem, self._limits(), xs, wrench,
-                                              deadline, max_iterations)
-
-    def _lifted_newton(self, xs: np.ndarray, wrench: np.ndarray, deadline: float,
-                       lu: Optional[tuple], max_iterations: int,
-                       pose_in: Optional[Pose] = None) -> Outcome:
-        """Correct by correctors.lifted_newton with this solver's lifted nodes."""
-        return correctors.lifted_newton(self.problem, self._limits(), self._state.lifted, xs,
-                                        wrench, deadline, lu, max_iterations, pose_in)
-
-    def _continuation(self, wrench: np.ndarray, warm_start: bool, deadline: float,
-                      corrector: continuation.Corrector) -> Outcome:
-        """Continue to ``wrench`` (continuation.continue_to); cold ones lift (_lifting)."""
-        lifting = corrector == self._newton and self._lifting()
-        return continuation.continue_to(
-            self.problem, self._state, self._limits(), self.max_iterations, wrench,
-            warm_start, deadline, corrector, self._lifted_newton if lifting else None)
-
-    def _usual_solve(self, wrench: np.ndarray, started: float) -> tuple:
-        """Solve a usual warm row in one compiled call (lean_rows.usual_solve)."""
-        return lean_rows.usual_solve(self, wrench, started)
-
-    def _warm_step(self, wrench: np.ndarray, deadline: float) -> Tuple[Optional[Outcome], int]:
-        """Solve the usual warm case in one compiled call (continuation.warm_step)."""
-        settings = continuation.warm_settings(self._state, self.tolerance, self.max_iterations,
-                                              self.judge)
-        return continuation.warm_step(self.problem, self._state, self.max_iterations,
-                                      settings, wrench, deadline, self._newton)
-
-    def _stability(self, outcome: Outcome, wrench: np.ndarray,
-                   rotation: Optional[np.ndarray] = None) -> Stability:
-        """Verdict at a converged outcome (branch.judge)."""
-        return branch.judge(self.problem, self._state, self._verdicts, outcome, wrench,
-                            rotation)
-
-    def _origin(self) -> Reference:
-        """Return the unloaded state's stiffness and det J sign (branch.origin)."""
-        return branch.origin(self.problem, self._state, self._verdicts)
-
-    def _estimate_error(self, result: SolveResult, outcome: Outcome,
-                        wrench: np.ndarray) -> None:
-        """Set the result's discretization-error estimate (accuracy.py) and its verdict."""
-        estimate = (outcome.estimate if outcome.estimate is not None
-                    else self._estimate_at(outcome, result, wrench))
-        refinement.set_estimate(result, estimate, self.accuracy)
-        self._refinements.last_estimate = estimate
-
-    def _estimate_at(self, outcome: Outcome, result: SolveResult,
-                     wrench: np.ndarray) -> ErrorEstimate:
-        """Estimate the error of a converged outcome (refinement.estimate_at)."""
-        return refinement.estimate_at(self.problem, outcome, result, wrench)
+    def _solve_with_compliance(self, wrench: np.ndarray, time_limit_s: float) -> SolveResult:
+        """Solve at ``wrench`` (6) with its compliance within ``time_limit_s``."""
+        return self.solve(wrench[:3], wrench[3:], compliance=True, time_limit_s=time_limit_s)

@@ -9,18 +9,19 @@ compliance there, since the solve's may come from a factorization made at anothe
 from dataclasses import replace
 import math
 import time
-from typing import Optional, TYPE_CHECKING
+from typing import Callable, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..analysis.stability import load_scale
+from .result import SolveResult
+from ..analysis.stability import load_scale, Reference
 from ..estimation import (Components, DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD,
                           estimate_along, estimate_from, Evaluation, LOAD_LIMIT,
                           measured_target, Search, WrenchEstimate)
 
-if TYPE_CHECKING:
-    from .solver import TranslatorSolver
+#: A solve of the translator with its compliance: (wrench (6), time limit in s) -> result.
+SolveWithCompliance = Callable[[np.ndarray, float], SolveResult]
 
 __all__ = ['estimate_wrench', 'REACH']
 
@@ -29,33 +30,29 @@ __all__ = ['estimate_wrench', 'REACH']
 REACH = 1.01
 
 
-def _translator_evaluation(solver: 'TranslatorSolver', wrench: np.ndarray,
-                           deadline: float) -> Optional[Evaluation]:
+def _translator_evaluation(solve: SolveWithCompliance, reference: Reference, length: float,
+                           wrench: np.ndarray, deadline: float) -> Optional[Evaluation]:
     """Solve the translator at ``wrench`` with its compliance by ``deadline`` (None: failed)."""
-    limit = solver.time_limit_s
-    solver.time_limit_s = max(deadline - time.perf_counter(), 0.0)
-    try:
-        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
-    finally:
-        solver.time_limit_s = limit
+    result = solve(wrench, max(deadline - time.perf_counter(), 0.0))
     if not result.converged or result.compliance is None:
         return None
     # the margin from the exact compliance here: the solve's may come from a factorization
     # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
     compliance = result.compliance.matrix
-    scale = np.repeat([1.0, solver.params.stack_height], 3)
+    scale = np.repeat([1.0, length], 3)
     try:
         stiffness = np.linalg.inv(scale[:, None] * compliance * scale[None, :])
         margin = float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0]
-                       / solver._origin().smallest_stiffness)
+                       / reference.smallest_stiffness)
     except np.linalg.LinAlgError:
         margin = -math.inf
     return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable, margin,
                       result.accuracy_met, result.message, result.compliance, result)
 
 
-def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
-                    quaternion_xyzw: Optional[ArrayLike] = None, *,
+def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Reference,
+                    length: float, time_limit_s: float, warm: bool, reset: Callable[[], None],
+                    position: ArrayLike, quaternion_xyzw: Optional[ArrayLike] = None, *,
                     pose_covariance: Optional[ArrayLike] = None,
                     moment: Optional[ArrayLike] = None,
                     force: Optional[ArrayLike] = None,
@@ -64,21 +61,28 @@ def estimate_wrench(solver: 'TranslatorSolver', position: ArrayLike,
                     prior_covariance: Optional[ArrayLike] = None,
                     target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
                     target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> WrenchEstimate:
-    """Return the end-disk wrench matching a measured pose (TranslatorSolver's method)."""
+    """
+    Return the end-disk wrench matching a measured pose (TranslatorSolver.estimate_wrench).
+
+    The translator comes as callables: ``solve`` (with the compliance, within a time
+    limit), ``reset`` (forget the warm start; ``warm``: whether there is one); its
+    unloaded ``reference`` and stack height ``length`` (m). ``owner`` keys the last
+    estimate, the next one's warm start (estimation.estimate_along). The whole estimate is
+    limited to ``time_limit_s``.
+    """
     started = time.perf_counter()
-    length = solver.params.stack_height
     target = replace(measured_target(position, quaternion_xyzw, pose_covariance, moment, force,
                                      length, estimate=estimate, prior_mean=prior_mean,
                                      prior_covariance=prior_covariance,
                                      target_force_sd=target_force_sd,
                                      target_moment_sd=target_moment_sd),
-                     load_limit=LOAD_LIMIT * load_scale(solver._origin()))
+                     load_limit=LOAD_LIMIT * load_scale(reference))
     reach = float(np.linalg.norm(target.frame[:3, 3]))
     if reach > REACH * length:
         return estimate_from(
             Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m from the '
                    f'base (stack height {length:.4g} m)'), target, started)
-    deadline = started + solver.time_limit_s
-    return estimate_along(solver, lambda wrench: _translator_evaluation(solver, wrench, deadline),
-                          target, started, deadline, solver._previous is not None,
-                          solver.reset)
+    deadline = started + time_limit_s
+    return estimate_along(
+        owner, lambda wrench: _translator_evaluation(solve, reference, length, wrench, deadline),
+        target, started, deadline, warm, reset)

@@ -54,7 +54,7 @@ def test_a_warm_solve_after_a_refined_one_starts_at_its_steps(params, monkeypatc
 
     def no_base_solve(*args, **kwargs):
         raise AssertionError('solved at the base steps per segment first')
-    monkeypatch.setattr(solver, '_continuation', no_base_solve)
+    monkeypatch.setattr(solver.engine, 'correct', no_base_solve)
     moment = 0.98 * HARD_MOMENT
     kept = solver.solve([0.0, 0.0, 0.0], moment)
     assert kept.converged and kept.steps_per_segment == steps, kept.message

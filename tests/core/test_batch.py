@@ -6,6 +6,7 @@ import pickle
 
 from batch_checks import assert_rows_equal, sequence
 from cdr_translator import BatchResult, InputError, TranslatorSolver
+from cdr_translator.solve.engine import Engine
 from cdr_translator.solve.result import SolveResult
 import numpy as np
 import pytest
@@ -53,14 +54,14 @@ def test_failing_row_is_flagged_and_later_rows_solve(params, monkeypatch):
     """A row whose solve raises is flagged with the error; the rows after it still solve."""
     forces = np.array([[8.0, 0.0, 0.0], [9.0, 0.0, 0.0], [9.5, 0.0, 0.0], [10.0, 0.0, 0.0],
                        [11.0, 0.0, 0.0]])
-    original = TranslatorSolver._correct
+    original = Engine.correct
 
-    def failing(self, wrench, warm_start, started):
+    def failing(self, wrench, *args, **kwargs):
         if wrench[0] == 9.5:
             raise ArithmeticError('made to fail')
-        return original(self, wrench, warm_start, started)
+        return original(self, wrench, *args, **kwargs)
 
-    monkeypatch.setattr(TranslatorSolver, '_correct', failing)
+    monkeypatch.setattr(Engine, 'correct', failing)
     single = TranslatorSolver(params)
     results = []
     for force in forces:

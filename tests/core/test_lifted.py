@@ -86,7 +86,7 @@ def test_lifted_newton_converges_quadratically_where_single_shooting_diverges(pa
     solver = TranslatorSolver(params.with_changes(spacers_per_joint=9), time_limit_s=60.0)
     assert solver.solve([1.0, 0.0, 0.0]).converged
     problem = solver.problem
-    xs = solver._previous[0]
+    xs = solver.previous_solution[0]
     wrench = np.array([1.1, 0.0, 0.0, 0.0, 0.0, 0.0])
     rs, jac, _ = problem.exact_jacobian(xs, wrench)
     single = problem.residual(xs - np.linalg.solve(jac, rs), wrench)
@@ -111,12 +111,12 @@ def test_lifting_applies_to_cold_solves_with_spacer_disks(params):
     """Cold continuations lift from LIFT_FROM_SPACERS spacer disks on; both paths agree."""
     chosen = params.with_changes(spacers_per_joint=2)
     lifted_solver = TranslatorSolver(chosen)
-    assert continuation.LIFT_FROM_SPACERS == 2 and lifted_solver._lifting()
+    assert continuation.LIFT_FROM_SPACERS == 2 and lifted_solver.engine.lifting
     single_solver = TranslatorSolver(chosen)
     single_solver.lift_from_spacers = None
-    assert not single_solver._lifting()
-    assert not TranslatorSolver(chosen, jacobian='fd')._lifting()
-    assert not TranslatorSolver(params.with_changes(spacers_per_joint=1))._lifting()
+    assert not single_solver.engine.lifting
+    assert not TranslatorSolver(chosen, jacobian='fd').engine.lifting
+    assert not TranslatorSolver(params.with_changes(spacers_per_joint=1)).engine.lifting
     results = [solver.solve([15.0, -5.0, 0.0], [0.0, 0.0, 0.2], warm_start=False)
                for solver in (lifted_solver, single_solver)]
     assert all(result.converged for result in results)

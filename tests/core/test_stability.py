@@ -118,7 +118,7 @@ def test_reused_verdicts_stay_within_half_the_margin_of_fresh_ones(params):
         result = warm.solve(wrench[:3])
         _, jacobian, pose = problem.exact_jacobian(result.unknowns / problem.x_scale, wrench)
         truth = stability.assess(lu_factor(jacobian), pose, result.frames['de'][:3, :3],
-                                 problem.wrench_sensitivity, warm._origin())
+                                 problem.wrench_sensitivity, warm.unloaded_reference())
         assert result.stable and truth.stable
         assert abs(result.stability_margin - truth.margin) <= 0.5 * truth.margin
 

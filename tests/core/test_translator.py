@@ -197,6 +197,21 @@ def test_non_convergence_is_a_result(params):
     assert 'time limit' in result.message
 
 
+def test_a_solve_takes_its_own_time_limit(params):
+    """``time_limit_s=`` caps one solve and its message names it; the solver's stays."""
+    solver = TranslatorSolver(params)
+    assert not solver.has_warm_start
+    capped = solver.solve((12.0, 0.0, 0.0), time_limit_s=1e-4)
+    assert not capped.converged and 'time limit of 0.0001 s reached' in capped.message
+    assert solver.time_limit_s == 10.0
+    result = solver.solve((12.0, 0.0, 0.0), warm_start=False)
+    assert result.converged and solver.has_warm_start, result.message
+    solver.reset()
+    assert not solver.has_warm_start
+    with pytest.raises(ValueError, match='time_limit_s'):
+        solver.solve((12.0, 0.0, 0.0), time_limit_s=-1.0)
+
+
 def test_paper_method_agrees_at_its_tolerances(params):
     """The interpreted Levenberg-Marquardt baseline lands on the same equilibrium."""
     coarse = params.with_changes(steps_per_segment=2)

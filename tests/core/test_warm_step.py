@@ -1,9 +1,9 @@
-"""The one-call warm solve (cdr_translator/solve/warm_step.py) against its parts one by one."""
+"""The one-call warm solve (cdr_translator/solve/warm_fast_path.py) against its parts."""
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.analysis.accuracy import estimate
 from cdr_translator.bvp import chord
-from cdr_translator.solve.warm_step import _warm_step, settings_array, TOO_FAR, warm_step
+from cdr_translator.solve.warm_fast_path import _warm_step, settings_array, TOO_FAR, warm_step
 import numpy as np
 import pytest
 from scipy.linalg import lu_factor
@@ -77,12 +77,12 @@ def test_solver_results_match_the_general_path(params, noise):
     """Along a smooth (or noisy: N) sequence the one-call solves agree with the general path."""
     fused, general = TranslatorSolver(params), TranslatorSolver(params)
     calls = []
-    general._warm_step = lambda wrench, deadline: (None, 0)
-    general._usual_solve = lambda wrench, started: (None, None)
-    fused_step, fused_usual = fused._warm_step, fused._usual_solve
+    general.engine.warm_step = lambda wrench, deadline, newton: (None, 0)
+    general.engine.usual_solve = lambda wrench, started: (None, None)
+    fused_step, fused_usual = fused.engine.warm_step, fused.engine.usual_solve
 
-    def counted(wrench, deadline):
-        outcome, spent = fused_step(wrench, deadline)
+    def counted(wrench, deadline, newton):
+        outcome, spent = fused_step(wrench, deadline, newton)
         calls.append(outcome is not None)
         return outcome, spent
 
@@ -90,7 +90,7 @@ def test_solver_results_match_the_general_path(params, noise):
         result, undo = fused_usual(wrench, started)
         calls.append(result is not None)
         return result, undo
-    fused._warm_step, fused._usual_solve = counted, counted_usual
+    fused.engine.warm_step, fused.engine.usual_solve = counted, counted_usual
     rng = np.random.default_rng(11)
     for t in np.linspace(0.0, 1.0, 40):
         wrench = np.array([10.0 + 4.0 * np.sin(3 * t), 3.0 * t, -2.0, 0.1 * t, 0.0, 0.05])

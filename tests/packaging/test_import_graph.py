@@ -41,19 +41,6 @@ LAYERS = {'ground': 0, 'params': 1, 'bvp': 2, 'analysis': 3, 'estimation': 4, 's
           'calibration': 6, 'fidelity': 6, 'robot': 7, 'studies': 8, 'interface': 9,
           'ros': 10, 'app': 11}
 
-#: Import cycles still to be cut, by name: each the set of modules that import each other.
-#: ``test_no_import_cycles_but_the_known_ones`` fails on any other cycle (or a module
-#: joining one of these), and ``test_known_cycles_are_still_there`` on an entry whose
-#: cycle is gone (remove it: a stale entry would let the cycle come back unnoticed).
-KNOWN_CYCLES: Dict[str, FrozenSet[str]] = {
-    'solver and its row, refinement and estimation helpers': frozenset({
-        'cdr_translator.solve.solver', 'cdr_translator.solve.lean_rows',
-        'cdr_translator.solve.refinement',
-        'cdr_translator.solve.given_unknowns', 'cdr_translator.solve.wrench_estimation'}),
-    'delta robot and payload estimate': frozenset({
-        'cdr_translator.robot.delta', 'cdr_translator.robot.payload_estimate'}),
-}
-
 
 def module_names() -> Dict[str, Path]:
     """Map every module of the packages to its file."""
@@ -152,20 +139,11 @@ def layer(module: str) -> int:
     return LAYERS['ground']
 
 
-def test_no_import_cycles_but_the_known_ones(graph):
-    """Every group of modules importing each other lies within a KNOWN_CYCLES entry."""
-    new = [group for group in cycle_groups(graph)
-           if not any(group <= known for known in KNOWN_CYCLES.values())]
-    assert not new, 'import cycles: ' + '; '.join(
-        ' -> '.join(one_cycle(graph, group)) for group in new)
-
-
-def test_known_cycles_are_still_there(graph):
-    """Each KNOWN_CYCLES entry still holds a cycle (else it must leave the list)."""
+def test_no_import_cycles(graph):
+    """No group of modules imports each other, type-only and function-level imports counted."""
     groups = cycle_groups(graph)
-    gone = [name for name, known in KNOWN_CYCLES.items()
-            if not any(group <= known for group in groups)]
-    assert not gone, f'no longer import cycles, remove them from KNOWN_CYCLES: {gone}'
+    assert not groups, 'import cycles: ' + '; '.join(
+        ' -> '.join(one_cycle(graph, group)) for group in groups)
 
 
 def test_cycle_groups_find_type_only_and_function_level_cycles(tmp_path):

@@ -75,9 +75,9 @@ def test_result_at_is_a_solve_started_there():
     wrench = np.array([1.5, -0.7, -3.0, 0.02, 0.01, 0.0])
     solved = solver.solve(wrench[:3], wrench[3:])
     xs = solved.unknowns / solver.problem.x_scale
-    warm = solver._previous
+    warm = solver.previous_solution
     at = solver.result_at(xs, wrench)
-    assert solver._previous is warm  # the warm start is untouched
+    assert solver.previous_solution is warm  # the warm start is untouched
     other = TranslatorSolver(params, accuracy=Accuracy(0.0, 0.0), follow_stable_branch=False)
     other.start_at(xs, wrench)
     started = other.solve(wrench[:3], wrench[3:])

@@ -8,7 +8,7 @@ import math
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.params.translator_params import Accuracy
-from cdr_translator.solve import continuation
+from cdr_translator.solve import continuation, correctors
 from cdr_translator.studies import hard_cases
 from cdr_translator.studies.buckling import critical_compression
 from cdr_translator.studies.hard_case_report import markdown_report
@@ -192,14 +192,14 @@ def test_non_finite_trial_states_are_survived(params, monkeypatch):
     # try the whole load first, as it once did
     monkeypatch.setattr(continuation, 'first_step', lambda predicted: 1.0)
     messages = []
-    newton = solver._newton
+    newton = correctors.newton
 
     def recording(*args):
         outcome = newton(*args)
         messages.append(outcome.message)
         return outcome
 
-    solver._newton = recording
+    monkeypatch.setattr(correctors, 'newton', recording)
     result = solver.solve((500.0, 0.0, 0.0))
     assert 'residual became non-finite during the iteration' in messages
     assert result.converged and np.all(np.isfinite(result.unknowns))
