@@ -63,7 +63,7 @@ def _one_line(process: subprocess.CompletedProcess, script: str, named: str) -> 
 
 @pytest.mark.parametrize('script', sorted(NODES))
 def test_a_missing_or_unparsable_params_file_is_one_line(script, ros_env, tmp_path):
-    """--params-file naming no file, or a file that is not YAML: exit 2, one line naming it."""
+    """--params-file naming no file, not YAML, nested too deep: exit 2, one line naming it."""
     missing = tmp_path / 'missing.yaml'
     _one_line(_run(script, ['--ros-args', '--params-file', str(missing)], ros_env, tmp_path),
               script, str(missing))
@@ -71,7 +71,12 @@ def test_a_missing_or_unparsable_params_file_is_one_line(script, ros_env, tmp_pa
     broken.write_text(f'{script}:\n  ros__parameters: [max_force\n')
     _one_line(_run(script, ['--ros-args', '--params-file', str(broken)], ros_env, tmp_path),
               script, str(broken))
-    assert sorted(path.name for path in tmp_path.iterdir()) == ['broken.yaml']
+    deep = tmp_path / 'deep.yaml'   # beyond the recursion limit of YAML's composer and rcl's
+    deep.write_text(f'{script}:\n  ros__parameters:\n    max_force: ' + '[' * 5000 + '1.0'
+                    + ']' * 5000 + '\n')
+    _one_line(_run(script, ['--ros-args', '--params-file', str(deep)], ros_env, tmp_path),
+              script, f'{deep} nests mappings and lists more than')
+    assert sorted(path.name for path in tmp_path.iterdir()) == ['broken.yaml', 'deep.yaml']
 
 
 @pytest.mark.parametrize('override', ['max_force', 'max_force:=[1,', 'max_force:=strong',
