@@ -23,6 +23,8 @@ NODES = {'translator_node': (SPECS, ['wrench', *OUTPUTS]),
          'cdr_node': (CDR_SPECS, [*CDR_INPUTS, *CDR_OUTPUTS])}
 #: Importing rclpy and the solver takes seconds on a loaded machine.
 RUN_TIMEOUT_S = 120.0
+#: A node interrupted while it imports exits at once; this allows for a loaded machine.
+SIGINT_END_TIMEOUT_S = 30.0
 
 
 def _run(script: str, arguments, env, cwd: Path) -> subprocess.CompletedProcess:
@@ -104,6 +106,22 @@ def test_ctrl_c_during_start_up_is_one_line_and_exit_130(script, ros_env, tmp_pa
     for moment in (start + 0.05, start + 0.3):
         interrupt([str(BIN / script), '--ros-args', '-p', f'log_dir:={tmp_path}'],
                   after(moment), environment(ros_env), tmp_path).assert_quiet()
+
+
+@pytest.mark.parametrize('script', sorted(NODES))
+def test_sigint_at_start_up_ends_a_node_that_inherited_it_ignored(script, ros_env, tmp_path):
+    """
+    ``node &`` from a script (SIGINT ignored), SIGINT at 0.5 s: exit 130 at once, one line.
+
+    The node stops on SIGINT once running, so a SIGINT sent while it starts must not be
+    lost: ``kill -INT $pid; wait $pid`` would wait forever.
+    """
+    ending = interrupt([sys.executable, '-m', f'cdr_translator.ros.{script}', '--ros-args',
+                        '-p', f'log_dir:={tmp_path}'], after(interpreter_start_s() + 0.5),
+                       environment(ros_env), tmp_path, inherit_ignored=True,
+                       end_timeout_s=SIGINT_END_TIMEOUT_S)
+    ending.assert_quiet()
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize('script', sorted(NODES))
