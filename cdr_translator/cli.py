@@ -334,7 +334,7 @@ def warm_up_kernels(params: TranslatorParams, params_path: str,
 
 
 def _warm_up_stages(params: TranslatorParams, params_path: str
-                    ) -> List[Tuple[str, Callable[[], object]]]:
+                    ) -> List[Tuple[str, Callable[[], None]]]:
     """Return the stages of ``warm_up_kernels``, named, in order."""
     # 'auto' under a budget, so that it looks up the validated ranges (a compiled lookup)
     leveled: Dict[str, FidelitySolver] = {}

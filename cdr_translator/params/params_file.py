@@ -33,8 +33,8 @@ import yaml
 
 from ..errors import ParameterError
 
-__all__ = ['applicable_sections', 'check_known', 'check_nesting', 'check_value_type', 'declared_type',
-           'every_key', 'fully_qualified_name', 'layered_values', 'read_document',
+__all__ = ['applicable_sections', 'check_known', 'check_nesting', 'check_value_type',
+           'declared_type', 'every_key', 'fully_qualified_name', 'layered_values', 'read_document',
            'section_applies', 'section_values']
 
 PathLike = Union[str, Path]
@@ -99,9 +99,9 @@ def check_nesting(text: str, where: Union[str, Path]) -> None:
         if isinstance(event, yaml.CollectionStartEvent):
             depth += 1
             if depth > MAX_PARAMS_DEPTH:
-                raise ParameterError(
-                    f'{where} nests mappings and lists more than {MAX_PARAMS_DEPTH} deep '
-                    f'(line {event.start_mark.line + 1}), so it is not a params file')
+                line = f' (line {event.start_mark.line + 1})' if event.start_mark else ''
+                raise ParameterError(f'{where} nests mappings and lists more than '
+                                     f'{MAX_PARAMS_DEPTH} deep{line}, so it is not a params file')
         elif isinstance(event, yaml.CollectionEndEvent):
             depth -= 1
 

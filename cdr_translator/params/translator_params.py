@@ -256,7 +256,8 @@ class Accuracy:
     estimate exceeds either is refined (more steps per segment) up to MAX_REFINED_STEPS.
     Zero disables the refinement of that kind (the estimate is still reported).
     The shipped defaults are ten times inside the paper's tolerances that
-    ``cdr_translator.solve.verify`` checks (2e-4 m, 1e-4 rad). docs/explanation/solution_quality.md.
+    ``cdr_translator.solve.verify`` checks (2e-4 m, 1e-4 rad).
+    docs/explanation/solution_quality.md.
     """
 
     position_m: float = 2e-5

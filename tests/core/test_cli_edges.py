@@ -176,7 +176,7 @@ def test_the_compliance_verdict_counts_when_it_is_the_only_one(capsys):
 
 
 def test_compile_says_each_stage_as_it_goes(capsys):
-    """compile prints a line per warm-up stage, with the kernels cached so far (make setup)."""
+    """The compile command prints a line per warm-up stage and the kernels cached so far."""
     assert main(['compile']) == 0
     lines = capsys.readouterr().out.splitlines()
     stages = [line for line in lines if re.match(r'\[\d+/\d+\] ', line)]

@@ -1,10 +1,9 @@
 """Parameter file reading and validation: every error names the key and the value."""
 
-import math
-import warnings
-
 import contextlib
 import io
+import math
+import warnings
 
 from cdr_translator import ParameterError, PlausibilityWarning, TranslatorParams
 from cdr_translator.cli import main as cdr_main
@@ -165,7 +164,7 @@ def test_a_deeply_nested_file_is_refused_naming_the_limit(tmp_path):
     ['solve', '--force', '1', '0', '0'], ['calibrate', 'run.mcap', '--fit', 'youngs_modulus']],
     ids=['cdr_translator solve', 'msg_tools calibrate'])
 def test_a_deeply_nested_file_is_one_line_and_exit_2(tmp_path, command):
-    """solve --params and calibrate --params: exit 2, one line naming the depth."""
+    """The solve and calibrate --params: exit 2, one line naming the depth."""
     path = write_deep_params(tmp_path)
     main = msg_tools_main if command[0] == 'calibrate' else cdr_main
     out, err = io.StringIO(), io.StringIO()
