@@ -320,17 +320,18 @@ def warm_up_kernels(params: TranslatorParams, params_path: str,
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
     warm solves along a path the extrapolating predictor (chord.extrapolate), a batch
     after them the compiled run of warm rows (warm_rows.py). After each stage ``progress``
-    gets one line: the stage, how many kernels are in the cache, the time so far (a cold
-    cache takes minutes, which should not pass in silence).
+    gets one line: the stage, the kernel signatures compiled and loaded so far, the time
+    so far (a cold cache takes minutes, which should not pass in silence).
     """
     stages = _warm_up_stages(params, params_path)
     started = time.perf_counter()
     for number, (name, stage) in enumerate(stages, 1):
         stage()
         if progress is not None:
-            cached = len(_jit.KERNELS) - len(_jit.uncached_kernels())
-            progress(f'[{number}/{len(stages)}] {name}: {cached} of {len(_jit.KERNELS)} '
-                     f'kernels in the cache, {time.perf_counter() - started:.0f} s')
+            counts = _jit.kernel_counts()
+            progress(f'[{number}/{len(stages)}] {name}: {counts.compiled} signatures compiled, '
+                     f'{counts.loaded} loaded from the cache so far, '
+                     f'{time.perf_counter() - started:.0f} s')
 
 
 def _warm_up_stages(params: TranslatorParams, params_path: str
