@@ -28,7 +28,8 @@ prints strict JSON: a non-finite number is null.
 import argparse
 import math
 import sys
-from typing import Any, Callable, List, Optional, Tuple, Union
+import time
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -310,50 +311,91 @@ def _paper_comparison(params: TranslatorParams, accuracy: Accuracy) -> Tuple[str
     return '\n'.join(lines), all(result.converged for result in results)
 
 
-def warm_up_kernels(params: TranslatorParams, params_path: str) -> None:
+def warm_up_kernels(params: TranslatorParams, params_path: str,
+                    progress: Optional[Callable[[str], object]] = None) -> None:
     """
-    Run every compiled kernel once (loading or compiling it).
+    Run every compiled kernel once (loading or compiling it); ``progress`` hears each stage.
 
     Solves once at every fidelity level, with each Jacobian, and the CDR; a cold solve with
     spacer disks runs the multiple-shooting kernels (multiple_shooting_kernels.py), four
     warm solves along a path the extrapolating predictor (chord.extrapolate), a batch
-    after them the compiled run of warm rows (solve/warm_fast_path.py).
+    after them the compiled run of warm rows (solve/warm_fast_path.py). After each stage
+    ``progress`` gets one line: the stage, the kernel signatures compiled and loaded so far,
+    the time so far (a cold cache takes minutes, which should not pass in silence).
     """
+    stages = _warm_up_stages(params, params_path)
+    started = time.perf_counter()
+    for number, (name, stage) in enumerate(stages, 1):
+        stage()
+        if progress is not None:
+            counts = _jit.kernel_counts()
+            progress(f'[{number}/{len(stages)}] {name}: {counts.compiled} signatures compiled, '
+                     f'{counts.loaded} loaded from the cache so far, '
+                     f'{time.perf_counter() - started:.0f} s')
+
+
+def _warm_up_stages(params: TranslatorParams, params_path: str
+                    ) -> List[Tuple[str, Callable[[], None]]]:
+    """Return the stages of ``warm_up_kernels``, named, in order."""
     # 'auto' under a budget, so that it looks up the validated ranges (a compiled lookup)
-    leveled = {fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES
-               if fidelity != 'auto'}
-    leveled['auto'] = FidelitySolver(params, 'auto', max_position_error=1e-3,
-                                     max_angle_error_deg=0.5)
-    for solver in leveled.values():
-        solver.solve([1.0, 0.0, 0.0], compliance=True)
-    wrenches = np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
-    for model in leveled['linear'].reduced.values():  # the compiled sequence solves
-        model.poses(wrenches, model.solve_sequence(wrenches)[0])
-    leveled['linear'].tangent.poses(wrenches)
-    for jacobian in JACOBIANS:
-        TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
-    along_a_path = TranslatorSolver(params)
-    for force in (1.0, 1.5, 2.0, 2.5):
-        along_a_path.solve([force, 0.0, 0.0])
-    along_a_path.solve_many([[2.6, 0.0, 0.0], [2.7, 0.0, 0.0]])  # a compiled run of rows
-    spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
-    TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve([1.0, 0.0, 0.0])
-    for level in ('full', 'cc', 'rod'):  # reduced legs run a compiled chain of their own
-        robot = DeltaRobot.from_yaml(params_path, fidelity=level)
-        for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # a cold solve, then a warm one
-            robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
-        if level != 'full':  # and their atlas's compiled loop over samples
-            solve_chunk(AtlasSpec.build(2, [(0.0, 0.0, -1.0)], [params_path], fidelity=level),
-                        0, 4)
+    leveled: Dict[str, FidelitySolver] = {}
+
+    def fidelity_levels() -> None:
+        leveled.update({fidelity: FidelitySolver(params, fidelity) for fidelity in FIDELITIES
+                        if fidelity != 'auto'})
+        leveled['auto'] = FidelitySolver(params, 'auto', max_position_error=1e-3,
+                                         max_angle_error_deg=0.5)
+        for solver in leveled.values():
+            solver.solve([1.0, 0.0, 0.0], compliance=True)
+
+    def linear_sequences() -> None:
+        wrenches = np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
+        for model in leveled['linear'].reduced.values():  # the compiled sequence solves
+            model.poses(wrenches, model.solve_sequence(wrenches)[0])
+        leveled['linear'].tangent.poses(wrenches)
+
+    def jacobians() -> None:
+        for jacobian in JACOBIANS:
+            TranslatorSolver(params, jacobian=jacobian).solve([1.0, 0.0, 0.0], compliance=True)
+
+    def along_a_path() -> None:
+        solver = TranslatorSolver(params)
+        for force in (1.0, 1.5, 2.0, 2.5):
+            solver.solve([force, 0.0, 0.0])
+        solver.solve_many([[2.6, 0.0, 0.0], [2.7, 0.0, 0.0]])  # a compiled run of rows
+
+    def spacer_disks() -> None:
+        spacers = max(params.spacers_per_joint, LIFT_FROM_SPACERS or 0)
+        TranslatorSolver(params.with_changes(spacers_per_joint=spacers)).solve(
+            [1.0, 0.0, 0.0])
+
+    def robot(level: str) -> Callable[[], None]:
+        def run() -> None:  # reduced legs run a compiled chain of their own
+            robot = DeltaRobot.from_yaml(params_path, fidelity=level)
+            for sliders in ([0.0, 0.0, 0.0], [0.001, 0.0, 0.0]):  # cold, then warm
+                robot.solve(sliders, [0.0, 0.0, -1.0], compliance=True).to_dict()
+            if level != 'full':  # and their atlas's compiled loop over samples
+                solve_chunk(AtlasSpec.build(2, [(0.0, 0.0, -1.0)], [params_path],
+                                            fidelity=level), 0, 4)
+        return run
+
+    return [('the translator at every fidelity level', fidelity_levels),
+            ('linear sequences', linear_sequences), ('each Jacobian', jacobians),
+            ('warm solves along a path', along_a_path), ('spacer disks', spacer_disks)] + [
+        (f'the robot with {level} legs', robot(level)) for level in ('full', 'cc', 'rod')]
 
 
 def _compile_kernels(params: TranslatorParams, params_path: str) -> int:
     """
     Run every kernel (``warm_up_kernels``) so that numba's cache holds them all.
 
-    Then say what it compiled and where; a kernel that did not run is named as not cached.
+    Says each stage as it ends, then what it compiled and where; a kernel that did not run
+    is named as not cached. Every line is flushed: ``make setup`` pipes it.
     """
-    elapsed = _jit.timed_warm_up(lambda: warm_up_kernels(params, params_path), print)
+    def say(text: str) -> None:
+        print(text, flush=True)
+
+    elapsed = _jit.timed_warm_up(lambda: warm_up_kernels(params, params_path, say), say)
     missing = _jit.uncached_kernels()
     if missing:
         print(f'error: not cached: {", ".join(missing)}', file=sys.stderr)

@@ -63,7 +63,7 @@ def _exit_interrupted(number: int, frame: Optional[FrameType]) -> None:
     os._exit(EXIT_INTERRUPTED)
 
 
-def quiet_sigint() -> None:
+def quiet_sigint(even_if_ignored: bool = False) -> None:
     """
     Make Ctrl-C print one line and exit EXIT_INTERRUPTED, until ``run_command`` starts.
 
@@ -71,9 +71,17 @@ def quiet_sigint() -> None:
     them would print the import chain as a traceback. Only the main thread's default
     handler is replaced (another one is someone's choice); ``run_command`` puts the
     default back, so the command itself sees KeyboardInterrupt, which its cleanup expects.
+
+    A process started in the background by a non-interactive shell inherits SIGINT
+    ignored. A command line keeps it so (the shell's choice), but a node stops on SIGINT
+    once running whatever it inherited, so ``even_if_ignored`` (the nodes) replaces an
+    ignored SIGINT too: one sent during start-up would otherwise be lost, and the node
+    would run on where ``kill -INT`` expected it to end.
     """
-    if (threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+    handler = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is threading.main_thread() and (
+            handler is signal.default_int_handler
+            or (even_if_ignored and handler == signal.SIG_IGN)):
         signal.signal(signal.SIGINT, _exit_interrupted)
 
 

@@ -143,9 +143,12 @@ def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
     Compiled (``quaternion_of_rotation``: 1-2 us instead of 0.4-1 ms for scipy's
     Rotation; the node converts one per wrench). A matrix further from a rotation than
     PROJECTION_RANGE, or an improper one, goes to scipy itself, which projects (or
-    refuses) it.
+    refuses) it. A matrix with a non-finite entry (the frame of a failed solve) is no
+    rotation: its quaternion is NaN, not assessed.
     """
     m = np.ascontiguousarray(rotation, dtype=float)
+    if not np.all(np.isfinite(m)):
+        return np.full(4, math.nan)
     quaternion = np.empty(4)
     if m.shape == (3, 3) and quaternion_of_rotation(m, quaternion):
         return quaternion

@@ -23,7 +23,8 @@ solved; 130 interrupted by Ctrl-C (the output MCAP is finalized all the same). i
 synth: 0 done (info also for a damaged file, which it reports), 2 bad arguments or unusable
 input. calibrate (docs/howto/measurements.md): 0 fitted; 1 fitted from a damaged input; 2 bad
 arguments or unusable input; 3 not converged; 4 refused, the parameters cannot be
-identified from the recordings. All: 141 when stdout was closed early (``| head``).
+identified from the recordings; 5 the fit does not explain the measurements. All: 141
+when stdout was closed early (``| head``).
 """
 
 import argparse

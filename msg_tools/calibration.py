@@ -8,7 +8,11 @@ within the tolerance; the covariance topic is used when the file has it (its cov
 weights the fit), else the plain poses with an assumed covariance (``--sigma``). Wrenches
 the node would not solve as given (non-finite, a frame_id other than the base frame or
 empty) and poses that cannot weight a fit (non-unit quaternion, covariance not positive
-definite) are skipped and counted. The fit itself is cdr_translator.calibration.pose_fit.
+definite) are skipped and counted. So are ambiguous pairs: wrenches that share their stamp
+with another wrench of the file, poses that share theirs with another pose, and the
+wrenches whose nearest pose stamp is such a shared one (which pose, or which wrench, was
+measured under which load cannot be told). The fit itself is
+cdr_translator.calibration.pose_fit.
 """
 
 from dataclasses import dataclass, field
@@ -31,6 +35,10 @@ WRENCH_NAME, POSE_NAME, POSE_COV_NAME = (
 DEFAULT_TOLERANCE_S = 0.002
 #: Default assumed standard deviations of poses without covariance: m, deg.
 DEFAULT_SIGMA = (1e-3, 0.5)
+#: Reasons of the ambiguous pairs skipped (see the module text).
+SHARED_WRENCH_STAMP = 'wrench sharing its stamp with another wrench (ambiguous pair)'
+SHARED_POSE_STAMP = 'pose sharing its stamp with another pose (ambiguous pair)'
+NEAREST_POSES_SHARED = 'wrench whose nearest pose stamp holds several poses (ambiguous pair)'
 
 
 @dataclass
@@ -158,7 +166,14 @@ def read_pairs(paths: Sequence[Union[str, Path]], tolerance_s: float = DEFAULT_T
             frame for frame, good in zip(frames, usable) if good})
         order = np.flatnonzero(usable)[np.argsort(stamps[usable], kind='stable')]
         sorted_stamps = stamps[order]
-        for message in wrenches:
+        shared_pose = _shared(sorted_stamps)
+        pairing.skip(SHARED_POSE_STAMP, int(np.sum(shared_pose)))
+        wrench_stamps = [messages.stamp_to_ns(message.header.stamp) for message in wrenches]
+        shared_wrench = _shared(np.array(wrench_stamps, dtype=np.int64))
+        for message, shared in zip(wrenches, shared_wrench):
+            if shared:
+                pairing.skip(SHARED_WRENCH_STAMP)
+                continue
             force, moment, frame_id, stamp = messages.wrench_from_message(message)
             wrench = np.concatenate([force, moment])
             if frame_id not in ('', base_frame):
@@ -171,6 +186,9 @@ def read_pairs(paths: Sequence[Union[str, Path]], tolerance_s: float = DEFAULT_T
             nearest = _nearest(sorted_stamps, stamp_ns)
             if nearest is None or abs(int(sorted_stamps[nearest]) - stamp_ns) > tolerance_s * 1e9:
                 pairing.skip('wrench without a pose within the stamp tolerance')
+                continue
+            if shared_pose[nearest]:
+                pairing.skip(NEAREST_POSES_SHARED)
                 continue
             row = order[nearest]
             gaps.append(abs(int(stamps[row]) - stamp_ns) * 1e-9)
@@ -191,6 +209,12 @@ def read_pairs(paths: Sequence[Union[str, Path]], tolerance_s: float = DEFAULT_T
         pairing.largest_gap_s = max(gaps)
     pairing.covariance_source = '; '.join(sorted(sources))
     return pairing
+
+
+def _shared(stamps: np.ndarray) -> np.ndarray:
+    """Return the mask of the stamps that occur more than once in ``stamps``."""
+    _, inverse, counts = np.unique(stamps, return_inverse=True, return_counts=True)
+    return counts[inverse] > 1
 
 
 def _nearest(sorted_stamps: np.ndarray, stamp_ns: int) -> Optional[int]:

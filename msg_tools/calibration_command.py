@@ -3,10 +3,13 @@
 
 Exit codes: 0 fitted; 1 fitted, but an input file was damaged (what could be read was
 used); 2 bad arguments or unusable input (no such file, an unknown or non-numeric key, no
-wrench paired with a pose, a wrench that does not solve at the start; nothing written);
-3 the fit did not converge (nothing written but the report and the plot); 4 refused: the
-recordings cannot determine the requested parameters (the reason names the rank, the
-condition number, the parameters). 130 and 141 as every command.
+wrench paired with a pose, a wrench that does not solve at the start; nothing written; a
+damaged input is named as ``info`` names it); 3 the fit did not converge (nothing written
+but the report and the plot); 4 refused: the recordings cannot determine the requested
+parameters (the reason names the rank, the condition number, the parameters); 5 the fit
+converged but does not explain the measurements: its reduced chi-square is above
+pose_fit.MAX_REDUCED_CHI_SQUARE (nothing written but the report and the plot). 130 and 141
+as every command.
 """
 
 import argparse
@@ -18,15 +21,20 @@ from typing import Any, Dict, List, Optional
 
 from cdr_translator.calibration.fit_parameters import check_fit_names
 from cdr_translator.calibration.pose_error import check_frame, FRAME_NAMES
-from cdr_translator.calibration.pose_fit import (fit_poses, fit_summary, FitResult, rms_angle_deg,
+from cdr_translator.calibration.pose_fit import (fit_poses, fit_summary, FitResult,
+                                                 MAX_REDUCED_CHI_SQUARE, rms_angle_deg,
                                                  rms_position, UnidentifiableError)
+from cdr_translator.console import finite_or_none
 from cdr_translator.params.translator_params import translator_values, TranslatorParams
 from msg_tools.calibration import fitted_params_text, Pairing, read_pairs
 from msg_tools.calibration_plot import plot_calibration
+from msg_tools.info import damage_text
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.plots import check_plot_path
 
 EXIT_OK, EXIT_DAMAGED_INPUT, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_UNIDENTIFIABLE = 0, 1, 2, 3, 4
+#: The fit converged, but its residuals are far beyond the measurements' covariances.
+EXIT_POOR_FIT = 5
 
 
 def add_frame_option(parser: argparse.ArgumentParser, flag: str, what: str) -> None:
@@ -59,7 +67,8 @@ def add_parser(commands: Any) -> None:
                            help='assumed standard deviations of poses without covariance; '
                                 'default 0.001 m 0.5 deg')
     calibrate.add_argument('--folds', type=int, default=5,
-                           help='k of the k-fold cross-validation (0: none); default 5')
+                           help='k of the k-fold cross-validation (0: none, else 2 or more; '
+                                'at most one fold per sample is made); default 5')
 
 
 def _number(value: float) -> Optional[float]:
@@ -95,8 +104,11 @@ def _fit_report(result: FitResult) -> Dict[str, Any]:
         'cross_validated_rms_position_error_m': _number(rms_position(cv)),
         'cross_validated_rms_angle_error_deg': _number(rms_angle_deg(cv)),
         'folds': result.cross_validation_folds,
-        'correlation': {'names': names, 'matrix': result.correlation.tolist()},
+        'cross_validation_skipped': result.cross_validation_skipped or None,
+        'correlation': {'names': names, 'matrix': finite_or_none(result.correlation.tolist())},
         'reduced_chi_square': _number(result.reduced_chi_square),
+        'explains_measurements': result.explains_measurements,
+        'max_reduced_chi_square': MAX_REDUCED_CHI_SQUARE,
         'degrees_of_freedom': result.degrees_of_freedom,
         'condition_number': _number(result.condition_number), 'rank': result.rank,
         'converged': result.converged, 'message': result.message,
@@ -132,8 +144,9 @@ def _prepare(args: argparse.Namespace) -> tuple:
     for what, path in (('fitted params file', args.out), ('plot', args.plot)):
         if path:
             check_output(path, what)
-    if args.folds < 0:
-        raise ValueError(f'--folds must be 0 or more, got {args.folds}')
+    if args.folds < 0 or args.folds == 1:
+        raise ValueError(f'--folds must be 0 (no cross-validation) or 2 or more (one fold '
+                         f'holds nothing out), got {args.folds}')
     values = translator_values(args.params)
     names = list(check_fit_names(args.fit, values))
     if not names and not args.fit_frame:
@@ -142,9 +155,13 @@ def _prepare(args: argparse.Namespace) -> tuple:
         check_frame(args.frame)
     pairing = read_pairs(args.inputs, args.stamp_tolerance, values['base_frame'], args.sigma)
     if not pairing.matched:
-        raise ValueError(f'no wrench paired with a measured pose within '
-                         f'{args.stamp_tolerance:g} s ({pairing.wrenches} wrenches, '
-                         f'{pairing.poses} poses read; skipped: {pairing.skipped or "none"})')
+        skipped = ', '.join(f'{reason}: {count}' for reason, count in sorted(
+            pairing.skipped.items()))
+        raise ValueError('; '.join([damage_text(report) for report in pairing.reports
+                                    if not report.complete] + [
+            f'no wrench paired with a measured pose within {args.stamp_tolerance:g} s '
+            f'({pairing.wrenches} wrenches, {pairing.poses} poses read; skipped: '
+            f'{skipped or "none"})']))
     return values, names, pairing
 
 
@@ -155,7 +172,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         report = _pairing_report(pairing, args.stamp_tolerance)
         for problem in pairing.reports:
             if not problem.complete:
-                print(f'warning: {problem.describe()}', file=sys.stderr)
+                print(f'warning: {damage_text(problem)}', file=sys.stderr)
         result = fit_poses(pairing.samples, TranslatorParams.from_mapping(values), names,
                            args.fit_frame, args.frame, args.folds)
     except UnidentifiableError as error:
@@ -178,7 +195,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     lines += fit_summary(result) + [f'{"converged" if result.converged else "NOT converged"}: '
                                     f'{result.message}']
     report['fitted_params_file'] = report['plot'] = None
-    if args.out and result.converged:
+    poor = result.explains_measurements is False
+    if args.out and result.converged and not poor:
         Path(args.out).write_text(fitted_params_text(
             result.values, names, args.inputs, result.samples, values['base_frame'],
             report['pose_frame'] or ''), encoding='utf-8')
@@ -192,6 +210,13 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not result.converged:
         print(f'error: not converged: {result.message}', file=sys.stderr)
         return EXIT_NOT_CONVERGED
+    if poor:
+        print(f'error: the fit does not explain the measurements: reduced chi-square '
+              f'{result.reduced_chi_square:.3g} (at most {MAX_REDUCED_CHI_SQUARE:g}), residuals '
+              f'{math.sqrt(result.reduced_chi_square):.3g} times the measurement standard '
+              'deviations: a key left out, a wrong tracker frame, covariances too small '
+              '(--sigma) or wrong pairs; nothing written', file=sys.stderr)
+        return EXIT_POOR_FIT
     return EXIT_OK if pairing.complete else EXIT_DAMAGED_INPUT
 
 

@@ -14,7 +14,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Union
 
-from cdr_wire.reader import McapSource
+from cdr_wire.reader import McapSource, ReadReport
 
 
 def _utc(time_ns: int) -> str:
@@ -28,6 +28,11 @@ _DATA_CRC = {'valid': 'data-section CRC valid', 'absent': 'no data-section CRC s
              'mismatch': 'data-section CRC MISMATCH', 'unchecked': 'data-section CRC unchecked'}
 
 
+def damage_text(report: ReadReport) -> str:
+    """Return how every command names a damaged input: 'DAMAGED: ' and what was lost."""
+    return 'DAMAGED: ' + report.describe()
+
+
 def describe(path: Union[str, Path], verify: bool = True) -> str:
     """Return the info text of ``path``; salvages a damaged file and says so."""
     source = McapSource(path, check_data_crc=verify)
@@ -39,7 +44,7 @@ def describe(path: Union[str, Path], verify: bool = True) -> str:
         read = (f'complete: every chunk read, CRCs valid ({_DATA_CRC[source.data_crc]}), '
                 f'{report.messages_read} messages')
     else:
-        read = 'DAMAGED: ' + report.describe()
+        read = damage_text(report)
         if verify:
             read += f'; {_DATA_CRC[source.data_crc]}'
     lines = [f'file:      {source.path} ({report.size_bytes} bytes)', f'read:      {read}']

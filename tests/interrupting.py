@@ -79,18 +79,27 @@ def group_members(group: int) -> List[int]:
     return members
 
 
+def _ignore_sigint() -> None:
+    """Ignore SIGINT (in a child before its exec), as a script's background job inherits it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def interrupt(command: Sequence[str], when: Callable[[subprocess.Popen], bool],
               env: Optional[Mapping[str, str]] = None, cwd: Optional[Path] = None,
-              wait_s: float = 240.0) -> Ending:
+              wait_s: float = 240.0, inherit_ignored: bool = False,
+              end_timeout_s: float = END_TIMEOUT_S) -> Ending:
     """
     Start ``command``, send SIGINT to its group once ``when(process)``, return the ending.
 
     ``when`` is polled every 10 ms for at most ``wait_s`` (an AssertionError after); a
-    command that ends before it is an AssertionError too.
+    command that ends before it is an AssertionError too. ``inherit_ignored`` starts the
+    command with SIGINT ignored, as ``command &`` in a non-interactive shell does. A
+    command still running ``end_timeout_s`` after the SIGINT is an AssertionError.
     """
     process = subprocess.Popen(list(command), env=dict(env or environment()), cwd=cwd,
                                start_new_session=True, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+                               stderr=subprocess.PIPE, text=True,
+                               preexec_fn=_ignore_sigint if inherit_ignored else None)
     try:
         deadline = time.monotonic() + wait_s
         while not when(process):
@@ -98,7 +107,10 @@ def interrupt(command: Sequence[str], when: Callable[[subprocess.Popen], bool],
             assert time.monotonic() < deadline, f'no moment to interrupt in {wait_s} s'
             time.sleep(0.01)
         os.killpg(process.pid, signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=END_TIMEOUT_S)
+        try:
+            stdout, stderr = process.communicate(timeout=end_timeout_s)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f'still running {end_timeout_s} s after SIGINT') from None
         deadline = time.monotonic() + GROUP_GRACE_S
         while group_members(process.pid) and time.monotonic() < deadline:
             time.sleep(0.1)

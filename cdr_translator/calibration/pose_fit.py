@@ -36,7 +36,8 @@ from .fit_parameters import FitParameters
 from ..params.translator_params import Accuracy, TranslatorParams
 from ..solve.solver import TranslatorSolver
 
-__all__ = ['FitResult', 'MAX_CONDITION', 'PoseSamples', 'UnidentifiableError', 'fit_poses']
+__all__ = ['FitResult', 'MAX_CONDITION', 'MAX_REDUCED_CHI_SQUARE', 'PoseSamples',
+           'UnidentifiableError', 'fit_poses']
 
 #: Largest condition number of the column-scaled weighted Jacobian that is fitted. Past it
 #: the effects of the unknowns are so nearly collinear (a condition index of 100 is the
@@ -50,8 +51,14 @@ MAX_CONDITION = 100.0
 MAX_UNITS = 1.0
 #: Time limit of each solve of a fit (s): a trial whose solves stall counts as failed.
 SOLVE_TIME_LIMIT_S = 2.0
-#: Reduced chi-square above which a fit is reported as not explaining its measurements.
+#: Reduced chi-square above which a fit is warned about (residuals twice the deviations).
 POOR_FIT = 4.0
+#: Reduced chi-square above which a converged fit does not explain its measurements, so is
+#: not a success (``FitResult.explains_measurements`` False): residuals five times the
+#: measurement standard deviations. The estimates and standard errors of such a fit
+#: describe the model's misfit, not the prototype; a chance excess this large has a
+#: probability far below 1e-9 at any number of samples.
+MAX_REDUCED_CHI_SQUARE = 25.0
 #: Forward-difference step of the model keys (in units).
 DIFFERENCE_STEP = 1e-6
 #: Whitened error given to a sample whose solve failed at a trial point (LM rejects the step).
@@ -104,9 +111,12 @@ class FitResult:
 
     ``values``, ``initial`` and ``standard_errors`` are keyed by the fitted names (model keys
     in SI units, then the frame's six numbers, pose_error.FRAME_NAMES). Standard errors are
-    those of the linearized model at the optimum, scaled by the reduced chi-square. Errors
-    are predicted - measured in the tracker frame: position (m) and rotation (rad), (N, 6),
-    at the initial and at the fitted values.
+    those of the linearized model at the optimum, scaled by the reduced chi-square; NaN
+    (not assessed) for a fit that did not converge, whose ``values`` are its last trial.
+    Errors are predicted - measured in the tracker frame: position (m) and rotation (rad),
+    (N, 6), at the initial and at the fitted values. ``message`` says why the fit stopped
+    (why it did not converge, when it did not). ``cross_validation_skipped`` says why no
+    cross-validation was made ('' when ``cross_validation_folds`` folds were held out).
     """
 
     names: Tuple[str, ...]
@@ -127,6 +137,7 @@ class FitResult:
     measured_positions: np.ndarray
     cross_validation_folds: int = 0
     cross_validated_errors: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    cross_validation_skipped: str = ''
     max_discretization_error_m: float = math.nan
     model_passes: int = 0
     fit_time_s: float = 0.0
@@ -136,6 +147,17 @@ class FitResult:
     def reduced_chi_square(self) -> float:
         """Chi-square per degree of freedom (about 1 when the covariances are right)."""
         return self.chi_square / self.degrees_of_freedom if self.degrees_of_freedom else math.nan
+
+    @property
+    def explains_measurements(self) -> Optional[bool]:
+        """
+        Tell whether the residuals are within MAX_REDUCED_CHI_SQUARE of the covariances.
+
+        None (not assessed) without a degree of freedom or for a fit that did not converge.
+        """
+        if not self.converged or not self.degrees_of_freedom:
+            return None
+        return bool(self.reduced_chi_square <= MAX_REDUCED_CHI_SQUARE)
 
     @property
     def warnings(self) -> List[str]:
@@ -310,8 +332,9 @@ def fit_poses(samples: PoseSamples, params: TranslatorParams, names: Sequence[st
     poses predicted at ``params`` (pose_error.register). Raises ValueError for a bad
     request (unknown names, samples whose solve fails at the start, none left) and
     UnidentifiableError when the samples cannot determine the unknowns. ``folds``-fold
-    cross-validation (contiguous blocks of samples; 0 or 1: none) refits on all folds but
-    one and predicts that one.
+    cross-validation (contiguous blocks of samples) refits on all folds but one and
+    predicts that one; when it cannot be made (0 or 1 fold, too few samples, no
+    convergence), ``cross_validation_skipped`` says why.
     """
     started = time.perf_counter()
     unknowns = FitParameters(params, names, fit_frame,
@@ -350,12 +373,13 @@ def fit_poses(samples: PoseSamples, params: TranslatorParams, names: Sequence[st
                                   if abs(value) > 0.99 * MAX_UNITS]
     ok = bool(solution.success) and bool(converged.all()) and not edge
     message = solution.message if ok else (
-        f'not converged: {solution.message}' if not solution.success else
-        'not converged: some wrenches do not solve at the last trial values'
-        if not converged.all() else
-        f'not converged: {", ".join(edge)} ran to the end of its valid range or '
-        f'{MAX_UNITS:g} unit from its start (the chosen keys cannot explain the '
-        'measurements, or the start is too far)')
+        solution.message if not solution.success else
+        'some wrenches do not solve at the last trial values' if not converged.all() else
+        f'{", ".join(edge)} ran to the end of its valid range or {MAX_UNITS:g} unit from its '
+        'start (the chosen keys cannot explain the measurements, or the start is too far)')
+    if not ok:   # the linearization at a trial point that is no optimum assesses nothing
+        deviations = np.full(len(x), math.nan)
+        correlation = np.full_like(correlation, math.nan)
     result = FitResult(
         names=tuple(unknowns.names), initial=unknowns.physical(x0), values=unknowns.physical(x),
         standard_errors=unknowns.physical_errors(x, deviations), correlation=correlation,
@@ -365,7 +389,9 @@ def fit_poses(samples: PoseSamples, params: TranslatorParams, names: Sequence[st
         predicted_positions=model.predicted_positions(x),
         measured_positions=samples.positions.copy())
     result.fit_time_s = time.perf_counter() - started
-    if ok and folds > 1:
+    result.cross_validation_skipped = cross_validation_obstacle(
+        ok, folds, len(samples.wrenches), len(x))
+    if not result.cross_validation_skipped:
         started = time.perf_counter()
         result.cross_validated_errors, result.cross_validation_folds = cross_validate(
             model, x, jacobian, folds)
@@ -373,6 +399,29 @@ def fit_poses(samples: PoseSamples, params: TranslatorParams, names: Sequence[st
     result.model_passes = model.passes
     result.max_discretization_error_m = model.max_error_estimate_m
     return result
+
+
+def cross_validation_obstacle(converged: bool, folds: int, samples: int, unknowns: int
+                              ) -> str:
+    """
+    Say why ``folds``-fold cross-validation of a fit cannot be made ('' when it can).
+
+    It needs a converged fit, 2 folds or more (one fold holds nothing out) and samples
+    enough that each training set (all blocks but one, ``min(folds, samples)`` blocks) gives
+    more numbers (6 per sample) than ``unknowns``.
+    """
+    if not converged:
+        return 'the fit did not converge'
+    if folds < 2:
+        return ('not asked for (0 folds)' if folds == 0 else
+                f'{folds} fold holds nothing out (2 or more are needed)')
+    used = min(folds, samples)
+    smallest_training = samples - -(-samples // used) if used else 0
+    if used < 2 or 6 * smallest_training <= unknowns:
+        return (f'{samples} sample{"s" if samples != 1 else ""} cannot be split into '
+                f'training and held-out folds that determine {unknowns} unknown'
+                f'{"s" if unknowns != 1 else ""}')
+    return ''
 
 
 def cross_validate(model: PoseModel, x: np.ndarray, jacobian: np.ndarray, folds: int
@@ -405,11 +454,13 @@ def cross_validate(model: PoseModel, x: np.ndarray, jacobian: np.ndarray, folds:
 
 def fit_summary(result: FitResult) -> List[str]:
     """Return the text lines of a fit's report: estimates, correlations, residuals."""
-    lines = [f'{"parameter":<18} {"initial":>13} {"fitted":>13} {"std error":>11}']
+    last = 'fitted' if result.converged else 'last trial'
+    lines = [f'{"parameter":<18} {"initial":>13} {last:>13} {"std error":>13}']
     for name in result.names:
+        error = result.standard_errors[name]
         lines.append(f'{name:<18} {result.initial[name]:>13.6g} {result.values[name]:>13.6g} '
-                     f'{result.standard_errors[name]:>11.3g}')
-    if len(result.names) > 1:
+                     + (f'{error:>13.3g}' if math.isfinite(error) else f'{"not assessed":>13}'))
+    if len(result.names) > 1 and result.converged:
         lines.append('correlations: ' + ', '.join(
             f'{result.names[i]}/{result.names[j]} {result.correlation[i, j]:+.3f}'
             for i in range(len(result.names)) for j in range(i + 1, len(result.names))))
@@ -424,4 +475,6 @@ def fit_summary(result: FitResult) -> List[str]:
         lines.append(f'{result.cross_validation_folds}-fold cross-validated rms error: '
                      f'position {rms_position(result.cross_validated_errors) * 1e3:.4g} mm, '
                      f'angle {rms_angle_deg(result.cross_validated_errors):.4g} deg')
+    else:
+        lines.append(f'cross-validation not done: {result.cross_validation_skipped}')
     return lines

@@ -33,8 +33,8 @@ import yaml
 
 from ..errors import ParameterError
 
-__all__ = ['applicable_sections', 'check_known', 'check_value_type', 'declared_type',
-           'every_key', 'fully_qualified_name', 'layered_values', 'read_document',
+__all__ = ['applicable_sections', 'check_known', 'check_nesting', 'check_value_type',
+           'declared_type', 'every_key', 'fully_qualified_name', 'layered_values', 'read_document',
            'section_applies', 'section_values']
 
 PathLike = Union[str, Path]
@@ -44,6 +44,11 @@ PARAMETERS_KEY = 'ros__parameters'
 #: Largest params file read (bytes): the shipped one is a few kB, and a device or a huge
 #: file given by mistake must not be read without bound.
 MAX_PARAMS_BYTES = 1 << 20
+#: Deepest nesting of mappings and lists read. The shipped file nests 4 deep (the file's
+#: mapping, a node's, its ros__parameters, a list); YAML's composer (and rcl's parser)
+#: recurse once per level, so a file nested thousands deep would end in a RecursionError
+#: (a traceback) instead of a message.
+MAX_PARAMS_DEPTH = 32
 
 
 def fully_qualified_name(node_name: str, namespace: str = '/') -> str:
@@ -82,11 +87,32 @@ def _bounded_text(path: Path) -> str:
     return data.decode('utf-8')
 
 
+def check_nesting(text: str, where: Union[str, Path]) -> None:
+    """
+    Raise ParameterError if the YAML ``text`` nests beyond MAX_PARAMS_DEPTH (``where``: whose).
+
+    YAMLError when ``text`` is not YAML at all (as ``yaml.safe_load`` would raise).
+    """
+    depth = 0
+    # The event stream is produced by a state machine without recursion, unlike composing.
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.CollectionStartEvent):
+            depth += 1
+            if depth > MAX_PARAMS_DEPTH:
+                line = f' (line {event.start_mark.line + 1})' if event.start_mark else ''
+                raise ParameterError(f'{where} nests mappings and lists more than '
+                                     f'{MAX_PARAMS_DEPTH} deep{line}, so it is not a params file')
+        elif isinstance(event, yaml.CollectionEndEvent):
+            depth -= 1
+
+
 def read_document(path: PathLike) -> Mapping[str, Any]:
     """Load a params file; ParameterError if it cannot be read or is not one."""
     path = Path(path)
     try:
-        document = yaml.safe_load(_bounded_text(path))
+        text = _bounded_text(path)
+        check_nesting(text, path)
+        document = yaml.safe_load(text)
     except OSError as error:
         raise ParameterError(f'cannot read parameter file {path}: {error}') from error
     except UnicodeDecodeError as error:

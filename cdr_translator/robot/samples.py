@@ -275,7 +275,8 @@ def workspace_volumes(spec: AtlasSpec, results: Dict[str, np.ndarray]) -> List[d
     samples (scipy.spatial.ConvexHull); exact for a convex workspace, an over-estimate
     otherwise. ``jacobian_m3``: the image volume of the slider box, the integral of
     |det dp/dq| over it by the trapezoidal rule on the grid (needs every sample of the block
-    converged; it does not assume convexity). Both count only what the sliders reach.
+    converged with a finite Jacobian, else NaN: not assessed; it does not assume
+    convexity). Both count only what the sliders reach.
     """
     from scipy.spatial import ConvexHull, QhullError
     volumes = []
@@ -294,7 +295,8 @@ def workspace_volumes(spec: AtlasSpec, results: Dict[str, np.ndarray]) -> List[d
                 except QhullError:
                     hull = 0.0
             jacobian = math.nan
-            if np.all(results['converged'][block]):
+            if np.all(results['converged'][block]) and np.all(
+                    np.isfinite(results['slider_jacobian'][block])):
                 grid_index = spec.inputs(first, first + spec.block)['grid_index']
                 weights = np.prod(weights1[grid_index], axis=1)
                 determinants = np.abs(np.linalg.det(results['slider_jacobian'][block]))

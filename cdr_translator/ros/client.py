@@ -34,18 +34,24 @@ DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
 
 #: The node run as a module of this interpreter, and as the installed console script.
 MODULE_COMMAND = (sys.executable, '-m', 'cdr_translator.ros.translator_node')
+#: Domains an isolated run picks from (both ends included): the range ROS 2 recommends on
+#: Linux is 0-101 (above it the participants' ports run into the ephemeral port range), and
+#: 0 is everyone's default domain.
+ISOLATED_DOMAINS = (1, 101)
 SCRIPT_COMMAND = (str(Path(sys.executable).parent / 'translator_node'),)
 
 
 def isolated_ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
     """
-    Return os.environ with its own ROS_DOMAIN_ID (random in 100..200) and localhost discovery.
+    Return os.environ with its own ROS_DOMAIN_ID and localhost discovery.
 
-    Set it in os.environ before ``rclpy.init`` and pass it to child processes so that runs
-    on one machine never see each other.
+    The domain is ``domain_id`` or random in ISOLATED_DOMAINS. Set it in os.environ before
+    ``rclpy.init`` and pass it to child processes so that runs on one machine never see
+    each other.
     """
     env = dict(os.environ)
-    env['ROS_DOMAIN_ID'] = str(random.randint(100, 200) if domain_id is None else domain_id)
+    env['ROS_DOMAIN_ID'] = str(random.randint(*ISOLATED_DOMAINS) if domain_id is None
+                               else domain_id)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.pop('ROS_STATIC_PEERS', None)
     return env

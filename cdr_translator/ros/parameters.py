@@ -19,7 +19,7 @@ import yaml
 from ..errors import ParameterError
 from ..interface.settings import check_value, MODEL_KEYS, ParameterSpec, SPECS
 from ..interface.settings import TranslatorSettings
-from ..params.params_file import read_document
+from ..params.params_file import check_nesting, read_document
 from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
 
 __all__ = ['check_command_line', 'check_value', 'declare', 'default_values',
@@ -87,6 +87,7 @@ def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str
             if ':' in name:  # node:name targets one node by name
                 continue
             try:
+                check_nesting(text, f'-p {name}')
                 overrides[name] = yaml.safe_load(text)
             except yaml.YAMLError as error:
                 raise ParameterError(f'-p {name}: {text!r} is not a YAML value ('

@@ -2,14 +2,16 @@
 Console script ``translator_node`` (also ``python -m cdr_translator.ros.translator_node``).
 
 Ctrl-C is made quiet first: rclpy and the solver take seconds to load, and an interrupt
-meanwhile would print the import chain. The node itself is cdr_translator.ros.translator.
+meanwhile would print the import chain; a SIGINT inherited as ignored (a background job of
+a script) is taken over too, so that one sent during start-up is not lost. The node itself
+is cdr_translator.ros.translator.
 """
 
 import sys
 
 from ..console import quiet_sigint
 
-quiet_sigint()
+quiet_sigint(even_if_ignored=True)
 
 from .translator import main  # noqa: E402,I100 - rclpy and the solver load slowly
 

@@ -1,16 +1,17 @@
 """
 The command line at its edges.
 
-The params file read whole, strict JSON, unstable answers, a closed stdout, Ctrl-C and
-sweeps too large to hold.
+The params file read whole, strict JSON, unstable answers, a closed stdout, Ctrl-C,
+sweeps too large to hold, and compile's progress.
 """
 
 import json
 from pathlib import Path
+import re
 import subprocess
 import sys
 
-from cdr_translator import cli
+from cdr_translator import _jit, cli
 from cdr_translator.cli import main
 from cdr_translator.console import (EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, json_text,
                                     run_command)
@@ -172,3 +173,20 @@ def test_the_compliance_verdict_counts_when_it_is_the_only_one(capsys):
     data = _strict(capsys.readouterr().out)
     assert data['converged'] is True and data['stable'] is False
     assert data['stability_margin'] is None   # the solve's own margin was not assessed
+
+
+def test_compile_says_each_stage_as_it_goes(capsys):
+    """The compile command prints a line per warm-up stage and the kernels cached so far."""
+    assert main(['compile']) == 0
+    lines = capsys.readouterr().out.splitlines()
+    stages = [line for line in lines if re.match(r'\[\d+/\d+\] ', line)]
+    total = int(re.match(r'\[\d+/(\d+)\]', stages[0]).group(1))
+    assert total >= 8 and len(stages) == total, lines
+    for number, line in enumerate(stages, 1):
+        assert line.startswith(f'[{number}/{total}] '), line
+        assert re.search(r': \d+ signatures compiled, \d+ loaded from the cache so far, '
+                         r'\d+ s$', line), line
+    counts = _jit.kernel_counts()
+    assert stages[-1].split(': ')[1].startswith(f'{counts.compiled} signatures compiled, '
+                                                f'{counts.loaded} loaded')
+    assert lines[-1].startswith(f'all {len(_jit.KERNELS)} numba kernels are in the cache')

@@ -1,6 +1,7 @@
 """geometry's joint bending: the compiled frame-to-frame version against the matrix formula."""
 
 import math
+import warnings
 
 from cdr_translator import geometry
 import numpy as np
@@ -33,3 +34,12 @@ def test_a_joint_bent_by_theta_in_plane_delta_gives_them_back(theta, delta):
     found = geometry.bending_between(_frame(base), _frame(base @ joint))
     assert found[0] == pytest.approx(theta, abs=1e-12)
     assert math.remainder(found[1] - delta, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_frame_of_a_failed_solve_has_a_nan_quaternion_and_no_warning():
+    """A non-finite matrix is no rotation: NaN (not assessed), without numpy's det warning."""
+    for bad in (np.full((3, 3), math.nan), np.diag([1.0, math.inf, 1.0])):
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            quaternion = geometry.quaternion_xyzw(bad)
+        assert quaternion.shape == (4,) and np.all(np.isnan(quaternion))

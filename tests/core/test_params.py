@@ -1,14 +1,29 @@
 """Parameter file reading and validation: every error names the key and the value."""
 
+import contextlib
+import io
 import math
 import warnings
 
 from cdr_translator import ParameterError, PlausibilityWarning, TranslatorParams
+from cdr_translator.cli import main as cdr_main
 from cdr_translator.console import run_command
 from cdr_translator.params import params_file
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
+from msg_tools.__main__ import main as msg_tools_main
 import pytest
 import yaml
+
+#: Nesting of the deep params file: far beyond Python's recursion limit (1000).
+DEEP = 5000
+
+
+def write_deep_params(folder):
+    """Write a params file whose pitch_radius is a list nested DEEP levels deep."""
+    path = folder / 'deep.yaml'
+    path.write_text(f'{NODE_NAME}:\n  ros__parameters:\n    pitch_radius: '
+                    + '[' * DEEP + '0.01' + ']' * DEEP + '\n')
+    return path
 
 
 def write_params(tmp_path, **changes):
@@ -128,3 +143,33 @@ def test_a_params_file_is_a_regular_file_of_bounded_size(tmp_path, what):
     with pytest.raises(ParameterError, match='cannot read parameter file') as raised:
         TranslatorParams.from_yaml(path)
     assert '\n' not in str(raised.value)
+
+
+def test_a_deeply_nested_file_is_refused_naming_the_limit(tmp_path):
+    """Nesting beyond MAX_PARAMS_DEPTH: a ParameterError naming the file and the limit."""
+    path = write_deep_params(tmp_path)
+    with pytest.raises(ParameterError, match=f'more than {params_file.MAX_PARAMS_DEPTH} '
+                                             'deep') as raised:
+        TranslatorParams.from_yaml(path)
+    assert str(path) in str(raised.value) and '\n' not in str(raised.value)
+    shallow = tmp_path / 'shallow.yaml'
+    shallow.write_text(f'{NODE_NAME}:\n  ros__parameters:\n    pitch_radius: '
+                       + '[' * (params_file.MAX_PARAMS_DEPTH - 3) + '0.01'
+                       + ']' * (params_file.MAX_PARAMS_DEPTH - 3) + '\n')
+    with pytest.raises(ParameterError, match='pitch_radius must be a double'):
+        TranslatorParams.from_yaml(shallow)   # read, then refused for its type
+
+
+@pytest.mark.parametrize('command', [
+    ['solve', '--force', '1', '0', '0'], ['calibrate', 'run.mcap', '--fit', 'youngs_modulus']],
+    ids=['cdr_translator solve', 'msg_tools calibrate'])
+def test_a_deeply_nested_file_is_one_line_and_exit_2(tmp_path, command):
+    """The solve and calibrate --params: exit 2, one line naming the depth."""
+    path = write_deep_params(tmp_path)
+    main = msg_tools_main if command[0] == 'calibrate' else cdr_main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([*command, '--params', str(path)])
+    lines = err.getvalue().splitlines()
+    assert code == 2 and len(lines) == 1, err.getvalue()[-2000:]
+    assert lines[0].startswith('error: ') and 'deep' in lines[0] and str(path) in lines[0]

@@ -7,13 +7,14 @@ import math
 
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.calibration.pose_error import FRAME_NAMES
-from cdr_translator.calibration.pose_fit import fit_poses
+from cdr_translator.calibration.pose_fit import fit_poses, fit_summary, MAX_REDUCED_CHI_SQUARE
 from cdr_translator.cli import main as cdr_main
 from cdr_translator.interface.settings import TranslatorSettings
 from figure_checks import assert_readable
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.__main__ import main
-from msg_tools.calibration import read_pairs, yaml_number
+from msg_tools.calibration import (read_pairs, SHARED_POSE_STAMP, SHARED_WRENCH_STAMP,
+                                   yaml_number)
 from msg_tools.calibration_plot import calibration_figure
 import numpy as np
 import pytest
@@ -141,6 +142,8 @@ def test_calibration_recovers_the_hidden_modulus_and_tube_length(fitted):
         < 1.2 * report['rms_position_error_m']
     assert report['initial_rms_position_error_m'] > 5 * report['rms_position_error_m']
     assert report['reduced_chi_square'] == pytest.approx(1.0, abs=0.15)
+    assert report['explains_measurements'] is True and report['folds'] == 5
+    assert report['cross_validation_skipped'] is None
 
 
 def test_fitted_file_reloads_and_changes_the_model(fitted, true_params):
@@ -245,6 +248,71 @@ def test_frame_fit_recovers_the_tracker_frame(folder):
     assert 'youngs_modulus ran to the end' in report['message']
     assert report['rms_position_error_m'] > 0.1 and 'tracker frame' in report['warnings'][0]
     assert report['fitted_params_file'] is None and not (folder / 'never.yaml').exists()
+    # no optimum, so nothing assessed there: no standard error, no correlation, no CV
+    assert report['parameters']['youngs_modulus']['standard_error'] is None
+    assert report['explains_measurements'] is None
+    assert report['cross_validation_skipped'] == 'the fit did not converge'
+    assert err.count('not converged') == 1, err
+
+
+def test_a_fit_that_did_not_converge_says_so_plainly(recording):
+    """The text report: the last trial, not a 'fitted' value; no standard error of 0."""
+    pairing = read_pairs([recording])
+    result = fit_poses(pairing.samples.subset(np.arange(20)), TranslatorParams.from_yaml(),
+                       ['youngs_modulus'], max_evaluations=1)   # stopped before its optimum
+    assert not result.converged and not result.message.startswith('not converged')
+    assert math.isnan(result.standard_errors['youngs_modulus'])
+    assert result.explains_measurements is None
+    lines = fit_summary(result)
+    assert lines[0].split()[-4:] == ['last', 'trial', 'std', 'error'], lines[0]
+    assert lines[1].split()[0] == 'youngs_modulus' and lines[1].endswith('not assessed')
+    assert 'cross-validation not done: the fit did not converge' in lines
+
+
+def test_cross_validation_is_reported_only_when_something_was_held_out(folder):
+    """One sample, 5 folds asked: fitted, and said plainly that nothing was held out."""
+    one = _synth(folder / 'single.mcap', '--force', 10, 10, 5, '--measured-pose-noise',
+                 *NOISE, count=1)
+    code, out, err = _run('calibrate', one, '--fit', 'youngs_modulus')
+    assert code == 0, err
+    assert 'cross-validated' not in out
+    assert 'cross-validation not done: 1 sample cannot be split' in out
+    code, report, err = _calibrate(one, '--fit', 'youngs_modulus')
+    assert report['folds'] == 0 and report['cross_validated_rms_position_error_m'] is None
+    assert report['cross_validation_skipped'].startswith('1 sample cannot be split')
+    code, out, err = _run('calibrate', one, '--fit', 'youngs_modulus', '--folds', 0)
+    assert 'cross-validation not done: not asked for (0 folds)' in out
+    code, out, err = _run('calibrate', one, '--fit', 'youngs_modulus', '--folds', 1)
+    assert code == 2 and out == '' and 'one fold holds nothing out' in err
+
+
+def test_ambiguous_pairs_are_dropped_counted_and_reported(folder):
+    """40 wrenches and poses on 5 stamps (1e10 Hz): none paired, exit 2, the counts named."""
+    path = _synth(folder / 'shared_stamps.mcap', '--rate', '1e10', '--measured-pose-noise',
+                  '1e-5', '0.01', count=40)
+    pairing = read_pairs([path])
+    assert pairing.matched == 0 and pairing.wrenches == pairing.poses == 40
+    assert pairing.skipped == {SHARED_WRENCH_STAMP: 40, SHARED_POSE_STAMP: 40}
+    code, report, err = _calibrate(path, '--fit', 'youngs_modulus')
+    assert code == 2 and report is None
+    assert f'{SHARED_WRENCH_STAMP}: 40' in err and f'{SHARED_POSE_STAMP}: 40' in err
+
+
+def test_a_fit_that_does_not_explain_the_measurements_is_not_a_success(folder):
+    """A tube 20 mm shorter than the model's, only the modulus fitted: exit 5, no file."""
+    short_tube = folder / 'short_tube.yaml'
+    short_tube.write_text('translator_node:\n  ros__parameters:\n    tube_length: 0.12\n')
+    path = _synth(folder / 'short_tube.mcap', '--force', 10, 10, 5, '--measured-pose-noise',
+                  '1e-4', '0.05', '--true-params', short_tube, count=30)
+    out = folder / 'not_written.yaml'
+    code, report, err = _calibrate(path, '--fit', 'youngs_modulus', '--out', out)
+    assert code == 5 and report['converged'] and report['explains_measurements'] is False
+    assert report['reduced_chi_square'] > report['max_reduced_chi_square'] == \
+        MAX_REDUCED_CHI_SQUARE
+    assert report['fitted_params_file'] is None and not out.exists()
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        'error: the fit does not explain the measurements: reduced chi-square'), err
 
 
 def test_figure_is_readable(recording):
@@ -263,3 +331,34 @@ def test_damaged_input_is_used_and_reported(folder):
     code, report, err = _calibrate(path, '--fit', 'youngs_modulus', '--folds', 0)
     assert code == 1 and report['converged'] and report['matched'] == 20
     assert 'salvaged' in err and 'salvaged' in report['inputs'][0]
+
+
+def _info_damage(path):
+    """Return what ``msg_tools info`` says of a damaged file, but the data-CRC verdict."""
+    code, out, _ = _run('info', path)
+    assert code == 0
+    read = next(line for line in out.splitlines() if line.startswith('read:'))
+    damage = read.split(':', 1)[1].strip()
+    for verdict in ('valid', 'MISMATCH', 'unchecked'):   # info's own last words
+        damage = damage.removesuffix(f'; data-section CRC {verdict}')
+    return damage.removesuffix('; no data-section CRC stored')
+
+
+def test_an_unusable_damaged_input_is_named_as_info_names_it(folder):
+    """An empty file, one with 30 flipped bytes: the damage as info says it, not 'none'."""
+    empty = folder / 'empty.mcap'
+    empty.write_bytes(b'')
+    damage = _info_damage(empty)
+    assert damage.startswith('DAMAGED: ')
+    code, report, err = _calibrate(empty, '--fit', 'youngs_modulus')
+    assert code == 2 and report is None and damage in err and len(err.splitlines()) == 1
+    flipped = _synth(folder / 'flipped.mcap', '--force', 10, 0, 0, '--measured-pose-noise',
+                     *NOISE, count=20, profile='ramp')
+    data = bytearray(flipped.read_bytes())
+    for index in np.linspace(8, len(data) - 9, 30).astype(int):
+        data[index] ^= 0xFF
+    flipped.write_bytes(bytes(data))
+    damage = _info_damage(flipped)
+    assert damage.startswith('DAMAGED: ') and 'unreadable' in damage
+    code, report, err = _calibrate(flipped, '--fit', 'youngs_modulus', '--folds', 0)
+    assert code in (1, 2) and damage in err, err

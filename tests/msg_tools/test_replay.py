@@ -14,7 +14,8 @@ import time
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages
-from cdr_translator.interface.wrench_processing import InputSettings, WrenchProcessor
+from cdr_translator.interface.settings import TranslatorSettings
+from cdr_translator.interface.wrench_processing import WrenchProcessor
 from cdr_translator.params.translator_params import Accuracy, DEFAULT_PARAMS_PATH
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
@@ -444,7 +445,7 @@ def test_fidelity_setting_reaches_the_diagnostics(params, tmp_path):
     """`fidelity: cc` in the params file: replay solves with it and the log says so."""
     path = tmp_path / 'cc.yaml'
     path.write_text(DEFAULT_PARAMS_PATH.read_text().replace('fidelity: full', 'fidelity: cc'))
-    settings = InputSettings.from_params_file(path)
+    settings = TranslatorSettings.from_params_file(path)
     assert settings.fidelity == 'cc'
     processor = WrenchProcessor(params, settings, compliance=False)
     outcome = processor.process(np.array([12.0, 0.0, 0.0]), np.zeros(3), '',

@@ -75,6 +75,17 @@ def test_readme_is_short():
     assert size <= README_MAX_BYTES, f'README.md is {size} bytes: move text to docs/'
 
 
+@pytest.mark.parametrize('path', [README, ROOT / 'docs' / 'tutorial' / 'getting_started.md'],
+                         ids=lambda path: path.name)
+def test_a_new_user_sets_the_ros_domain_and_discovery_range(path):
+    """Where a new user starts the node, both variables are set, the domain within 1-101."""
+    text = path.read_text(encoding='utf-8')
+    domain = re.search(r'export .*ROS_DOMAIN_ID=(\d+)', text)
+    assert domain and 1 <= int(domain.group(1)) <= 101, path
+    assert re.search(r'export .*ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST', text), path
+    assert text.index('ROS_DOMAIN_ID=') < text.index('.venv/bin/translator_node'), path
+
+
 def test_docs_exist():
     """The pages the README and the tables of contents point to are there, one kind per folder."""
     names = {path.relative_to(ROOT / 'docs').as_posix() for path in DOCS}

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from typing import Iterator
+import warnings
 
 from cdr_translator.cli import main as cli_main
 from cdr_translator.robot.atlas import (load_results, open_or_create, plot_atlas, run_atlas,
@@ -227,3 +228,16 @@ def test_ctrl_c_with_a_separate_cluster_is_quiet(tmp_path):
     with _separate_cluster(tmp_path) as address:
         _interrupted_after_a_chunk(tmp_path / 'atlas.zarr', [
             '--grid', '3', '--chunk-size', '3', '--scheduler', address])
+
+
+def test_a_block_with_a_non_finite_jacobian_has_no_jacobian_volume():
+    """A converged sample without a finite slider Jacobian: jacobian_m3 NaN, no det warning."""
+    spec = AtlasSpec.build(2, [GRAVITY_1KG], fidelity='cc')
+    results = solve_chunk(spec, 0, spec.size)
+    assert np.all(results['converged'])
+    assert np.isfinite(workspace_volumes(spec, results)[0]['jacobian_m3'])
+    results['slider_jacobian'][3] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        volume = workspace_volumes(spec, results)[0]
+    assert np.isnan(volume['jacobian_m3']) and volume['convex_hull_m3'] > 0.0

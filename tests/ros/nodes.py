@@ -31,7 +31,9 @@ class Running:
                  command=MODULE_COMMAND, mcap: Optional[Path] = None, name: str = 'node'):
         """Start the node and wait for its first answer."""
         self.mcap = tmp_path / 'run.mcap' if mcap is None else mcap
-        self.node = NodeProcess(['-p', f'mcap_path:={self.mcap}', *ros_args], env,
+        # rcl applies --params-file and -p in command-line order: mcap_path comes last, so
+        # that a params file among ros_args cannot send the log to the checkout's cdr_runs/
+        self.node = NodeProcess([*ros_args, '-p', f'mcap_path:={self.mcap}'], env,
                                 tmp_path / f'{name}.log', command)
         self.client = None
         try:

@@ -23,6 +23,8 @@ NODES = {'translator_node': (SPECS, ['wrench', *OUTPUTS]),
          'cdr_node': (CDR_SPECS, [*CDR_INPUTS, *CDR_OUTPUTS])}
 #: Importing rclpy and the solver takes seconds on a loaded machine.
 RUN_TIMEOUT_S = 120.0
+#: A node interrupted while it imports exits at once; this allows for a loaded machine.
+SIGINT_END_TIMEOUT_S = 30.0
 
 
 def _run(script: str, arguments, env, cwd: Path) -> subprocess.CompletedProcess:
@@ -63,7 +65,7 @@ def _one_line(process: subprocess.CompletedProcess, script: str, named: str) -> 
 
 @pytest.mark.parametrize('script', sorted(NODES))
 def test_a_missing_or_unparsable_params_file_is_one_line(script, ros_env, tmp_path):
-    """--params-file naming no file, or a file that is not YAML: exit 2, one line naming it."""
+    """--params-file naming no file, not YAML, nested too deep: exit 2, one line naming it."""
     missing = tmp_path / 'missing.yaml'
     _one_line(_run(script, ['--ros-args', '--params-file', str(missing)], ros_env, tmp_path),
               script, str(missing))
@@ -71,7 +73,12 @@ def test_a_missing_or_unparsable_params_file_is_one_line(script, ros_env, tmp_pa
     broken.write_text(f'{script}:\n  ros__parameters: [max_force\n')
     _one_line(_run(script, ['--ros-args', '--params-file', str(broken)], ros_env, tmp_path),
               script, str(broken))
-    assert sorted(path.name for path in tmp_path.iterdir()) == ['broken.yaml']
+    deep = tmp_path / 'deep.yaml'   # beyond the recursion limit of YAML's composer and rcl's
+    deep.write_text(f'{script}:\n  ros__parameters:\n    max_force: ' + '[' * 5000 + '1.0'
+                    + ']' * 5000 + '\n')
+    _one_line(_run(script, ['--ros-args', '--params-file', str(deep)], ros_env, tmp_path),
+              script, f'{deep} nests mappings and lists more than')
+    assert sorted(path.name for path in tmp_path.iterdir()) == ['broken.yaml', 'deep.yaml']
 
 
 @pytest.mark.parametrize('override', ['max_force', 'max_force:=[1,', 'max_force:=strong',
@@ -99,6 +106,22 @@ def test_ctrl_c_during_start_up_is_one_line_and_exit_130(script, ros_env, tmp_pa
     for moment in (start + 0.05, start + 0.3):
         interrupt([str(BIN / script), '--ros-args', '-p', f'log_dir:={tmp_path}'],
                   after(moment), environment(ros_env), tmp_path).assert_quiet()
+
+
+@pytest.mark.parametrize('script', sorted(NODES))
+def test_sigint_at_start_up_ends_a_node_that_inherited_it_ignored(script, ros_env, tmp_path):
+    """
+    ``node &`` from a script (SIGINT ignored), SIGINT at 0.5 s: exit 130 at once, one line.
+
+    The node stops on SIGINT once running, so a SIGINT sent while it starts must not be
+    lost: ``kill -INT $pid; wait $pid`` would wait forever.
+    """
+    ending = interrupt([sys.executable, '-m', f'cdr_translator.ros.{script}', '--ros-args',
+                        '-p', f'log_dir:={tmp_path}'], after(interpreter_start_s() + 0.5),
+                       environment(ros_env), tmp_path, inherit_ignored=True,
+                       end_timeout_s=SIGINT_END_TIMEOUT_S)
+    ending.assert_quiet()
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize('script', sorted(NODES))

@@ -11,6 +11,7 @@ from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import check_magnitude, in_end_disk_frame
 from cdr_translator.params.translator_params import ParameterError
 from cdr_translator.ros import runtime
+from cdr_translator.ros.client import isolated_ros_env
 from cdr_translator.ros.parameters import default_values, descriptor, ros_parameter_sources
 from cdr_translator.ros.parameters import SPECS
 from cdr_translator.ros.runtime import fill_message, LatestMailbox, log_lost, LogWatch, NodeLog
@@ -233,3 +234,14 @@ def test_mailbox_with_room_for_two_answers_a_burst_and_drops_the_oldest_beyond()
     assert mailbox.take(timeout=0.01) is None
     with pytest.raises(ValueError, match='capacity 0'):
         LatestMailbox(capacity=0)
+
+
+def test_an_isolated_environment_picks_a_domain_ros_recommends():
+    """Domains 1-101 (Linux's recommended range, not the default 0), localhost discovery."""
+    domains = set()
+    for _ in range(300):
+        env = isolated_ros_env()
+        domains.add(int(env['ROS_DOMAIN_ID']))
+        assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
+    assert min(domains) >= 1 and max(domains) <= 101 and len(domains) > 50
+    assert isolated_ros_env(7)['ROS_DOMAIN_ID'] == '7'

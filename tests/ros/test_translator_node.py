@@ -82,6 +82,7 @@ def test_round_trip_equals_library(tmp_path, ros_env):
         expected = solver.solve(rotation @ local)
         np.testing.assert_allclose(position, expected.end_disk_position, rtol=0, atol=1e-9)
         assert int(diagnostic_values(run.answer(DIAGNOSTICS, stamp))['follower_solves']) > 1
+    assert run.mcap.stat().st_size > 0   # the log went to tmp_path, not to cdr_runs/
 
 
 def test_bad_input_rejected_then_next_answered(tmp_path, ros_env):
