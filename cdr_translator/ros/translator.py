@@ -11,12 +11,12 @@ one solve are both answered and, when they keep arriving faster than the solver,
 wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
 with the offline replay's code (a cdr_translator.interface.wrench_processing.WrenchProcessor:
 the same checks, frames, follower-load solve and counts). The subscription's queue is
-``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
+``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, spin.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
 one by one with the pose first (it is published before the others are built), encoded
 straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
 and the same bytes logged: every received wrench and every output goes to an MCAP file
-written by a child process (runtime.NodeLog), so that the writing takes no time from the
+written by a child process (node_log.NodeLog), so that the writing takes no time from the
 solve. Measured end-disk poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``)
 give ``estimated_wrench`` and ``estimated_wrench_covariance`` through a mailbox and thread
 of their own (estimate_stream.EstimateStream, interface.pose_estimation), logged alike.
@@ -39,11 +39,13 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
+from .latest_mailbox import LatestMailbox
+from .node_log import LOG_CHECK_PERIOD_S, log_health, log_lost, LogWatch, node_diagnostic_log
+from .node_log import NodeLog, open_log
+from .parameter_checks import check_parameters
 from .parameters import declare, ros_parameter_sources, SPECS
-from .runtime import check_parameters, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
-from .runtime import OUTPUTS, run
-from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
+from .spin import run, SHUTDOWN_JOIN_S
+from .topics import OUTPUTS, sensor_qos, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
 from ..interface.pose_estimation import PoseProcessor

@@ -13,7 +13,8 @@ from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
-from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
+from cdr_translator.ros.node_log import log_health
+from cdr_translator.ros.topics import fill_message, OUTPUTS, SubscriberCounts
 from cdr_wire.cdr_plan import HEADER
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 import pytest
