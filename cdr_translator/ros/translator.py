@@ -202,14 +202,17 @@ class TranslatorNode(Node):
                 try:
                     wrench = self._decode_wrench(data)
                 except ValueError as error:  # cdr's readers raise nothing else on bad bytes
-                    self._publish_all(self._serialized(
-                        self.processor.reject(stamp, f'malformed message: {error}')))
+                    self._reject(stamp, f'malformed message: {error}')
                     continue
                 force, moment, frame_id, stamp = messages.wrench_from_message(wrench)
                 self._process(stamp, force, moment, frame_id)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self._publish_all(self._serialized(self.processor.internal_error(
                     stamp, f'internal error: {error!r}')))
+
+    def _reject(self, stamp: dict, reason: str) -> None:
+        """Count a rejected wrench and publish (and so log) the ERROR diagnostic."""
+        self._publish_all(self._serialized(self.processor.reject(stamp, reason)))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
                  frame_id: str) -> None:
