@@ -24,7 +24,7 @@ from typing import Any, Callable, Dict, List
 
 from bench.node_latency import child_pids
 from cdr_translator.interface import messages
-from cdr_translator.ros import runtime, serialization, translator
+from cdr_translator.ros import node_log, serialization, topics, translator
 from rclpy.publisher import Publisher
 
 #: stage -> [calls, thread CPU s, wall s]
@@ -134,7 +134,7 @@ def install(out: Path) -> None:
     wrap(node_class, '_checked', 'checks')
     wrap(node_class, '_counts', 'counts')
     wrap(node_class, '_wanted', 'subscription counts')  # before the CDR encoding
-    wrap(runtime.SubscriberCounts, 'subscribed', 'subscription counts')
+    wrap(topics.SubscriberCounts, 'subscribed', 'subscription counts')
     wrap(translator, 'deserialize_message', 'decode')
     wrap(serialization, 'decode', 'decode')
     wrap(translator, 'solve_wrench', 'solve')
@@ -153,11 +153,7 @@ def install(out: Path) -> None:
         wrap(messages, name, f'build {name}')
     wrap(Publisher, 'publish', 'publish')
     wrap(Publisher, 'get_subscription_count', 'get_subscription_count')
-    log_class = getattr(runtime, 'NodeLog', None) or getattr(runtime, 'LogThread')
-    wrap(log_class, 'submit_many' if hasattr(log_class, 'submit_many') else 'submit',
-         'log submit')
-    if hasattr(runtime, 'McapLog'):  # written in this process (a log thread)
-        wrap(runtime.McapLog, 'write_serialized', 'log write (log thread)')
+    wrap(node_log.NodeLog, 'submit_many', 'log submit')
     close = node_class.close
 
     def close_and_report(self: Any) -> None:

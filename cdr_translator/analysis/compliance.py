@@ -6,7 +6,7 @@ the end-disk centre) to the small twist [v; w] of the end disk: v the velocity o
 w its angular velocity, both in {pe}. SI units: C[:3, :3] m/N, C[:3, 3:] m/(N m),
 C[3:, :3] rad/N, C[3:, 3:] rad/(N m).
 
-Two computations that agree to about 1e-8 relative (tests/core/test_compliance.py):
+Two computations that agree to about 1e-8 relative (tests/analysis/test_compliance.py):
 
 * ``implicit_compliance`` (the default): implicit differentiation of the shooting problem
   at the converged solution (Rucker & Webster, ICRA 2011). r(x, w) = 0 gives

@@ -197,7 +197,7 @@ def chord_iterations(xs, rs, wrench, x_scale, residual_scale, model_args, lu, pi
 
     Nineteen arguments, no more: numba's dispatcher allocates about 400 bytes per call of
     a function with twenty or more (freed only at the next garbage-collector pass), which
-    piled up between collections along a replay (tests/core/test_chord.py).
+    piled up between collections along a replay (tests/bvp/test_chord.py).
     """
     size = xs.shape[0]
     step = np.empty(size)

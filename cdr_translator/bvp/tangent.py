@@ -9,7 +9,7 @@ exact local derivative (rod.integrate_segment_tangent, 16 local directions), cha
 the global tangents here; the disks' algebraic conditions and wrench transfers are
 differentiated by hand, line by line against the primal helpers of shooting.py, which
 still do the primal update. The result is the derivative of the discrete residual itself
-(to rounding), which central differences confirm (tests/core/test_jacobian.py).
+(to rounding), which central differences confirm (tests/bvp/test_jacobian.py).
 
 The tangent columns are kept station by station (layout.internal_columns): the base
 unknowns, the lifted column (layout.LIFT_COLUMN), then station 0's 20, station 1's, ...

@@ -10,7 +10,8 @@ same solver settings (``solve_time_limit_s``), all read from the one params file
 
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import (Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple,
+                    Union)
 import warnings
 
 import numpy as np
@@ -109,17 +110,39 @@ class Outcome:
     solves: int = 0
 
 
+@dataclass
+class Answer:
+    """
+    What one received wrench gave, its outputs built one by one when iterated (pose first).
+
+    ``result`` is None if the wrench was rejected; ``error`` says why it was not solved.
+    """
+
+    result: Optional[SolveResult]
+    error: str
+    outputs: Iterator[Tuple[str, str, dict]]
+    solves: int = 0
+
+
 class WrenchProcessor:
     """
     The node's handling of a sequence of wrenches, warm-starting one solver along it.
 
     Counts received, rejected, solved and not converged messages and reports them in every
-    diagnostic, as the node does (``skipped`` is always 0: nothing is dropped offline).
+    diagnostic (``report_counts``). translator_node holds one and adds its own counts
+    (``extra_counts``: skipped wrenches, lost log records); offline ``skipped`` is always 0,
+    nothing is dropped.
     """
 
     def __init__(self, params: TranslatorParams, settings: TranslatorSettings, *,
-                 compliance: bool = True, backbones: bool = False) -> None:
-        """Build the solver (the node's time limit) for ``params``."""
+                 compliance: bool = True, backbones: bool = False,
+                 extra_counts: Optional[Callable[[], Mapping[str, int]]] = None) -> None:
+        """
+        Build the solver (the node's time limit) for ``params``.
+
+        ``extra_counts`` returns counts kept elsewhere, reported after (or in place of) the
+        processor's own in every diagnostic.
+        """
         self.settings = settings
         self.solver = node_solver(params, settings)
         self.compliance = compliance
@@ -127,6 +150,34 @@ class WrenchProcessor:
         self.rotation = np.eye(3)
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
                                        'not_converged': 0, 'skipped': 0}
+        self.extra_counts = extra_counts
+
+    def apply_settings(self, settings: TranslatorSettings) -> None:
+        """Take a new settings snapshot: its limits, frames and solve time limit."""
+        self.settings = settings
+        self.solver.time_limit_s = settings.solve_time_limit_s
+
+    def report_counts(self) -> Dict[str, Any]:
+        """Return the counts every diagnostic reports: the processor's, then ``extra_counts``."""
+        counts: Dict[str, Any] = dict(self.counts)
+        if self.extra_counts is not None:
+            counts.update(self.extra_counts())
+        return counts
+
+    def receive(self) -> None:
+        """Count a received wrench (``process`` does; the node counts one as it arrives)."""
+        self.counts['received'] += 1
+
+    def reject(self, stamp: Mapping[str, int], reason: str) -> List[Tuple[str, str, dict]]:
+        """Count a rejected wrench; return its ERROR diagnostic ``rejected: <reason>``."""
+        self.counts['rejected'] += 1
+        return messages.rejection_messages(stamp, f'rejected: {reason}', self.report_counts())
+
+    def internal_error(self, stamp: Mapping[str, int], reason: str
+                       ) -> List[Tuple[str, str, dict]]:
+        """Count a wrench a bug left unanswered (not converged); return its ERROR diagnostic."""
+        self.counts['not_converged'] += 1
+        return messages.rejection_messages(stamp, reason, self.report_counts())
 
     @property
     def batches(self) -> bool:
@@ -203,32 +254,47 @@ class WrenchProcessor:
             self._tally(row.converged, lambda: row.end_disk_rotation_matrix)
             outputs = messages.output_messages(
                 row, wrench[3], self.settings.base_frame, compliance=self.compliance,
-                extra_values=dict(self.counts))
+                extra_values=self.report_counts())
             outcomes.append(Outcome(row, '' if row.converged else row.message, outputs, 1))
         return outcomes
 
     def process(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
                 stamp: Mapping[str, int]) -> Outcome:
-        """Check, solve and build the outputs of one wrench (outputs stamped ``stamp``)."""
-        self.counts['received'] += 1
+        """Count, check, solve and build the outputs of one wrench (outputs stamped ``stamp``)."""
+        self.receive()
+        answer = self.answer(force, moment, frame_id, stamp)
+        return Outcome(answer.result, answer.error, list(answer.outputs), answer.solves)
+
+    def answer(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
+               stamp: Mapping[str, int], *, compliance: Optional[bool] = None,
+               backbones: Optional[bool] = None) -> Answer:
+        """
+        Check and solve one wrench already counted as received; its outputs built lazily.
+
+        ``compliance`` and ``backbones`` (default: the processor's) say whether the outputs
+        hold the compliance and the backbone markers: the node asks for them only while
+        someone listens or they are logged. The counts the diagnostic reports are taken
+        when the solve ends.
+        """
+        compliance = self.compliance if compliance is None else compliance
+        backbones = self.backbones if backbones is None else backbones
         try:
             end_disk = self._check(force, moment, frame_id)
         except ValueError as error:
-            self.counts['rejected'] += 1
-            return Outcome(None, f'rejected: {error}', messages.rejection_messages(
-                stamp, f'rejected: {error}', dict(self.counts)))
+            reason = f'rejected: {error}'
+            return Answer(None, reason, iter(self.reject(stamp, str(error))))
         result, solves = solve_wrench(self.solver, np.asarray(force, dtype=float),
                                       np.asarray(moment, dtype=float), end_disk,
-                                      self.rotation, self.compliance)
+                                      self.rotation, compliance)
         self._tally(result.converged, lambda: result.frames['de'][:3, :3])
-        extra: Dict[str, Any] = dict(self.counts)
+        extra = self.report_counts()
         if end_disk:
             extra['follower_solves'] = solves
-        outputs = messages.output_messages(
-            result, stamp, self.settings.base_frame, compliance=self.compliance,
-            backbones_params=self.solver.params if self.backbones else None,
+        outputs = messages.iter_output_messages(
+            result, stamp, self.settings.base_frame, compliance=compliance,
+            backbones_params=self.solver.params if backbones else None,
             extra_values=extra)
-        return Outcome(result, '' if result.converged else result.message, outputs, solves)
+        return Answer(result, '' if result.converged else result.message, outputs, solves)
 
 
 def __getattr__(name: str) -> Any:

@@ -3,7 +3,7 @@ The path a warm chain solve with reduced legs follows: its last solutions and th
 
 A solve along a steadily followed path (a slider circle, a grid line of the atlas) starts
 from the polynomial through the last solutions, extrapolated to the new inputs, instead of
-the last solution: the coupled Newton (robot/coupled_kernels.py) then starts within the
+the last solution: the coupled Newton (robot/reduced_coupled_kernels.py) then starts within the
 path's (m + 1)-th order term instead of its first, and its kept Jacobians (chord steps)
 contract that start without being made anew. The full legs' continuation predicts the same
 way (robot/continuation.py's ``extrapolate``); here compiled, with the points in one array.

@@ -2,7 +2,7 @@
 A sequence of forward solves with reduced legs, with compliance and verdicts, as columns.
 
 The atlas's samples of one chunk (robot/samples.py: its RESULT_VARIABLES) without a
-DeltaResult each: one compiled loop (coupled_kernels.solve_samples) solves the samples in
+DeltaResult each: one compiled loop (reduced_coupled_kernels.solve_samples) solves the samples in
 order, each warm from the last, and linearizes each solution (leg compliances, platform
 compliance, slider Jacobian); the eigenvalues, the stiffness margin and the legs' verdicts
 held at both ends (held.held_verdict's rule) are then made over all rows at once with
@@ -16,10 +16,10 @@ from typing import Callable, Dict, Optional
 
 import numpy as np
 
-from .coupled_kernels import solve_samples
 from .held_leg import held_verdict, HeldReference
 from .levels import BoundTable
 from .reduced_chain import ReducedChain
+from .reduced_coupled_kernels import solve_samples
 from .result import DeltaResult, rotation_vector
 
 #: A row's outputs from the compiled loop: name -> (trailing shape, dtype); 'leg_x' is (3, n).

@@ -3,7 +3,7 @@ The CDR's forward statics with reduced legs ('cc', 'rod'): its iterations and li
 
 Each leg is the reduced model of cdr_translator/fidelity (``ReducedModel``) instead of a
 full TranslatorSolver. A warm 'cc' solve is one coupled Newton over the legs' unknowns and
-the platform's (robot/coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
+the platform's (robot/reduced_coupled_kernels.coupled_newton, Jacobians kept across solves). A walk
 (cold solves, 'rod' legs, and warm ones the coupled Newton did not converge) runs the
 chain's Newton over the platform's 24 unknowns (robot/reduced_kernels.chain_newton), each iterate
 solving every leg's reduced model in full, and halves a failed step, as
@@ -21,9 +21,9 @@ import numpy as np
 
 from .chain import Chain, ChainState, SIZE
 from .chain_path import DEGREE, point_width, push
-from .coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
 from .held_leg import held_reference, held_verdict, HeldReference
 from .linearization import chain_verdict
+from .reduced_coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
 from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
 from .result import DeltaResult, LegResults
 from ..fidelity import cc, equivalent_rod
@@ -106,7 +106,8 @@ class ReducedChain:
         #: the end disks (3, 4, 4) of the previous solution
         self.previous_frames = np.zeros((3, 4, 4))
         #: what the coupled Newton keeps across solves: each leg's H LU, dx/dw and
-        #: compliance, and the scaled platform Jacobian's LU (coupled_kernels.coupled_newton)
+        #: compliance, and the scaled platform Jacobian's LU
+        #: (reduced_coupled_kernels.coupled_newton)
         self.kept = (np.zeros((3, size, size)), np.zeros((3, size + 1), dtype=np.int64),
                      np.zeros((3, size, 6)), np.zeros((3, 6, 6)), np.zeros((SIZE, SIZE)),
                      np.zeros(SIZE + 1, dtype=np.int64))

@@ -1,7 +1,7 @@
 """
 A DeltaRobot's legs at the reduced levels ('cc', 'rod', or 'auto' over both): its solves.
 
-A warm 'cc' solve runs the coupled Newton (robot/coupled_kernels.py: the legs' unknowns and
+A warm 'cc' solve runs the coupled Newton (robot/reduced_coupled_kernels.py: the legs' unknowns and
 the platform's in one compiled call, Jacobians kept across solves); a cold one, a 'rod'
 one, or a warm one that does not converge that way, walks from the previous solution by
 damped continuation (ReducedChain.walk, the legs solved in full at every iterate). The

@@ -1,1 +1,1 @@
-"""The ROS 2 edge: the only place that imports rclpy (both nodes, their runtime, a client)."""
+"""The ROS 2 edge: the only place that imports rclpy (both nodes, their parts, a client)."""

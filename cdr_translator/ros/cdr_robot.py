@@ -17,7 +17,8 @@ Force sensing: ``measured_platform_pose`` (geometry_msgs/PoseStamped) or
 (Float64MultiArray) at the sliders last received, through a mailbox, thread and robot of
 their own (estimate_stream.EstimateStream, interface.payload_estimation).
 The translator node's parts do the rest: the latest-wins mailbox and
-solver thread pattern, message filling, MCAP log thread and ``run`` loop (runtime.py); the
+solver thread pattern (latest_mailbox.py), message filling (topics.py), MCAP log process
+(node_log.py), parameter checks (parameter_checks.py) and ``run`` loop (spin.py); the
 parameters are CdrSettings' (cdr_translator.interface.settings).
 """
 
@@ -37,10 +38,13 @@ from sensor_msgs.msg import JointState
 
 from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
+from .latest_mailbox import LatestMailbox
+from .node_log import LOG_CHECK_PERIOD_S, log_health, log_lost, LogWatch, node_diagnostic_log
+from .node_log import open_log
+from .parameter_checks import check_parameters
 from .parameters import descriptor, ros_parameter_sources
-from .runtime import check_parameters, fill_message, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, open_log, OUTPUTS, run
-from .runtime import sensor_qos, SHUTDOWN_JOIN_S, type_name
+from .spin import run, SHUTDOWN_JOIN_S
+from .topics import fill_message, OUTPUTS, sensor_qos, type_name
 from .._jit import timed_warm_up
 from ..interface import messages, payload_estimation, robot_messages
 from ..interface.payload_estimation import PayloadProcessor

@@ -24,7 +24,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
-from .runtime import fill_message, OUTPUTS
+from .topics import fill_message, OUTPUTS
 from ..interface import messages, pose_estimation
 
 #: What a client listens to unless told otherwise.

@@ -22,7 +22,10 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from . import serialization
-from .runtime import LatestMailbox, NodeLog, sensor_qos, SHUTDOWN_JOIN_S, type_name
+from .latest_mailbox import LatestMailbox
+from .node_log import NodeLog
+from .spin import SHUTDOWN_JOIN_S
+from .topics import sensor_qos, type_name
 from ..interface import messages, pose_estimation
 from ..interface.pose_estimation import MeasuredPoseProcessor
 

@@ -3,7 +3,7 @@
 
 The parameters are the node's specs (cdr_translator.interface.settings) with the shipped
 defaults and their ROS types (cdr_translator.params.params_file), the topics the node's own
-topic -> message class tables, the exit codes ``runtime.run``'s.
+topic -> message class tables, the exit codes ``spin.run``'s.
 """
 
 from typing import Any, Iterable, List, Mapping, Sequence, Tuple

@@ -9,14 +9,14 @@ its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) ma
 one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
 one solve are both answered and, when they keep arriving faster than the solver, the newest
 wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
-(cdr_translator.interface.wrench_processing: the same checks, frames and follower-load solve as the
-offline replay). The subscription's queue is
-``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, runtime.run) spins
+with the offline replay's code (a cdr_translator.interface.wrench_processing.WrenchProcessor:
+the same checks, frames, follower-load solve and counts). The subscription's queue is
+``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, spin.run) spins
 it. Outputs are built only for topics someone subscribes to (all of them while logging),
 one by one with the pose first (it is published before the others are built), encoded
 straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
 and the same bytes logged: every received wrench and every output goes to an MCAP file
-written by a child process (runtime.NodeLog), so that the writing takes no time from the
+written by a child process (node_log.NodeLog), so that the writing takes no time from the
 solve. Measured end-disk poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``)
 give ``estimated_wrench`` and ``estimated_wrench_covariance`` through a mailbox and thread
 of their own (estimate_stream.EstimateStream, interface.pose_estimation), logged alike.
@@ -39,20 +39,19 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
+from .latest_mailbox import LatestMailbox
+from .node_log import LOG_CHECK_PERIOD_S, log_health, log_lost, LogWatch, node_diagnostic_log
+from .node_log import NodeLog, open_log
+from .parameter_checks import check_parameters
 from .parameters import declare, ros_parameter_sources, SPECS
-from .runtime import check_parameters, LatestMailbox, log_health, log_lost
-from .runtime import LOG_CHECK_PERIOD_S, LogWatch, node_diagnostic_log, NodeLog, open_log
-from .runtime import OUTPUTS, run
-from .runtime import sensor_qos, SHUTDOWN_JOIN_S, SubscriberCounts, type_name
+from .spin import run, SHUTDOWN_JOIN_S
+from .topics import OUTPUTS, sensor_qos, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
 from ..interface.pose_estimation import PoseProcessor
 from ..interface.settings import TranslatorSettings
-from ..interface.wrench_processing import check_magnitude, in_end_disk_frame, node_solver
-from ..interface.wrench_processing import solve_wrench
+from ..interface.wrench_processing import WrenchProcessor
 from ..params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
-from ..solve.result import SolveResult
-from ..solve.solver import check_wrench
 
 
 #: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.
@@ -83,11 +82,13 @@ class TranslatorNode(Node):
         values = {name: declare(self, SPECS[name], value)
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)
-        self.solver = node_solver(self._settings.params, self._settings)
+        self._mailbox = LatestMailbox(self._settings.pending_wrenches)
+        self.processor = WrenchProcessor(
+            self._settings.params, self._settings,
+            extra_counts=lambda: {'skipped': self._mailbox.skipped,
+                                  **log_lost(getattr(self, '_log', None))})
         self.estimator = PoseProcessor(self._settings.params, self._settings)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self._rotation = np.eye(3)  # end-disk orientation of the last converged solve
-        self.received = self.rejected = self.solved = self.failed = 0
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self._publishers_by_topic = {topic: self.create_publisher(message_class, topic,
                                                                   reliable)
@@ -99,7 +100,6 @@ class TranslatorNode(Node):
         self._decode_wrench = serialization.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in NODE_OUTPUTS.items()}
-        self._mailbox = LatestMailbox(self._settings.pending_wrenches)
         self._diagnostic_log = node_diagnostic_log(self.get_logger(), NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
@@ -130,7 +130,7 @@ class TranslatorNode(Node):
         """Take accepted run-time values into a new settings snapshot."""
         self._settings = self._settings.with_values(
             **{parameter.name: parameter.value for parameter in parameters})
-        self.solver.time_limit_s = self._settings.solve_time_limit_s
+        self.processor.apply_settings(self._settings)
         self.estimator.settings = self._settings
         self.estimator.solver.time_limit_s = self._settings.solve_time_limit_s
 
@@ -143,18 +143,19 @@ class TranslatorNode(Node):
         kernel would otherwise load while a wrench waits; then a wrench estimate from the
         last pose. Then the solvers forget them.
         """
+        solver = self.processor.solver
         for force in WARM_UP_FORCES[:-1]:
-            self.solver.solve([force, 0.0, 0.0])
-        result = self.solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
+            solver.solve([force, 0.0, 0.0])
+        result = solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
         for topic, _, values in messages.output_messages(
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
-                backbones_params=self.solver.params, extra_values=self._counts()):
+                backbones_params=solver.params, extra_values=self._counts()):
             self._encoders[topic](values)
         pose = messages.pose_message(result, {'sec': 0, 'nanosec': 0}, '')
         pose['pose'] = {'pose': pose['pose'], 'covariance': [0.0] * 36}
         for topic, _, values in self.estimator.process(pose).outputs:
             self._encoders[topic](values)
-        self.solver.reset()
+        solver.reset()
         self.estimator.solver.reset()
         self.estimator.counts.update(dict.fromkeys(self.estimator.counts, 0))
 
@@ -183,7 +184,7 @@ class TranslatorNode(Node):
         publish time equals it (it was the DDS source timestamp before).
         """
         received_ns = time.time_ns()
-        self.received += 1
+        self.processor.receive()
         if self._log is not None:
             self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
                              received_ns)
@@ -204,73 +205,56 @@ class TranslatorNode(Node):
                     self._reject(stamp, f'malformed message: {error}')
                     continue
                 force, moment, frame_id, stamp = messages.wrench_from_message(wrench)
-                end_disk = self._checked(force, moment, frame_id, stamp)
-                if end_disk is not None:
-                    self._process(stamp, force, moment, end_disk)
+                self._process(stamp, force, moment, frame_id)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
-                self.failed += 1
-                self._publish_all(self._serialized(messages.rejection_messages(
-                    stamp, f'internal error: {error!r}', self._counts())))
-
-    def _checked(self, force: np.ndarray, moment: np.ndarray, frame_id: str,
-                 stamp: dict) -> Optional[bool]:
-        """Return whether the wrench is in the end-disk frame; None (and a diagnostic) if bad."""
-        settings = self._settings
-        try:
-            check_wrench(force, moment)
-            check_magnitude(force, moment, settings.max_force, settings.max_moment)
-            return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
-        except ValueError as error:
-            self._reject(stamp, str(error))
-            return None
+                self._publish_all(self._serialized(self.processor.internal_error(
+                    stamp, f'internal error: {error!r}')))
 
     def _reject(self, stamp: dict, reason: str) -> None:
         """Count a rejected wrench and publish (and so log) the ERROR diagnostic."""
-        self.rejected += 1
-        self._publish_all(self._serialized(messages.rejection_messages(
-            stamp, f'rejected: {reason}', self._counts())))
+        self._publish_all(self._serialized(self.processor.reject(stamp, reason)))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
-                 end_disk: bool) -> None:
-        """Solve one wrench; publish and log what it gives."""
+                 frame_id: str) -> None:
+        """
+        Check and solve one wrench (WrenchProcessor.answer); publish and log what it gives.
+
+        The compliance and the backbones are computed only while someone subscribes to
+        them or they are logged; the outputs are built one by one, the pose published first.
+        """
         subscribed = self._subscribers.subscribed()
         want_compliance = self._settings.log_compliance or bool(
             subscribed & {messages.COMPLIANCE_TOPIC, messages.COMPLIANCE_EIGENVALUES_TOPIC})
         want_backbones = (self._settings.log_backbones
                           or messages.BACKBONES_TOPIC in subscribed)
-        result, solves = solve_wrench(self.solver, force, moment, end_disk, self._rotation,
-                                      want_compliance)
-        if result.converged:
-            self.solved += 1
-            self._rotation = result.frames['de'][:3, :3]
-        else:
-            self.failed += 1
-        extra = self._counts()
-        if end_disk:
-            extra['follower_solves'] = solves
-        self._publish_all(self._output_messages(result, stamp, want_compliance,
-                                                want_backbones, extra))
+        answer = self.processor.answer(force, moment, frame_id, stamp,
+                                       compliance=want_compliance, backbones=want_backbones)
+        self._publish_all(self._serialized(answer.outputs))
 
     # output ----------------------------------------------------------------------------------
-    def _counts(self) -> Dict[str, int]:
+    @property
+    def received(self) -> int:
+        """Count the wrenches received."""
+        return self.processor.counts['received']
+
+    @property
+    def rejected(self) -> int:
+        """Count the wrenches rejected: malformed, not finite, too large, unknown frame."""
+        return self.processor.counts['rejected']
+
+    @property
+    def solved(self) -> int:
+        """Count the wrenches solved: converged."""
+        return self.processor.counts['solved']
+
+    @property
+    def failed(self) -> int:
+        """Count the wrenches not converged, or left unanswered by an internal error."""
+        return self.processor.counts['not_converged']
+
+    def _counts(self) -> Dict[str, Any]:
         """Return the running message counts reported with every diagnostic."""
-        return {'received': self.received, 'rejected': self.rejected, 'solved': self.solved,
-                'not_converged': self.failed, 'skipped': self._mailbox.skipped,
-                **log_lost(getattr(self, '_log', None))}
-
-    def _output_messages(self, result: SolveResult, stamp: dict, want_compliance: bool,
-                         want_backbones: bool, extra: Dict[str, Any]
-                         ) -> Iterator[Tuple[str, bytes]]:
-        """
-        Build and serialize the messages of one solve one by one, the pose first.
-
-        interface.messages defines their content; each is built when the one before has
-        been published, so the pose goes out before the others are even built.
-        """
-        return self._serialized(messages.iter_output_messages(
-            result, stamp, self._settings.base_frame, compliance=want_compliance,
-            backbones_params=self.solver.params if want_backbones else None,
-            extra_values=extra))
+        return self.processor.report_counts()
 
     def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
         """

@@ -3,7 +3,7 @@ Finite-difference checks of what the solver computes analytically: the paper's w
 
 ``finite_difference_compliance`` builds C from central differences of 12 loaded solves
 (the paper's ref. [15]); cdr_translator.analysis.compliance computes it by implicit
-differentiation, and the two agree to about 1e-8 relative (tests/core/test_compliance.py).
+differentiation, and the two agree to about 1e-8 relative (tests/analysis/test_compliance.py).
 """
 
 import numpy as np

@@ -2,8 +2,8 @@
 
 from cdr_translator.analysis.stability import determinant_sign
 from cdr_translator.fidelity import FidelitySolver
-from cdr_translator.robot.coupled_kernels import refresh_leg
 from cdr_translator.robot.delta import DeltaRobot
+from cdr_translator.robot.reduced_coupled_kernels import refresh_leg
 from cdr_translator.robot.samples import empty_results, store
 import numpy as np
 import pytest

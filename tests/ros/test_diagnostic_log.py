@@ -3,7 +3,7 @@
 import time
 
 from cdr_translator.interface import messages
-from cdr_translator.ros import diagnostic_log, runtime
+from cdr_translator.ros import diagnostic_log, node_log
 from cdr_translator.ros.diagnostic_log import DiagnosticLog
 
 STAMP = {'sec': 5, 'nanosec': 6}
@@ -69,14 +69,14 @@ def test_throttled_per_status_and_level_and_the_count_given_later():
 def test_mcap_log_status_gets_its_own_throttle():
     """The MCAP log's status, an ERROR at every check while failing, logs every 10 s."""
     logger = _Logger('n')
-    log = runtime.node_diagnostic_log(logger, 'n')
+    log = node_log.node_diagnostic_log(logger, 'n')
     for _ in range(2):
-        list(log.logged([_diagnostic(messages.ERROR, 'disk full', runtime.log_status_name('n')),
+        list(log.logged([_diagnostic(messages.ERROR, 'disk full', node_log.log_status_name('n')),
                          _diagnostic(messages.ERROR, 'no equilibrium', 'n: solve')]))
         time.sleep(1.05 * diagnostic_log.THROTTLE_S)
     assert logger.lines == [('error', 'mcap_log: disk full'), ('error', 'solve: no equilibrium'),
                             ('error', 'solve: no equilibrium')]
-    assert runtime.log_health(None, 'n', {}) == []
+    assert node_log.log_health(None, 'n', {}) == []
 
 
 def test_translator_node_logs_a_rejection_at_the_diagnostics_level(node, capfd):

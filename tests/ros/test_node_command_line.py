@@ -13,7 +13,7 @@ import sys
 from cdr_translator.interface.settings import CDR_SPECS, SPECS
 from cdr_translator.ros.cdr_robot import CDR_INPUTS, CDR_OUTPUTS
 from cdr_translator.ros.node_help import EXIT_CODES
-from cdr_translator.ros.runtime import OUTPUTS
+from cdr_translator.ros.topics import OUTPUTS
 from interrupting import after, environment, interpreter_start_s, interrupt
 import pytest
 

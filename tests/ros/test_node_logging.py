@@ -16,7 +16,7 @@ import time
 from cdr_translator.interface import messages
 from cdr_translator.params.translator_params import NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, TranslatorClient
-from cdr_translator.ros.runtime import NodeLog
+from cdr_translator.ros.node_log import NodeLog
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
 from mcap.reader import make_reader

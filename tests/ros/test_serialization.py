@@ -13,7 +13,8 @@ from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from cdr_translator.ros import serialization
-from cdr_translator.ros.runtime import fill_message, log_health, OUTPUTS, SubscriberCounts
+from cdr_translator.ros.node_log import log_health
+from cdr_translator.ros.topics import fill_message, OUTPUTS, SubscriberCounts
 from cdr_wire.cdr_plan import HEADER
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 import pytest
@@ -126,6 +127,14 @@ def test_subscriber_counts_are_refreshed_at_most_every_period():
     assert counts.subscribed() == {'pose', 'angles'} and pose.queries == 2
 
 
+def _outputs(node, solved, compliance, backbones, extra):
+    """Serialize the outputs of ``solved`` as the node does: built lazily, the pose first."""
+    return node._serialized(messages.iter_output_messages(
+        solved, STAMP, node.processor.settings.base_frame, compliance=compliance,
+        backbones_params=node.processor.solver.params if backbones else None,
+        extra_values=extra))
+
+
 def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
         node, result, monkeypatch):
     """Without a log and with only the pose subscribed, only the pose is encoded and sent."""
@@ -139,7 +148,7 @@ def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
             encoded.append(topic), encode(values))[1]
     pose_only = _Publisher(1)
     node._subscribers = SubscriberCounts({messages.END_DISK_POSE_TOPIC: pose_only})
-    node._publish_all(node._output_messages(solved, STAMP, False, False, {'received': 1}))
+    node._publish_all(_outputs(node, solved, False, False, {'received': 1}))
     assert encoded == [messages.END_DISK_POSE_TOPIC]
     assert [topic for topic, _ in sent] == [messages.END_DISK_POSE_TOPIC]
     pose = deserialize_message(sent[0][1], PoseStamped)
@@ -147,5 +156,5 @@ def test_node_publishes_only_subscribed_topics_and_builds_nothing_else(
     assert pose.pose.position.x == pytest.approx(float(solved.end_disk_position[0]))
     node._subscribers = SubscriberCounts({})
     node._publish_all(node._serialized(log_health(None, 'n', {})))
-    node._publish_all(node._output_messages(solved, STAMP, True, True, {}))
+    node._publish_all(_outputs(node, solved, True, True, {}))
     assert len(sent) == 1 and len(encoded) == 1

@@ -1,4 +1,4 @@
-"""translator_node's parts that need no DDS: parameters, input checks, mailbox, filler, log."""
+"""translator_node's parts that need no DDS: parameters, checks, mailbox, filler, log, spin."""
 
 import gc
 import os
@@ -10,12 +10,13 @@ import weakref
 from cdr_translator.interface import messages
 from cdr_translator.interface.wrench_processing import check_magnitude, in_end_disk_frame
 from cdr_translator.params.translator_params import ParameterError
-from cdr_translator.ros import runtime
+from cdr_translator.ros import spin
 from cdr_translator.ros.client import isolated_ros_env
+from cdr_translator.ros.latest_mailbox import LatestMailbox
+from cdr_translator.ros.node_log import log_lost, LogWatch, NodeLog
 from cdr_translator.ros.parameters import default_values, descriptor, ros_parameter_sources
 from cdr_translator.ros.parameters import SPECS
-from cdr_translator.ros.runtime import fill_message, LatestMailbox, log_lost, LogWatch, NodeLog
-from cdr_translator.ros.runtime import type_name
+from cdr_translator.ros.topics import fill_message, type_name
 from cdr_wire.errors import LogFileBusyError, LogFileExistsError
 from cdr_wire.reader import McapSource
 from diagnostic_msgs.msg import DiagnosticArray
@@ -171,7 +172,7 @@ def test_freeze_heap_keeps_later_garbage_collectable():
         """An object in a reference cycle with itself."""
 
     try:
-        assert runtime.freeze_heap() > 10_000  # solver, numba, rclpy already imported
+        assert spin.freeze_heap() > 10_000  # solver, numba, rclpy already imported
         later = Cycle()
         later.self = later
         probe = weakref.ref(later)
@@ -209,18 +210,17 @@ def test_run_spins_with_a_short_gil_switch_interval(monkeypatch):
         def close(self):
             pass
 
-    monkeypatch.setattr(runtime, 'EventsExecutor', Executor)
-    monkeypatch.setattr(runtime, 'freeze_heap', lambda: None)
-    monkeypatch.setattr(runtime.signal, 'signal', lambda *_: None)
+    monkeypatch.setattr(spin, 'EventsExecutor', Executor)
+    monkeypatch.setattr(spin, 'freeze_heap', lambda: None)
+    monkeypatch.setattr(spin.signal, 'signal', lambda *_: None)
     before = sys.getswitchinterval()
     try:
-        code = runtime.run(lambda ros_arguments: QuietNode('switch_interval_probe'), 'probe',
-                           [])
+        code = spin.run(lambda ros_arguments: QuietNode('switch_interval_probe'), 'probe', [])
     finally:
         sys.setswitchinterval(before)
     assert code == 0
-    assert seen == [pytest.approx(runtime.GIL_SWITCH_INTERVAL_S)]
-    assert runtime.GIL_SWITCH_INTERVAL_S < before
+    assert seen == [pytest.approx(spin.GIL_SWITCH_INTERVAL_S)]
+    assert spin.GIL_SWITCH_INTERVAL_S < before
 
 
 def test_mailbox_with_room_for_two_answers_a_burst_and_drops_the_oldest_beyond():
