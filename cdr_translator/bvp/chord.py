@@ -11,7 +11,7 @@ factorization (the chord steps stalled, or converge too slowly) or when it is do
 It also records the centre lines and frames of every shot into two alternating buffers,
 so the shape of the accepted iterate comes for free: no extra shot for the result.
 
-The iteration is the one TranslatorSolver._newton documents: damped Newton, backtracking
+The iteration is the one solve/correctors.py's ``newton`` documents: damped Newton, backtracking
 line search (at most LINE_SEARCH_HALVINGS halvings, sufficient decrease 1e-4 of the step
 fraction), a chord step that shrinks the residual norm by less than ``chord_rate``
 discards the factorization after it is taken; between factorizations, Broyden updates

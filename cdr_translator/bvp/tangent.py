@@ -125,7 +125,7 @@ def _segment_tangent(k, length, tl, p, rot, n, m, steps, inv_kse, inv_kbt, tp, t
 
 @jit
 def _station_tangent(p, rot, tp, trot, i, jac, row, live):
-    """Tangents of the 5 conditions of secondary i at a disk (shooting._station_residuals)."""
+    """Tangents of the 5 conditions of secondary i at a disk (shooting.py's station residuals)."""
     e0 = p[i + 1, 0] - p[0, 0]
     e1 = p[i + 1, 1] - p[0, 1]
     e2 = p[i + 1, 2] - p[0, 2]

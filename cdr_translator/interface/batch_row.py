@@ -8,15 +8,13 @@ end-disk rotation. ``BatchRow`` offers exactly those from the batch's columns, s
 code path builds the outputs of a single solve and of a batch row alike.
 """
 
-from typing import Any, Callable, Optional, TYPE_CHECKING
+from typing import Any, Callable, Optional
 
 import numpy as np
 
 from .. import geometry
+from ..analysis.compliance import ComplianceAnalysis
 from ..solve.batch import BatchResult
-
-if TYPE_CHECKING:
-    from ..analysis.compliance import ComplianceAnalysis
 
 
 def _column(name: str, read: Callable[[Any], Any], doc: str) -> Any:

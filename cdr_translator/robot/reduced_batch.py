@@ -136,7 +136,7 @@ def _held_verdicts(signs: np.ndarray, compliances: np.ndarray, wrenches: np.ndar
     """
     held.held_verdict's ``stable`` of every leg (N, 3): 1 stable, 0 unstable, -1 unknown.
 
-    From each leg's sign of det H, its compliance (scaled as held._compliance_signs does)
+    From each leg's sign of det H, its compliance (scaled as held_leg.held_reference does)
     and its compression against the held buckling load.
     """
     scale = np.repeat([1.0, reference.length], 3)

@@ -10,7 +10,7 @@ None in the object columns ``stable`` and ``accuracy_met``, where ``to_dict`` sa
 
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Dict, Iterable, NamedTuple, Optional, TYPE_CHECKING
+from typing import Any, Callable, Dict, Iterable, NamedTuple, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -18,11 +18,10 @@ from numpy.typing import ArrayLike
 from .result import SolveResult
 from .. import geometry
 from ..analysis.accuracy import ErrorEstimate
+from ..analysis.compliance import ComplianceAnalysis
 from ..checks import check_vector
 from ..errors import InputError
 
-if TYPE_CHECKING:
-    from ..analysis.compliance import ComplianceAnalysis
 
 #: How ``solve_many`` solves one row: (batch, row, wrench, compliance) -> solve time (s);
 #: it writes the row by ``BatchResult.record`` or ``record_pose``.
