@@ -21,9 +21,9 @@ import sys
 from typing import Dict, FrozenSet, Iterator, List, Set
 
 import pytest
+from source_modules import module_files
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ('cdr_translator', 'cdr_wire', 'msg_tools')
 
 #: ROS client library and message packages: only cdr_translator.ros may import them.
 ROS_PACKAGES = {'rclpy', 'rcl_interfaces', 'geometry_msgs', 'sensor_msgs', 'std_msgs',
@@ -40,18 +40,6 @@ WIRE_USERS = ('cdr_translator.ros', 'msg_tools')
 LAYERS = {'ground': 0, 'params': 1, 'bvp': 2, 'analysis': 3, 'estimation': 4, 'solve': 5,
           'calibration': 6, 'fidelity': 6, 'robot': 7, 'studies': 8, 'interface': 9,
           'ros': 10, 'app': 11}
-
-
-def module_names() -> Dict[str, Path]:
-    """Map every module of the packages to its file."""
-    names = {}
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob('*.py')):
-            parts = list(path.relative_to(ROOT).with_suffix('').parts)
-            if parts[-1] == '__init__':
-                parts.pop()
-            names['.'.join(parts)] = path
-    return names
 
 
 def imported(module: str, path: Path) -> Iterator[str]:
@@ -74,7 +62,7 @@ def imported(module: str, path: Path) -> Iterator[str]:
 @pytest.fixture(scope='module')
 def graph() -> Dict[str, Set[str]]:
     """Map each module to the project modules it imports."""
-    names = module_names()
+    names = module_files()
     # a module's own packages are imported before it anyway: an edge to one is no cycle
     return {module: {name for name in imported(module, path) if name in names
                      and not (module + '.').startswith(name + '.')}
@@ -198,7 +186,7 @@ def test_the_two_edges_import_nothing_of_each_other(graph):
 def test_only_the_ros_subpackage_imports_ros():
     """Check that rclpy and message packages appear only under cdr_translator/ros."""
     wrong = []
-    for module, path in module_names().items():
+    for module, path in module_files().items():
         if module.startswith('cdr_translator.ros'):
             continue
         wrong += [f'{module} imports {name}' for name in imported(module, path)
@@ -208,7 +196,7 @@ def test_only_the_ros_subpackage_imports_ros():
 
 def test_importing_the_libraries_loads_no_ros():
     """Importing every non-ROS module leaves rclpy unloaded (checked in a fresh process)."""
-    modules = sorted(module for module in module_names()
+    modules = sorted(module for module in module_files()
                      if not module.startswith('cdr_translator.ros')
                      and not module.endswith('__main__'))
     code = ('import importlib, sys\n'

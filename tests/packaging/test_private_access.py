@@ -21,12 +21,12 @@ instance of its own class), and fails anywhere else.
 
 import ast
 from pathlib import Path
-from typing import Dict, FrozenSet, Iterator, List, Set, Tuple
+from typing import FrozenSet, Iterator, List, Set, Tuple
 
 import pytest
+from source_modules import module_files
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ('cdr_translator', 'cdr_wire', 'msg_tools')
 
 #: Names that look private but are the public API of namedtuples.
 NAMEDTUPLE_API = frozenset({'_replace', '_asdict', '_fields', '_make', '_field_defaults'})
@@ -66,18 +66,6 @@ def owned_names(tree: ast.AST) -> Set[str]:
         elif isinstance(node, ast.alias) and node.asname is not None:
             names.add(node.asname)
     return {name for name in names if is_private(name)}
-
-
-def module_files() -> Dict[str, Path]:
-    """Map every module of the packages to its file."""
-    names = {}
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob('*.py')):
-            parts = list(path.relative_to(ROOT).with_suffix('').parts)
-            if parts[-1] == '__init__':
-                parts.pop()
-            names['.'.join(parts)] = path
-    return names
 
 
 def imported_from(module: str, path: Path, node: ast.ImportFrom) -> str:
