@@ -5,9 +5,10 @@ Drawn from the report's rows (``speed_vs_error.json`` holds them, so the figure 
 redrawn without measuring again) and, in a third panel, from bench.robot_levels' numbers
 (``robot_levels.json``). Each kind of measurement has its Pareto front: the points no
 other point of that kind beats in both time and error, joined by a step line; dominated
-points are hollow. Every configuration is a number on the plot and a line of the key; a
-number that has no room beside its point moves away along a leader line, so no label
-covers another.
+points are hollow. Each point of a front carries its configuration's name beside it; a name
+that has no room beside its point moves away along a leader line, so no label covers
+another or a marker. Dominated points stay unnamed: speed_vs_error.md lists every
+configuration with its numbers.
 """
 
 from dataclasses import dataclass
@@ -32,12 +33,18 @@ COLOURS = {'full': 'tab:blue', 'rod': 'tab:green', 'cc': 'tab:orange', 'linear':
 #: Smaller errors are drawn at this value (of the panel's unit): a log axis has no zero.
 FLOOR = 1e-7
 
-#: Font size of the point numbers (pt).
+#: Key line of the paper's numerics (stars).
+PAPER_KEY = "paper's numerics, cold (Levenberg-Marquardt, finite-difference Jacobian)"
+
+#: Font size of the point names (pt).
 NUMBER_SIZE = 7
 
 #: Distances (px) and directions (deg) tried for a number around its point, nearest first.
 RADII_PX = (8, 13, 19, 27, 37, 50, 66, 85, 110, 140)
 DIRECTIONS_DEG = (0, 45, -45, 90, -90, 135, -135, 180, 22, -22, 158, -158, 68, -68, 112, -112)
+
+#: Points this close (px) with the same name share one.
+SAME_PX = 30.0
 
 #: Half the size (px) of the box a marker (a star) keeps free of numbers.
 MARKER_HALF_PX, STAR_HALF_PX = 4.5, 7.5
@@ -56,6 +63,31 @@ class Measurement:
     sequence_position_m: float = math.nan
     sequence_angle_deg: float = math.nan
     batch_time_s: float = math.nan  # solve_many along the sequence, per answer
+
+
+#: Shorter words for a point's name on the plot.
+SHORTER = ((' spacer disks per joint', ' disks/joint'), (' steps per interval', ' steps/interval'),
+           ('tolerance ', 'tol '), (' (default)', '*'), ('1 steps', '1 step'), ('budget ', ''),
+           (' mm, ', ' mm/'))
+
+
+def short_label(label: str, alone: bool = False) -> str:
+    """
+    Return a point's name on the plot, from its key line: 'full 8 steps*' (* a default).
+
+    ``alone``: the only configuration of its level, named by the level. The paper's
+    numerics read "paper's numerics, 12 N".
+    """
+    first = label.split('\n')[0]
+    paper = re.match(r"paper's numerics, paper (.*) case", first)
+    if paper:
+        return f"paper's numerics, {paper.group(1)}"
+    if alone:
+        return first.split(':')[0]
+    text = first.replace(': ', ' ', 1)
+    for long, short in SHORTER:
+        text = text.replace(long, short)
+    return text
 
 
 def key_label(level: str, setting: str) -> str:
@@ -120,8 +152,14 @@ def place_numbers(axes: Axes, canvas: FigureCanvasAgg,
     crowding = [sum(np.hypot(cx - ox, cy - oy) < 40.0 for ox, oy in centres)
                 for cx, cy in centres]
     points_per_px = 72.0 / canvas.figure.dpi
+    named: List[Tuple[str, Tuple[float, float]]] = []
     for k in sorted(range(len(points)), key=lambda index: -crowding[index]):
         x, y, text, _ = points[k]
+        if not text or any(   # unnamed, or its name is already beside it
+                name == text and math.hypot(centres[k][0] - px, centres[k][1] - py) < SAME_PX
+                for name, (px, py) in named):
+            continue
+        named.append((text, (float(centres[k][0]), float(centres[k][1]))))
         (cx, cy), (width, height) = centres[k], _text_size(canvas, text)
         chosen = None
         for radius in RADII_PX:
@@ -173,18 +211,23 @@ def non_dominated(points: Sequence[Tuple[float, float]]) -> List[bool]:
 KINDS = {'cold': ('o', '-'), 'warm': ('s', '--'), 'batch': ('^', ':')}
 
 
-def _draw_front(axes: Axes, points: List[Tuple[float, float, str, str]]) -> None:
+def _draw_front(axes: Axes, points: List[Tuple[float, float, str, str]]) -> List[bool]:
     """
     Draw each kind's points (x, y, colour, kind) with the kind's Pareto front.
 
     Points on the front are filled and joined by a step line, dominated points hollow. A
-    kind ending in '*' is a star (the paper's numerics) of that kind.
+    kind ending in '*' is a star (the paper's numerics) of that kind. Return, for each
+    point, whether it is on its kind's front.
     """
+    on_fronts = [False] * len(points)
     for kind, (marker, style) in KINDS.items():
-        group = [point for point in points if point[3] in (kind, f'{kind}*')]
+        members = [k for k, point in enumerate(points) if point[3] in (kind, f'{kind}*')]
+        group = [points[k] for k in members]
         if not group:
             continue
         front = non_dominated([(x, y) for x, y, _, _ in group])
+        for k, on_front in zip(members, front):
+            on_fronts[k] = on_front
         for (x, y, colour, name), on_front in zip(group, front):
             shape, size = ('*', 90) if name.endswith('*') else (marker, 30)
             if on_front:
@@ -196,6 +239,7 @@ def _draw_front(axes: Axes, points: List[Tuple[float, float, str, str]]) -> None
         axes.plot([x for x, _ in corners], [y for _, y in corners], color='0.35',
                   linestyle=style, linewidth=0.9, drawstyle='steps-post', marker=marker,
                   markersize=2, zorder=2)
+    return on_fronts
 
 
 def _translator_panels(figure: Figure, canvas: FigureCanvasAgg, panels: List[Axes],
@@ -207,7 +251,7 @@ def _translator_panels(figure: Figure, canvas: FigureCanvasAgg, panels: List[Axe
              'Angle error (PJ, DJ bending and end-disk orientation)'))):
         points: List[Tuple[float, float, str, str]] = []
         numbers, floored = [], False
-        for number, value in enumerate(measured, start=1):
+        for value in measured:
             pairs = [(value.static_time_s, getattr(value, f'static_{field}'), 'cold')]
             if math.isfinite(value.sequence_time_s):
                 pairs.append((value.sequence_time_s, getattr(value, f'sequence_{field}'),
@@ -221,9 +265,13 @@ def _translator_panels(figure: Figure, canvas: FigureCanvasAgg, panels: List[Axe
                 star = value.level == 'paper'
                 points.append((1e3 * seconds, shown, COLOURS[value.level],
                                kind + ('*' if star else '')))
-                numbers.append((1e3 * seconds, shown, str(number),
+                numbers.append((1e3 * seconds, shown, short_label(value.label, alone=sum(
+                    other.level == value.level for other in measured) == 1),
                                 STAR_HALF_PX if star else MARKER_HALF_PX))
-        _draw_front(axes, points)
+        front = _draw_front(axes, points)
+        # every marker keeps its place free; only the fronts' points are named
+        numbers = [(x, y, text if on_front else '', half)
+                   for (x, y, text, half), on_front in zip(numbers, front)]
         _log_axes(axes, points, (2.0, 2.5), 4.0)
         axes.set_xlabel('solve time per answer (ms)')
         axes.set_ylabel(f'{what} error, worst over the scenes ({unit})')
@@ -238,23 +286,34 @@ def _robot_panel(axes: Axes, canvas: FigureCanvasAgg, robot: dict) -> None:
     Draw the robot's platform error against its warm forward-statics time, per leg level.
 
     The error is the worst platform position error against full legs over the slider box
-    and payloads of ``robot`` (bench.robot_levels' numbers).
+    and payloads of ``robot`` (bench.robot_levels' numbers). Full legs are the reference,
+    with no error of their own to draw on a log axis: their time is a vertical line.
     """
     warm = robot['warm_forward_statics_s']
     errors, rate = robot['errors_against_full'], robot['atlas_samples_per_s']
     points, labels = [], []
     for level, seconds in warm.items():
-        error = 0.0 if level == 'full' else errors[level]['max_position_m']
-        points.append((1e3 * seconds, max(1e3 * error, FLOOR), COLOURS[level], 'warm'))
-        labels.append((1e3 * seconds, max(1e3 * error, FLOOR),
-                       f'{level}\n(atlas {rate[level]:.0f} samples/s)', MARKER_HALF_PX))
+        if level == 'full':
+            continue
+        error = 1e3 * errors[level]['max_position_m']
+        points.append((1e3 * seconds, error, COLOURS[level], 'warm'))
+        labels.append((1e3 * seconds, error,
+                       f'{level} legs\n(atlas {rate[level]:.0f} samples/s)', MARKER_HALF_PX))
     _draw_front(axes, points)
-    _log_axes(axes, points, (3.0, 3.0), 10.0)
+    reference = 1e3 * warm['full']
+    _log_axes(axes, points + [(reference, points[0][1], '', 'warm')], (3.0, 3.0), 10.0)
+    low, high = axes.get_ylim()
+    span = np.geomspace(low, high, 50)   # a drawn line, not two samples
+    axes.plot(np.full_like(span, reference), span, color=COLOURS['full'], linestyle='-.',
+              linewidth=1.2)
+    axes.annotate(f'full legs: the reference\n(atlas {rate["full"]:.0f} samples/s)',
+                  (reference, high), xytext=(-4, -4), textcoords='offset points', ha='right',
+                  va='top', fontsize=NUMBER_SIZE, color=COLOURS['full'])
     axes.set_xlabel('warm forward statics per answer (ms)')
     axes.set_ylabel('platform position error against full legs (mm)')
     axes.set_title('Delta robot, legs at each level (warm, squares): worst over '
-                   f"{robot['settings']} slider settings x {len(robot['payloads_n'])} payloads;"
-                   f'\nfull legs are the reference, drawn at {FLOOR:g} mm', fontsize=10)
+                   f"{robot['settings']} slider settings x {len(robot['payloads_n'])} payloads",
+                   fontsize=10)
     axes.grid(True, which='major', alpha=0.3)
     place_numbers(axes, canvas, labels)
 
@@ -283,16 +342,19 @@ def speed_error_figure(measured: Sequence[Measurement], sequence_length: int,
     hollow = tuple(Line2D([], [], markeredgecolor='grey', markerfacecolor='none',
                           marker=marker, linestyle='none') for marker, _ in KINDS.values())
     handles: List[Any] = [filled, hollow]
-    labels = ['Pareto front, joined by a step line per kind: static scenes solved cold\n'
-              '(circle, solid: worst error, median time of the paper cases); the '
-              f'{sequence_length}-wrench\nsequence warm-started (square, dashed: worst error, '
-              'median time of one solve);\nthe same sequence in one solve_many call '
-              '(triangle, dotted: time per answer)',
-              'dominated: another point of the same kind is no slower and no less wrong']
-    for number, value in enumerate(measured, start=1):
-        handles.append(Line2D([], [], color=COLOURS[value.level], linestyle='none',
-                              marker='*' if value.level == 'paper' else 'o'))
-        labels.append(f'{number}  {value.label}')
+    labels = ['Pareto front, named point by point and joined by a step line per kind:\n'
+              'static scenes solved cold (circle, solid: worst error, median time of the '
+              f'paper cases);\nthe {sequence_length}-wrench sequence warm-started (square, '
+              'dashed: worst error,\nmedian time of one solve); the same sequence in one '
+              'solve_many call\n(triangle, dotted: time per answer); * marks a default '
+              'setting',
+              'dominated: another point of the same kind is no slower and no less wrong\n'
+              '(unnamed; speed_vs_error.md lists every configuration)']
+    levels = list(dict.fromkeys(value.level for value in measured))
+    for level in levels:
+        handles.append(Line2D([], [], color=COLOURS[level], linestyle='none',
+                              marker='*' if level == 'paper' else 'o'))
+        labels.append(PAPER_KEY if level == 'paper' else level)
     figure.legend(handles, labels, loc='lower center' if robot is None else 'lower left',
                   ncol=2 if robot is None else 1,
                   bbox_to_anchor=(0.5, 0.005), fontsize=8, title='key: colour = fidelity level',

@@ -17,11 +17,16 @@ import numpy as np
 from .pose_error import FRAME_NAMES
 from ..params.translator_params import TranslatorParams
 
-__all__ = ['FITTABLE', 'FitParameters', 'check_fit_names']
+__all__ = ['FITTABLE', 'FitParameters', 'SI_UNITS', 'check_fit_names']
 
 #: Model keys a fit may move: the continuous numbers of the model (TranslatorParams).
 FITTABLE = ('pitch_radius', 'backbone_diameter', 'disk_spacing', 'tube_length',
             'youngs_modulus', 'poisson_ratio')
+#: SI unit of every name a fit reports: the model keys, then the tracker frame's six numbers.
+SI_UNITS = {'pitch_radius': 'm', 'backbone_diameter': 'm', 'disk_spacing': 'm',
+            'tube_length': 'm', 'youngs_modulus': 'Pa', 'poisson_ratio': '1',
+            'frame_x': 'm', 'frame_y': 'm', 'frame_z': 'm',
+            'frame_rx': 'rad', 'frame_ry': 'rad', 'frame_rz': 'rad'}
 #: Physical size of one unit of a scaled unknown that is not positive (see the module text).
 ADDITIVE_UNITS = {'poisson_ratio': 0.5, 'frame_x': 0.1, 'frame_y': 0.1, 'frame_z': 0.1,
                   'frame_rx': 0.5, 'frame_ry': 0.5, 'frame_rz': 0.5}

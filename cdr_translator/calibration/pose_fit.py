@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import pose_error
-from .fit_parameters import FitParameters
+from .fit_parameters import FitParameters, SI_UNITS
 from ..params.translator_params import Accuracy, TranslatorParams
 from ..solve.solver import TranslatorSolver
 
@@ -455,10 +455,11 @@ def cross_validate(model: PoseModel, x: np.ndarray, jacobian: np.ndarray, folds:
 def fit_summary(result: FitResult) -> List[str]:
     """Return the text lines of a fit's report: estimates, correlations, residuals."""
     last = 'fitted' if result.converged else 'last trial'
-    lines = [f'{"parameter":<18} {"initial":>13} {last:>13} {"std error":>13}']
+    lines = [f'{"parameter (SI unit)":<24} {"initial":>13} {last:>13} {"std error":>13}']
     for name in result.names:
         error = result.standard_errors[name]
-        lines.append(f'{name:<18} {result.initial[name]:>13.6g} {result.values[name]:>13.6g} '
+        named = f'{name} ({SI_UNITS[name]})'
+        lines.append(f'{named:<24} {result.initial[name]:>13.6g} {result.values[name]:>13.6g} '
                      + (f'{error:>13.3g}' if math.isfinite(error) else f'{"not assessed":>13}'))
     if len(result.names) > 1 and result.converged:
         lines.append('correlations: ' + ', '.join(

@@ -319,8 +319,32 @@ def test_figure_is_readable(recording):
     """The calibration figure passes the project's readability checks."""
     pairing = read_pairs([recording])
     subset = pairing.samples.subset(np.arange(20))
-    result = fit_poses(subset, TranslatorParams.from_yaml(), ['youngs_modulus'], folds=2)
-    assert_readable(calibration_figure(result))
+    result = fit_poses(subset, TranslatorParams.from_yaml(), ['youngs_modulus', 'tube_length'],
+                       folds=2)
+    figure = calibration_figure(result)
+    assert_readable(figure)
+    title = figure.texts[0].get_text()   # the suptitle: every value with its unit
+    assert ' GPa' in title.split(';')[0] and title.split(';')[1].split('\n')[0].endswith(' mm')
+    residual = figure.axes[0]
+    assert residual.get_title().startswith('Fitted position residual (rms ')
+    low, high = residual.get_ylim()   # the residual's own scale, not the deflections'
+    assert high - low < 20 * 1e3 * np.abs(result.predicted_positions
+                                          - result.measured_positions).max()
+    assert all(axes.get_legend() is None for axes in figure.axes)   # none covers data
+    held_out = [line for line in figure.axes[1].get_lines() if 'held out' in line.get_label()]
+    fitted = [line for line in figure.axes[1].get_lines() if line.get_label() == 'fitted values']
+    assert held_out[0].get_linestyle() == 'None' and fitted[0].get_linestyle() == '-'
+    assert held_out[0].get_color() != fitted[0].get_color()
+
+
+def test_fit_report_names_the_si_unit_of_every_value(recording):
+    """The text report's parameter column says each value's SI unit."""
+    pairing = read_pairs([recording])
+    result = fit_poses(pairing.samples.subset(np.arange(10)), TranslatorParams.from_yaml(),
+                       ['youngs_modulus'], folds=0)
+    lines = fit_summary(result)
+    assert lines[0].startswith('parameter (SI unit)') and lines[1].startswith(
+        'youngs_modulus (Pa)')
 
 
 def test_damaged_input_is_used_and_reported(folder):

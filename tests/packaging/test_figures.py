@@ -11,7 +11,7 @@ import math
 
 from bench.speed_vs_error import PAPER_SCENES, RESULTS, SEQUENCE_LENGTH
 from bench.speed_vs_error_figure import Measurement, measurements, non_dominated
-from bench.speed_vs_error_figure import speed_error_figure
+from bench.speed_vs_error_figure import short_label, speed_error_figure
 from cdr_translator.plotting import colour_scale, load_text
 from cdr_translator.robot.atlas_figures import AtlasBlock, stiffness_figure, workspace_figure
 from figure_checks import assert_readable, label_problems, text_problems
@@ -74,7 +74,7 @@ def test_load_text_names_force_and_moment():
 
 
 def test_speed_vs_error_figure_is_readable_with_piled_points():
-    """Points on top of each other get numbers that do not cover each other, and a key."""
+    """Piled points: the fronts' points are named without covering each other, the rest not."""
     measured = [Measurement('rod', f'rod: {steps} steps', 2e-4, 1.5e-3, 0.6, 1e-4, 9e-4, 0.3)
                 for steps in (1, 2, 4)]
     measured += [Measurement('full', 'full: 8 steps (default)', 5e-3, 8e-8, 1e-4,
@@ -88,12 +88,27 @@ def test_speed_vs_error_figure_is_readable_with_piled_points():
     figure = speed_error_figure(measured, 1000)
     assert_readable(figure)
     key = _legend_texts(figure)
-    assert key[2:] == [f'{number}  {value.label}' for number, value in
-                       enumerate(measured, start=1)]
+    assert key[2:-1] == ['rod', 'full', 'auto', 'linear'] and key[-1].startswith(
+        "paper's numerics")
     titles = [axes.get_title() for axes in figure.axes]
     assert 'drawn at 1e-07 mm' in titles[0] and 'drawn at 1e-07 deg' in titles[1]
-    numbers = [text.get_text() for text in figure.axes[0].texts]
-    assert sorted(numbers, key=int) == [str(n) for n in range(1, 9) for _ in range(2)][:-1]
+    names = sorted(text.get_text() for text in figure.axes[0].texts)
+    # cold: linear, rod 1 step and full 16 steps (exact) are on the front; warm: full 8
+    # steps and auto tie, and full 16 steps
+    assert 'full 16 steps' in names and 'linear' in names and 'rod 1 step' in names
+    assert 'full 8 steps*' in names and 'auto' in names   # the only auto: its level names it
+    assert not any(name.startswith("paper's numerics") for name in names)   # dominated
+
+
+def test_short_labels_name_a_point_briefly():
+    """The name beside a point: level and setting, shorter words, * for a default."""
+    assert short_label('full: 8 steps (default)') == 'full 8 steps*'
+    assert short_label('rod: 1 steps per interval') == 'rod 1 step/interval'
+    assert short_label('full: 2 spacer disks per joint, 8 steps') == 'full 2 disks/joint, 8 steps'
+    assert short_label('auto: budget 1 mm, 0.5 deg') == 'auto 1 mm/0.5 deg'
+    assert short_label('cc: one arc per joint', alone=True) == 'cc'
+    assert short_label("paper's numerics, paper 20 N case, cold\n(method='paper')") == \
+        "paper's numerics, 20 N"
 
 
 def test_non_dominated_keeps_the_front_and_ties():
@@ -112,7 +127,7 @@ def _robot_numbers() -> dict:
 
 
 def test_speed_vs_error_figure_has_a_readable_robot_panel_with_its_front():
-    """The robot panel names each leg level; a level beaten in time and error is hollow."""
+    """The robot panel names each leg level; full legs are a reference line, not a point."""
     measured = [Measurement('cc', 'cc: one arc per joint', 4e-5, 3e-3, 0.9, 2e-5, 2e-3, 0.6,
                             1.3e-5),
                 Measurement('full', 'full: 8 steps (default)', 8e-3, 8e-8, 1e-4, 1.4e-4,
@@ -123,14 +138,17 @@ def test_speed_vs_error_figure_has_a_readable_robot_panel_with_its_front():
     assert key[0].startswith('Pareto front') and key[1].startswith('dominated')
     robot = figure.axes[2]
     assert 'Delta robot' in robot.get_title() and '(ms)' in robot.get_xlabel()
+    assert 'drawn at' not in robot.get_title()   # no made-up error for the reference
     assert sorted(text.get_text() for text in robot.texts) == [
-        'cc\n(atlas 406 samples/s)', 'full\n(atlas 64 samples/s)', 'rod\n(atlas 114 samples/s)']
-    hollow = [collection.get_facecolor().size == 0 or collection.get_facecolor()[0][3] == 0
-              for collection in robot.collections]
-    assert hollow == [False, True, False]
+        'cc legs\n(atlas 406 samples/s)', 'full legs: the reference\n(atlas 64 samples/s)',
+        'rod legs\n(atlas 114 samples/s)']
+    low, _ = robot.get_ylim()
+    assert low > 1e-4   # the axis spans the levels' errors, not a floor for full legs
     front = [line for line in robot.get_lines() if line.get_drawstyle() == 'steps-post']
     assert [list(line.get_xdata()) for line in front] == [[pytest.approx(0.2),
-                                                           pytest.approx(0.64)]]
+                                                           pytest.approx(0.65)]]
+    reference = [line for line in robot.get_lines() if line.get_linestyle() == '-.']
+    assert all(x == pytest.approx(0.64) for x in reference[0].get_xdata())
 
 
 def test_speed_vs_error_figure_spans_three_decades_of_time():
