@@ -4,6 +4,7 @@ import math
 from typing import Tuple
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ._jit import jit
 
@@ -152,7 +153,6 @@ def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
     quaternion = np.empty(4)
     if m.shape == (3, 3) and quaternion_of_rotation(m, quaternion):
         return quaternion
-    from scipy.spatial.transform import Rotation  # rare; importing it takes ~1 s
     quaternion = Rotation.from_matrix(m).as_quat()
     return -quaternion if quaternion[3] < 0.0 else quaternion
 

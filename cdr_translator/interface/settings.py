@@ -21,7 +21,7 @@ from ..checks import check_covariance, check_integer, check_number
 from ..errors import InputError, ParameterError
 from ..estimation import Components, estimated_components
 from ..fidelity import FIDELITIES
-from ..params.params_file import layered_values
+from ..params.params_file import Layer, layered_values
 from ..params.translator_params import (Accuracy, ACCURACY_KEYS, DEFAULT_PARAMS_PATH,
                                         FIDELITY_KEYS, NODE_NAME)
 from ..params.translator_params import MAX_SPACERS_PER_JOINT, MAX_STEPS_PER_SEGMENT, NODE_ONLY_KEYS
@@ -293,7 +293,7 @@ def _checked(values: Mapping[str, Any], specs: Mapping[str, ParameterSpec]) -> N
             raise ParameterError(reason)
 
 
-def _translator_values(paths: Iterable[Optional[PathLike]], namespace: str,
+def _translator_values(paths: Iterable[Layer], namespace: str,
                        defaults_path: PathLike, node_name: str = NODE_NAME,
                        overrides: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
     return layered_values(node_name, paths, defaults_path, namespace, overrides=overrides,
@@ -354,7 +354,7 @@ class TranslatorSettings:
         return cls(params=params, **kept)
 
     @classmethod
-    def from_params_files(cls, paths: Iterable[Optional[PathLike]] = (),
+    def from_params_files(cls, paths: Iterable[Layer] = (),
                           namespace: str = '/',
                           defaults_path: PathLike = DEFAULT_PARAMS_PATH,
                           node_name: str = NODE_NAME,
@@ -364,7 +364,8 @@ class TranslatorSettings:
         Read the shipped defaults, then each file key by key (ROS 2 semantics).
 
         ``namespace`` and ``node_name`` say which sections apply (the node's fully qualified
-        name); ``overrides`` are ``-p name:=value`` values, applied last.
+        name). ``-p name:=value`` values stand among ``paths`` as CommandLineValues, in
+        their place (rcl's order); ``overrides`` are applied last.
         """
         return cls.from_values(_translator_values(paths, namespace, defaults_path, node_name,
                                                   overrides))
@@ -425,7 +426,7 @@ class CdrSettings:
                    **{key: values[key] for key in CDR_NODE_ONLY_KEYS})
 
     @classmethod
-    def from_params_files(cls, paths: Iterable[Optional[PathLike]] = (),
+    def from_params_files(cls, paths: Iterable[Layer] = (),
                           namespace: str = '/',
                           defaults_path: PathLike = DEFAULT_PARAMS_PATH,
                           node_name: str = CDR_NODE_NAME,

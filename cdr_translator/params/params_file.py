@@ -22,6 +22,7 @@ A file none of whose sections applies to the node, while one names the node in a
 namespace, is an error too: that is the usual mistake of a namespaced launch.
 """
 
+from dataclasses import dataclass
 import difflib
 from fnmatch import fnmatchcase
 import os
@@ -34,10 +35,26 @@ import yaml
 from ..errors import ParameterError
 
 __all__ = ['applicable_sections', 'check_known', 'check_nesting', 'check_value_type',
-           'declared_type', 'every_key', 'fully_qualified_name', 'layered_values', 'read_document',
-           'section_applies', 'section_values']
+           'CommandLineValues', 'declared_type', 'every_key', 'fully_qualified_name', 'Layer',
+           'layered_values', 'read_document', 'section_applies', 'section_values']
 
 PathLike = Union[str, Path]
+
+
+@dataclass(frozen=True)
+class CommandLineValues:
+    """
+    ``-p name:=value`` values of a node's command line, as one layer among its params files.
+
+    rcl applies ``--params-file`` and ``-p`` in the order they appear, the last value of a
+    key winning, so a ``-p`` stands in its place among the files.
+    """
+
+    values: Mapping[str, Any]
+
+
+#: A params file, a node's command-line values in their place, or None (no file).
+Layer = Union[None, PathLike, CommandLineValues]
 
 #: The key under a node-name pattern that holds its parameters.
 PARAMETERS_KEY = 'ros__parameters'
@@ -212,7 +229,7 @@ def check_known(values: Mapping[str, Any], declared: Iterable[str], node_name: s
     raise ParameterError(f'{where}unknown {node_name} parameter(s): {", ".join(hints)}')
 
 
-def layered_values(node_name: str, paths: Iterable[Optional[PathLike]],
+def layered_values(node_name: str, paths: Iterable[Layer],
                    defaults_path: PathLike, namespace: str = '/',
                    defaults: Optional[Mapping[str, Any]] = None,
                    overrides: Optional[Mapping[str, Any]] = None,
@@ -225,8 +242,9 @@ def layered_values(node_name: str, paths: Iterable[Optional[PathLike]],
     default) declares the keys and their types. A section naming the node may use only
     those keys; a wildcard section (``/**``) applies to every node, so it may also hold keys
     another node of the package declares (they are left to that node) but no key none
-    declares. ``overrides`` (``-p name:=value`` on a node's command line) come last and may
-    name only declared keys. Values must have the declared ROS types. A file none of whose
+    declares. ``-p name:=value`` values of a node's command line stand among ``paths`` as
+    CommandLineValues, in their place; ``overrides`` come after every file. Both may name
+    only declared keys. Values must have the declared ROS types. A file none of whose
     sections applies is an error unless not ``required``: it would be ignored silently.
     """
     if defaults is None:
@@ -234,6 +252,9 @@ def layered_values(node_name: str, paths: Iterable[Optional[PathLike]],
     values = dict(defaults)
     package_keys = every_key(defaults_path) | set(values)
     for path in paths:
+        if isinstance(path, CommandLineValues):
+            _apply_command_line(path.values, values, node_name)
+            continue
         if path is None or Path(path).resolve() == Path(defaults_path).resolve():
             continue
         where = f'{path}: '
@@ -249,9 +270,14 @@ def layered_values(node_name: str, paths: Iterable[Optional[PathLike]],
                 if key in values:
                     check_value_type(key, value, values[key], where)
                     values[key] = value
-    if overrides:
-        check_known(overrides, values, node_name, 'command line: ')
-        for key, value in overrides.items():
-            check_value_type(key, value, values[key], 'command line: ')
-            values[key] = value
+    _apply_command_line(overrides or {}, values, node_name)
     return values
+
+
+def _apply_command_line(overrides: Mapping[str, Any], values: Dict[str, Any],
+                        node_name: str) -> None:
+    """Set ``values``' keys to ``-p`` values, which may name only declared keys."""
+    check_known(overrides, values, node_name, 'command line: ')
+    for key, value in overrides.items():
+        check_value_type(key, value, values[key], 'command line: ')
+        values[key] = value

@@ -27,7 +27,8 @@ from numpy.typing import ArrayLike
 
 from ..checks import check_number
 from ..errors import InputError, ParameterError, PlausibilityWarning
-from ..params.params_file import applicable_sections, layered_values, section_values
+from ..params.params_file import (applicable_sections, CommandLineValues, Layer, layered_values,
+                                  section_values)
 from ..params.translator_params import (DEFAULT_PARAMS_PATH, NODE_NAME, PLAUSIBLE_MAX_LENGTH_M,
                                         TranslatorParams)
 
@@ -175,7 +176,7 @@ class DeltaParams:
         return cls.from_mapping({key: values[key] for key in cls.__dataclass_fields__})
 
 
-def cdr_values(paths: Iterable[Union[str, Path, None]], namespace: str = '/',
+def cdr_values(paths: Iterable[Layer], namespace: str = '/',
                node_name: str = CDR_NODE_NAME, overrides: Optional[Mapping[str, Any]] = None,
                defaults_path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> Dict[str, Any]:
     """
@@ -183,15 +184,18 @@ def cdr_values(paths: Iterable[Union[str, Path, None]], namespace: str = '/',
 
     The legs' model comes from the translator_node sections (the leg's one source of model
     parameters); a section that applies to cdr_node (its name, ``/**``) may override it for
-    this node too, as ROS would. ``overrides`` are ``-p name:=value`` values, applied last.
+    this node too, as ROS would. ``-p name:=value`` values stand among ``paths`` as
+    CommandLineValues, in their place; ``overrides`` are applied last.
     """
     paths = list(paths)
-    for path in paths:
+    files = [path for path in paths if not isinstance(path, CommandLineValues)]
+    for path in files:
         if path is not None and not (applicable_sections(path, NODE_NAME, namespace)
                                      or applicable_sections(path, node_name, namespace)):
             raise ParameterError(f'{path} has no section for {node_name} or {NODE_NAME} '
                                  '(their names or /**:, with ros__parameters:)')
-    model = layered_values(NODE_NAME, paths, defaults_path, namespace, required=False)
+    # the -p values apply to this node alone, in their place among the files, below
+    model = layered_values(NODE_NAME, files, defaults_path, namespace, required=False)
     declared = {**{field.name: model[field.name] for field in fields(TranslatorParams)},
                 **section_values(defaults_path, CDR_NODE_NAME)}
     return layered_values(node_name, paths, defaults_path, namespace, defaults=declared,

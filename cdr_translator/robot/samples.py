@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from .delta import DeltaRobot
 from .levels import check_fidelity
@@ -278,7 +279,6 @@ def workspace_volumes(spec: AtlasSpec, results: Dict[str, np.ndarray]) -> List[d
     converged with a finite Jacobian, else NaN: not assessed; it does not assume
     convexity). Both count only what the sliders reach.
     """
-    from scipy.spatial import ConvexHull, QhullError
     volumes = []
     for variant, stroke in enumerate(spec.strokes):
         weights1 = np.full(spec.grid, 2.0 * stroke / (spec.grid - 1))

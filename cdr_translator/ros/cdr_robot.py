@@ -96,10 +96,9 @@ class CdrNode(Node):
         """
         super().__init__(CDR_NODE_NAME, **kwargs)
         self.add_on_set_parameters_callback(self._check_parameters)
-        files, overrides = ros_parameter_sources(ros_arguments)
         settings = CdrSettings.from_params_files(
-            files, namespace=self.get_namespace(), defaults_path=params_path,
-            node_name=self.get_name(), overrides=overrides)
+            ros_parameter_sources(ros_arguments), namespace=self.get_namespace(),
+            defaults_path=params_path, node_name=self.get_name())
         values = {name: self.declare_parameter(name, value,
                                                descriptor(CDR_SPECS[name], value)).value
                   for name, value in settings.values().items()}

@@ -10,7 +10,7 @@ where rcl alone would ignore or refuse it differently.
 """
 
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, List, Mapping, Optional, Sequence, Tuple, Union
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
@@ -19,7 +19,7 @@ import yaml
 from ..errors import ParameterError
 from ..interface.settings import check_value, MODEL_KEYS, ParameterSpec, SPECS
 from ..interface.settings import TranslatorSettings
-from ..params.params_file import check_nesting, read_document
+from ..params.params_file import check_nesting, CommandLineValues, Layer, read_document
 from ..params.translator_params import DEFAULT_PARAMS_PATH, TranslatorParams
 
 __all__ = ['check_command_line', 'check_value', 'declare', 'default_values',
@@ -66,20 +66,21 @@ def declare(node: Any, spec: ParameterSpec, value: Any) -> Any:
     return node.declare_parameter(spec.name, value, described).value
 
 
-def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str, Any]]:
+def ros_parameter_sources(arguments: Sequence[str]) -> List[Layer]:
     """
     Return the ``--params-file`` paths and ``-p name:=value`` values of a command line.
 
-    Only what stands between ``--ros-args`` and ``--`` (or the end) counts, as rcl reads it;
-    ``-p`` values are YAML, as rcl parses them. ParameterError for a malformed ``-p``.
+    In their order, which is the order rcl applies them in (the last value of a key wins):
+    a path for each file, a CommandLineValues for each ``-p``. Only what stands between
+    ``--ros-args`` and ``--`` (or the end) counts, as rcl reads it; ``-p`` values are YAML,
+    as rcl parses them. ParameterError for a malformed ``-p``.
     """
-    files: List[str] = []
-    overrides: Dict[str, Any] = {}
+    layers: List[Layer] = []
     for token, following in _ros_pairs(arguments):
         if token in (_PARAMS_FILE_FLAG, *_PARAM_FLAGS) and following is None:
             raise ParameterError(f'{token} at the end of the command line: it needs a value')
         if token == _PARAMS_FILE_FLAG:
-            files.append(str(following))
+            layers.append(str(following))
         elif token in _PARAM_FLAGS:
             name, separator, text = str(following).partition(':=')
             if not separator or not name:
@@ -88,11 +89,11 @@ def ros_parameter_sources(arguments: Sequence[str]) -> Tuple[List[str], Dict[str
                 continue
             try:
                 check_nesting(text, f'-p {name}')
-                overrides[name] = yaml.safe_load(text)
+                layers.append(CommandLineValues({name: yaml.safe_load(text)}))
             except yaml.YAMLError as error:
                 raise ParameterError(f'-p {name}: {text!r} is not a YAML value ('
                                      f'{" ".join(str(error).split())})') from error
-    return files, overrides
+    return layers
 
 
 def _ros_pairs(arguments: Sequence[str]) -> List[Tuple[str, Optional[str]]]:
@@ -133,9 +134,9 @@ def check_command_line(arguments: Sequence[str]) -> None:
     parameter otherwise, where rcl would fail to initialize with a traceback. Which keys a
     file may hold is judged later, with the node's namespace known.
     """
-    files, _ = ros_parameter_sources(arguments)
-    for path in files:
-        read_document(path)
+    for layer in ros_parameter_sources(arguments):
+        if not isinstance(layer, CommandLineValues):
+            read_document(str(layer))
 
 
 def default_values(path: Union[str, Path] = DEFAULT_PARAMS_PATH) -> dict:

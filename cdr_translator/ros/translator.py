@@ -75,10 +75,9 @@ class TranslatorNode(Node):
         """
         super().__init__(NODE_NAME, **kwargs)
         self.add_on_set_parameters_callback(self._check_parameters)
-        files, overrides = ros_parameter_sources(ros_arguments)
         settings = TranslatorSettings.from_params_files(
-            files, namespace=self.get_namespace(), defaults_path=params_path,
-            node_name=self.get_name(), overrides=overrides)
+            ros_parameter_sources(ros_arguments), namespace=self.get_namespace(),
+            defaults_path=params_path, node_name=self.get_name())
         values = {name: declare(self, SPECS[name], value)
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)

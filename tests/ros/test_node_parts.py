@@ -8,7 +8,9 @@ import time
 import weakref
 
 from cdr_translator.interface import messages
+from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import check_magnitude, in_end_disk_frame
+from cdr_translator.params.params_file import CommandLineValues
 from cdr_translator.params.translator_params import ParameterError
 from cdr_translator.ros import spin
 from cdr_translator.ros.client import isolated_ros_env
@@ -42,14 +44,30 @@ def test_descriptors_carry_description_range_and_read_only():
 
 def test_command_line_parameter_sources():
     """--params-file and -p count inside --ros-args only; -p values are YAML."""
-    files, overrides = ros_parameter_sources(
+    layers = ros_parameter_sources(
         ['node', '--params-file', 'not_ros.yaml', '--ros-args', '--params-file', 'a.yaml',
          '-p', 'max_force:=50.0', '--param', 'log_dir:=/tmp/x', '-r', '__ns:=/leg1', '--',
          '-p', 'ignored:=1', '--ros-args', '--params-file', 'b.yaml'])
-    assert files == ['a.yaml', 'b.yaml']
-    assert overrides == {'max_force': 50.0, 'log_dir': '/tmp/x'}
+    assert layers == ['a.yaml', CommandLineValues({'max_force': 50.0}),
+                      CommandLineValues({'log_dir': '/tmp/x'}), 'b.yaml']
     with pytest.raises(ParameterError, match='expected name:=value'):
         ros_parameter_sources(['--ros-args', '-p', 'max_force=50'])
+
+
+@pytest.mark.parametrize('order, expected', [
+    ('file -p', 1.0), ('-p file', 2.0), ('wildcard -p', 1.0), ('-p wildcard', 3.0),
+    ('file wildcard', 3.0), ('wildcard file', 2.0)])
+def test_params_files_and_p_apply_in_rcl_order(tmp_path, order, expected):
+    """The last --params-file or -p naming a key wins, as rcl (rclpy checked) applies them."""
+    (tmp_path / 'file.yaml').write_text(
+        'translator_node:\n  ros__parameters:\n    max_force: 2.0\n')
+    (tmp_path / 'wildcard.yaml').write_text('/**:\n  ros__parameters:\n    max_force: 3.0\n')
+    arguments = ['--ros-args']
+    for word in order.split():
+        arguments += ['-p', 'max_force:=1.0'] if word == '-p' else [
+            '--params-file', str(tmp_path / f'{word}.yaml')]
+    settings = TranslatorSettings.from_params_files(ros_parameter_sources(arguments))
+    assert settings.max_force == expected
 
 
 def test_input_checks_name_the_problem():
