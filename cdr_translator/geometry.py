@@ -157,6 +157,14 @@ def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
     return -quaternion if quaternion[3] < 0.0 else quaternion
 
 
+def rotation_of_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
+    """Return the rotation matrix of a unit quaternion (x, y, z, w) (a few us, not scipy's 25)."""
+    x, y, z, w = (float(value) for value in quaternion_xyzw)
+    return np.array([[1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+                     [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+                     [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)]])
+
+
 #: Points whose second principal spread is below this fraction of the first are a line:
 #: far above rounding (1e-15) and far below a real arc (1e-4 for a 1 mrad bend).
 STRAIGHT_SPREAD_RATIO = 1e-9

@@ -8,19 +8,20 @@ both, so that the estimate minimizes |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2
 iteration ended: the types the search and the verdicts share.
 """
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import cached_property
 import math
-from typing import Any, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial.transform import Rotation
 
 from .wrench_estimate import COMPONENT_CHOICES, COMPONENT_NAMES, TRANSLATOR_WRENCH_LABELS
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
+from ..geometry import rotation_of_quaternion
 
 __all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
            'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
@@ -99,7 +100,28 @@ class Weights:
 
     @classmethod
     def of(cls, target: Target) -> 'Weights':
-        """Whiten ``target``'s pose covariance and condition its prior on the held values."""
+        """
+        Whiten ``target``'s pose covariance and condition its prior on the held values.
+
+        Along a stream the covariances and held values rarely change: the last few
+        whitenings are kept (_WEIGHTS) and reused for equal inputs.
+        """
+        held = [index for index in range(6) if index not in target.free]
+        key = (target.rows, target.free, target.given[held].tobytes(), target.length,
+               None if target.covariance is None else target.covariance.tobytes(),
+               target.prior_mean.tobytes(), target.prior_covariance.tobytes())
+        weights = _WEIGHTS.get(key)
+        if weights is None:
+            weights = cls._made(target)
+            _WEIGHTS[key] = weights
+            while len(_WEIGHTS) > WEIGHTS_KEPT:
+                _WEIGHTS.popitem(last=False)
+        else:
+            _WEIGHTS.move_to_end(key)
+        return weights
+
+    @classmethod
+    def _made(cls, target: Target) -> 'Weights':
         exact = np.repeat([EXACT_POSE_SD_M, EXACT_POSE_SD_M / target.length], 3)
         rows = list(target.rows)
         covariance = np.diag(exact[rows] ** 2)
@@ -115,6 +137,11 @@ class Weights:
             mean = mean + gain @ (target.given[held] - target.prior_mean[held])
             spread = spread - gain @ prior[np.ix_(held, free)]
         return cls(_inverse_root(covariance), _inverse_root(0.5 * (spread + spread.T)), mean)
+
+
+#: Whitenings kept for reuse (Weights.of), the most recent last.
+WEIGHTS_KEPT = 16
+_WEIGHTS: 'OrderedDict[tuple, Weights]' = OrderedDict()
 
 
 def _inverse_root(covariance: np.ndarray) -> np.ndarray:
@@ -134,6 +161,9 @@ class Search:
     solves: int = 0
     #: another matching wrench, found by the second search (see estimate_along)
     alternative: Optional[np.ndarray] = None
+    #: the last Gauss-Newton step (6, SI), taken from ``best`` without another forward
+    #: solve (search's FINISH_CHI2); None when ``best`` is the estimate itself
+    finish: Optional[np.ndarray] = None
 
 
 def estimated_components(estimate: Optional[Components], oriented: bool,
@@ -211,7 +241,7 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     oriented = quaternion_xyzw is not None
     if quaternion_xyzw is not None:
         quaternion = check_unit_quaternion(names[1], quaternion_xyzw)
-        frame[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+        frame[:3, :3] = rotation_of_quaternion(quaternion)
     free = estimated_components(estimate, oriented, force, moment)
     given = np.zeros(6)
     if force is not None:
@@ -222,19 +252,57 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     checked = None
     if covariance is not None:
         size = 3 if len(rows) == 3 and np.shape(covariance) == (3, 3) else 6
-        checked = check_covariance(names[2], covariance, size)[:len(rows), :len(rows)]
+        checked = _checked_covariance(names[2], covariance, size)[:len(rows), :len(rows)]
     mean = np.zeros(6) if prior_mean is None else check_vector('prior_mean', prior_mean, 6)
-    spread = (diagonal_prior() if prior_covariance is None
-              else check_covariance('prior_covariance', prior_covariance, 6))
-    if np.linalg.eigvalsh(spread[np.ix_(free, free)])[0] <= 0.0:
-        raise InputError('prior_covariance must be positive definite over the estimated '
-                         f'components {[COMPONENT_NAMES[index] for index in free]}')
+    spread = _checked_prior(prior_covariance, free)
     targets = np.repeat([check_number('target_force_sd', target_force_sd, low=0.0,
                                       low_open=True, error=InputError),
                          check_number('target_moment_sd', target_moment_sd, low=0.0,
                                       low_open=True, error=InputError)], 3)
     return Target(frame, rows, free, given, checked, float(length), labels, mean, spread,
                   targets)
+
+
+#: Covariances already checked (the same along a stream), the most recent last.
+_CHECKED: 'OrderedDict[tuple, np.ndarray]' = OrderedDict()
+
+
+def _remembered(key: tuple, check: Callable[[], np.ndarray]) -> np.ndarray:
+    """Return ``check()``, kept under ``key`` for the next equal input (WEIGHTS_KEPT kept)."""
+    found = _CHECKED.get(key)
+    if found is None:
+        found = check()
+        found.setflags(write=False)  # shared by the targets made from equal inputs
+        _CHECKED[key] = found
+        while len(_CHECKED) > WEIGHTS_KEPT:
+            _CHECKED.popitem(last=False)
+    else:
+        _CHECKED.move_to_end(key)
+    return found
+
+
+def _checked_covariance(name: str, values: ArrayLike, size: int) -> np.ndarray:
+    """check_covariance, once per distinct matrix."""
+    try:
+        matrix = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        return check_covariance(name, values, size)  # it names what is wrong
+    return _remembered((name, size, matrix.shape, matrix.tobytes()),
+                       lambda: check_covariance(name, matrix, size))
+
+
+def _checked_prior(prior_covariance: Optional[ArrayLike], free: Tuple[int, ...]
+                   ) -> np.ndarray:
+    """Return the checked prior covariance, positive definite over the ``free`` components."""
+    spread = (diagonal_prior() if prior_covariance is None
+              else _checked_covariance('prior_covariance', prior_covariance, 6))
+
+    def definite() -> np.ndarray:
+        if np.linalg.eigvalsh(spread[np.ix_(free, free)])[0] <= 0.0:
+            raise InputError('prior_covariance must be positive definite over the estimated '
+                             f'components {[COMPONENT_NAMES[index] for index in free]}')
+        return spread
+    return _remembered(('prior', free, spread.tobytes()), definite)
 
 
 def estimated_name(target: Target) -> str:

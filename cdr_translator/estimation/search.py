@@ -21,7 +21,7 @@ from .problem import estimated_name, Evaluation, Search, Target, Weights
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
-__all__ = ['estimate_along', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
+__all__ = ['estimate_along', 'FINISH_CHI2', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
 
 #: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
 #: alone, which the pose sees poorly, can take 20).
@@ -31,6 +31,17 @@ MAX_SOLVES = 40
 #: is within a tenth of a posterior standard deviation, which adds a hundredth to the
 #: estimate's variance (a warm estimate along a stream then takes one forward solve).
 CONVERGED_CHI2 = 1e-2
+
+#: A remaining Gauss-Newton decrease up to this (a step of at most one posterior standard
+#: deviation) is taken from the last forward solve without another one, once an accepted
+#: step of the search has shown the linearization right to FINISH_GAIN: the last step's
+#: error is then second order in a step of a standard deviation, far below the spread. A
+#: warm estimate along a noisy stream thus takes one forward solve, not two.
+FINISH_CHI2 = 1.0
+
+#: An accepted step whose decrease is within this fraction of the predicted one shows the
+#: linearization right over the step.
+FINISH_GAIN = 0.05
 
 #: A rejected step from a point whose Gauss-Newton decrease is below this has hit the
 #: forward solve's rounding (1e-12 m against EXACT_POSE_SD_M): converged.
@@ -99,7 +110,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if start is None:
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
-    current, radius = start, None
+    current, radius, verified = start, None, False
     found.best = current
     scale = np.repeat([1.0, target.length], 3)
     residual, jacobian = _whitened(target, weights, current, scale)
@@ -107,8 +118,16 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         cost = float(residual @ residual)
         left, values, right = np.linalg.svd(jacobian, full_matrices=False)
         projected = left.T @ residual
-        if float(projected @ projected) <= CONVERGED_CHI2:
+        decrease = float(projected @ projected)
+        if decrease <= CONVERGED_CHI2:
             found.converged, found.message = True, 'converged'
+            return found
+        if verified and decrease <= FINISH_CHI2 and current.stable is True:
+            found.finish = np.zeros(6)
+            found.finish[free] = scale[free] * _trust_region_step(values, right, projected,
+                                                                  math.inf)
+            found.converged = True
+            found.message = 'converged (the last Gauss-Newton step from the last forward solve)'
             return found
         if radius is None:
             # the first radius from the damped step: the Gauss-Newton one is mostly the
@@ -144,6 +163,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     radius = min(2.0 * radius, MAX_TRUST_RADIUS_N)
                 elif gain < 0.25:
                     radius = 0.5 * float(np.linalg.norm(step))
+                verified = abs(gain - 1.0) <= FINISH_GAIN
                 current, residual, jacobian = trial, trial_residual, trial_jacobian
                 found.best = current
                 continue

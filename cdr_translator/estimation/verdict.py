@@ -7,12 +7,14 @@ when a pose covariance was given and no flag was raised, None (not assessed) for
 pose, False otherwise (WrenchEstimate's docstring).
 """
 
+from dataclasses import replace
 import math
 import time
 from typing import List, Optional
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
+from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc
 
 from .problem import estimated_name, Evaluation, Search, Target
@@ -28,9 +30,26 @@ __all__ = ['CHI2_TAIL', 'estimate_from']
 CHI2_TAIL = 1e-3
 
 
+def _finished(best: Evaluation, finish: np.ndarray) -> Evaluation:
+    """
+    Return ``best`` moved by the last Gauss-Newton step ``finish`` (search.FINISH_CHI2).
+
+    The pose moves by the compliance times the step (a twist: the origin's displacement and
+    a spatial rotation increment, analysis.compliance.frame_twist's convention); the
+    compliance, the stability verdict and the forward solve stay those of ``best``.
+    """
+    twist = best.compliance @ finish
+    frame = best.frame.copy()
+    frame[:3, 3] += twist[:3]
+    frame[:3, :3] = Rotation.from_rotvec(twist[3:]).as_matrix() @ best.frame[:3, :3]
+    return replace(best, wrench=best.wrench + finish, frame=frame)
+
+
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
     """Build the WrenchEstimate of a search: posterior, conditioning, verdicts, message."""
     best = found.best
+    if best is not None and found.finish is not None:
+        best = _finished(best, found.finish)
     components = tuple(COMPONENT_NAMES[index] for index in target.free)
     if best is None:
         return WrenchEstimate(np.full(3, np.nan), np.full(3, np.nan), None, False, None,

@@ -1,6 +1,6 @@
-"""geometry.quaternion_xyzw against scipy's Rotation, which it replaces on the node's path."""
+"""geometry.quaternion_xyzw and rotation_of_quaternion against scipy's Rotation."""
 
-from cdr_translator.geometry import quaternion_xyzw
+from cdr_translator.geometry import quaternion_xyzw, rotation_of_quaternion
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -48,3 +48,14 @@ def test_improper_matrix_is_refused():
     """A reflection is not a rotation: scipy's ValueError."""
     with pytest.raises(ValueError):
         quaternion_xyzw(np.diag([1.0, 1.0, -1.0]))
+
+
+def test_rotation_of_quaternion_is_scipys_and_inverts_quaternion_xyzw():
+    """The matrix of a unit quaternion equals scipy's, and quaternion_xyzw gives it back."""
+    for seed in range(20):
+        quaternion = Rotation.random(random_state=seed).as_quat()
+        matrix = rotation_of_quaternion(quaternion)
+        assert np.allclose(matrix, Rotation.from_quat(quaternion).as_matrix(), atol=1e-15)
+        back = quaternion_xyzw(matrix)
+        assert np.allclose(back, quaternion if quaternion[3] >= 0 else -quaternion,
+                           atol=1e-14)

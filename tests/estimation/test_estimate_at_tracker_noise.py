@@ -181,6 +181,39 @@ def test_an_estimate_along_a_noisy_stream_is_warm(solver, params):
     assert max(solves) <= 8, solves
 
 
+def test_a_warm_estimate_takes_one_forward_solve_and_agrees_with_a_cold_one(solver, params):
+    """
+    Six components along a noisy walk: one forward solve per warm estimate, mostly.
+
+    The last Gauss-Newton step taken without another forward solve (search.FINISH_CHI2)
+    leaves the estimate within a tenth of a posterior standard deviation (Mahalanobis
+    distance) of a cold search from the prior mean, and its reported pose and residual
+    are those of the stepped wrench.
+    """
+    warm = TranslatorSolver(params)
+    rng = np.random.default_rng(5)
+    load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
+    covariance = pose_covariance(2e-4, 0.1)
+    solves, finished = [], 0
+    for _ in range(40):
+        load += rng.normal(size=6) * np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
+        solved = solver.solve(load[:3], load[3:])
+        position, quaternion = noisy_pose(solved, covariance, rng)
+        estimate = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
+        assert estimate.converged, estimate.message
+        solves.append(estimate.solves)
+        if 'last Gauss-Newton step' not in estimate.message:
+            continue
+        finished += 1
+        cold = TranslatorSolver(params).estimate_wrench(position, quaternion,
+                                                        pose_covariance=covariance)
+        difference = estimate.wrench - cold.wrench
+        assert difference @ np.linalg.solve(estimate.covariance, difference) <= 0.1 ** 2
+        check = solver.solve(estimate.force, estimate.moment)
+        assert np.linalg.norm(check.end_disk_position - estimate.position) < 1e-6
+    assert finished >= 20 and np.mean(solves[1:]) <= 1.3, solves
+
+
 def test_the_worked_example_of_the_docs_prints_what_they_show():
     """The force-sensing example runs and prints the output the docs give."""
     pages = [path for path in sorted(DOCS.rglob('*.md')) if EXAMPLE_MARKER in path.read_text()]
