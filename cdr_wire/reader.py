@@ -37,7 +37,8 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.records import (Channel, Chunk, DataEnd, Footer, McapRecord, Message, Metadata,
+                          Schema)
 from mcap.stream_reader import (CRCValidationError, get_chunk_data_stream, MAGIC_SIZE,
                                 read_magic, StreamReader)
 from mcap_ros2.decoder import DecoderFactory
@@ -268,12 +269,46 @@ class McapSource:
                                (start, end) if start is not None and end is not None else None)
         return self._overview_read
 
+    def metadata(self) -> List[Tuple[str, Dict[str, str]]]:
+        """
+        Return the file's metadata records, (name, values), in file order.
+
+        Through the summary's metadata index when the summary can be trusted; otherwise by
+        streaming the data section up to its first unreadable record (what could be read).
+        Does not touch ``report``.
+        """
+        found: List[Tuple[str, Dict[str, str]]] = []
+        with open(self.path, 'rb') as stream:
+            summary, _ = self._summary(stream)
+            if summary is not None:
+                for index in sorted(summary.metadata_indexes, key=lambda item: item.offset):
+                    try:
+                        stream.seek(index.offset)
+                        record = next(StreamReader(stream, skip_magic=True).records)
+                    except READ_ERRORS:
+                        continue
+                    if isinstance(record, Metadata):
+                        found.append((record.name, dict(record.metadata)))
+                return found
+            stream.seek(MAGIC_SIZE)
+            records = StreamReader(stream, skip_magic=True, emit_chunks=True,
+                                   record_size_limit=max(self.report.size_bytes, 1)).records
+            try:
+                for record in records:
+                    if isinstance(record, Metadata):
+                        found.append((record.name, dict(record.metadata)))
+                    elif isinstance(record, DataEnd):
+                        break
+            except READ_ERRORS:
+                pass   # what was read before the damage is all there is
+        return found
+
     # indexed ------------------------------------------------------------------------------
     def _summary(self, stream: io.BufferedReader):
         """Return (summary, '') or (None, why the index cannot be used)."""
         try:
             summary = SeekingReader(stream).get_summary()
-            problem, crc_stored = summary_problem(stream, self.report.size_bytes)
+            problem, _ = summary_problem(stream, self.report.size_bytes)
         except READ_ERRORS as error:
             return None, f'no readable summary: {error_text(error)}'
         if summary is None:
@@ -284,10 +319,11 @@ class McapSource:
             return None, 'the summary has no statistics'
         if summary.statistics.message_count and not summary.chunk_indexes:
             return None, 'the messages are not chunked'
-        if not crc_stored:
-            problem = chunk_index_problem(stream, summary.chunk_indexes)
-            if problem:
-                return None, f'summary not used: {problem}'
+        # with or without a summary CRC: a CRC says the index is as written, not that it
+        # leads to the chunks; the data section is what its own CRC validated
+        problem = chunk_index_problem(stream, summary.chunk_indexes)
+        if problem:
+            return None, f'summary not used: {problem}'
         return summary, ''
 
     def _indexed(self, stream: io.BufferedReader, summary) -> Iterator[RawMessage]:
