@@ -381,6 +381,6 @@ def fidelity_text(fidelity: str, max_position_error: float, max_angle_error: flo
     """Return the model level asked for as the summary and the plot name it ('auto (...)')."""
     if fidelity != 'auto':
         return fidelity
-    budget = [f'{1e3 * max_position_error:g} mm' if max_position_error > 0 else '',
-              f'{max_angle_error:g} deg' if max_angle_error > 0 else '']
-    return f'auto (budget {", ".join(part for part in budget if part) or "none: full"})'
+    if max_position_error <= 0.0 or max_angle_error <= 0.0:   # as fidelity.admission reads it
+        return 'auto (no error budget: it needs a position and an angle error, so full)'
+    return f'auto (budget {1e3 * max_position_error:g} mm, {max_angle_error:g} deg)'

@@ -41,7 +41,8 @@ def add_fidelity_arguments(parser: Any, from_params_file: bool = False) -> None:
                     else 'default: %(default)s')
     parser.add_argument('--fidelity', choices=FIDELITY_CHOICES, default=defaults['fidelity'],
                         help='model level (docs/howto/fidelity.md); auto: the cheapest level '
-                             'within --max-position-error and --max-angle-error ('
+                             'within --max-position-error and --max-angle-error (both needed; '
+                             'without them auto answers at full) ('
                              + default_text.format(key='fidelity') + ')')
     parser.add_argument('--max-position-error', type=float, default=defaults['position'],
                         metavar='M', help='error budget of --fidelity auto: end-disk '
