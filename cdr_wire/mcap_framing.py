@@ -8,8 +8,8 @@ summary CRC covers the whole summary section and the footer itself, so a file wh
 matches can be read through its index; otherwise the data section is read through
 (``cdr_wire.reader``). A CRC only says the summary is as written, not that the writer wrote
 it right: the chunk index is also checked against the chunk records it points at
-(``chunk_index_problem``), so a wrong offset sends the read to the data section rather than
-losing an intact chunk.
+(``chunk_index_problem``), so a wrong offset sends the read to the data section (when that
+section's own CRC holds) rather than losing an intact chunk.
 """
 
 import io

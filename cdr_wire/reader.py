@@ -1,7 +1,8 @@
 """
 Read every message of an MCAP file that can still be read, and say what could not.
 
-A finished file whose summary can be trusted (its CRC matches: ``cdr_wire.mcap_framing``)
+A finished file whose summary can be trusted (its CRC matches: ``cdr_wire.mcap_framing``;
+a chunk index that misses its chunks while the data section's own CRC holds is not trusted)
 is read through its summary (chunk index and statistics): each chunk is located by its
 index, checked against its CRC and decompressed on its own, so a damaged chunk loses only
 its own messages (counted from the statistics). A file without a trustworthy summary (the
@@ -308,7 +309,7 @@ class McapSource:
         """Return (summary, '') or (None, why the index cannot be used)."""
         try:
             summary = SeekingReader(stream).get_summary()
-            problem, _ = summary_problem(stream, self.report.size_bytes)
+            problem, crc_stored = summary_problem(stream, self.report.size_bytes)
         except READ_ERRORS as error:
             return None, f'no readable summary: {error_text(error)}'
         if summary is None:
@@ -319,12 +320,31 @@ class McapSource:
             return None, 'the summary has no statistics'
         if summary.statistics.message_count and not summary.chunk_indexes:
             return None, 'the messages are not chunked'
-        # with or without a summary CRC: a CRC says the index is as written, not that it
-        # leads to the chunks; the data section is what its own CRC validated
         problem = chunk_index_problem(stream, summary.chunk_indexes)
-        if problem:
+        if not problem:
+            return summary, ''
+        if not crc_stored:
             return None, f'summary not used: {problem}'
+        # a summary CRC says the index is as written, not that the writer wrote it right:
+        # when the data section's own CRC holds, it has every chunk the index misplaces; when
+        # it does not, the index is the better guide (a damaged chunk loses only itself)
+        if self._data_section_valid(stream):
+            return None, (f'summary not used: {problem}; the data section, whose CRC is '
+                          'valid, was read instead')
         return summary, ''
+
+    def _data_section_valid(self, stream: io.BufferedReader) -> bool:
+        """Tell whether the data section reads through to a DataEnd whose stored CRC holds."""
+        stream.seek(0)
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True,
+                              record_size_limit=max(self.report.size_bytes, 1))
+        try:
+            for record in reader.records:
+                if isinstance(record, DataEnd):
+                    return bool(record.data_section_crc)
+        except READ_ERRORS:
+            return False
+        return False
 
     def _indexed(self, stream: io.BufferedReader, summary) -> Iterator[RawMessage]:
         """Yield the messages chunk by chunk through the chunk index."""
