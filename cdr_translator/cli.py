@@ -6,14 +6,17 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--max-position-error M] [--max-angle-error DEG]]
                                    [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
-    python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
-    python -m cdr_translator delta-ik --target X Y Z [--payload FX FY FZ] [--params FILE] [--json]
+    python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ]
+                                   [--fidelity LEVEL [BUDGET]] [--params FILE] [--json]
+    python -m cdr_translator delta-ik --target X Y Z [--payload FX FY FZ]
+                                      [--fidelity LEVEL [BUDGET]] [--params FILE] [--json]
     python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
                                    --out PATH.zarr [--workers K] [--scheduler ADDRESS]
-                                   [--chunk-size M] [--plot]
-    (delta, delta-ik, atlas: [--fidelity full|rod|cc|auto [--max-position-error M]
-                              [--max-angle-error DEG]], the legs' level)
+                                   [--chunk-size M] [--plot] [--fidelity LEVEL [BUDGET]]
     python -m cdr_translator compile [--params FILE]
+
+    LEVEL: full|rod|cc|auto, the legs' model level; BUDGET (auto): [--max-position-error M]
+    [--max-angle-error DEG], each leg's error budget.
 
 Exit codes: 0 converged (and stable), 3 not converged (the result is still printed; for
 ``paper``, either case), 2 bad input (every key of the params file is checked, as the nodes

@@ -6,7 +6,8 @@ Command line of msg_tools (no ROS needed): info, synth, replay, calibrate.
                               [--measured-pose-noise POS_M ANG_DEG [--true-params FILE]
                                [--frame-offset X Y Z RX RY RZ] [--pose-stamp-jitter S]]
     python -m msg_tools replay IN.mcap --out OUT.mcap [--topic NAME] [--params FILE]
-                               [--csv FILE] [--plot FILE.png]
+                               [--csv FILE] [--plot FILE.png] [--fidelity full|rod|cc|auto
+                               [--max-position-error M] [--max-angle-error DEG]]
                                [--workers K | --scheduler ADDRESS]
                                [--estimate COMPONENTS] [--held-force FX FY FZ]
                                [--held-moment MX MY MZ] [--prior-force-sd N]

@@ -131,3 +131,15 @@ def test_demo_flags_have_help():
                  '--out FILE.mcap the node',
                  '--speed FACTOR playback speed factor'):
         assert flag in options
+
+
+@pytest.mark.parametrize('module, commands', [
+    (cli, ('solve', 'delta', 'delta-ik', 'atlas')), (msg_tools_main, ('replay',))])
+def test_each_synopsis_shows_the_fidelity_option(module, commands):
+    """The module's synopsis (its docstring) gives --fidelity on each command that takes it."""
+    synopsis = module.__doc__.split('Exit codes')[0]
+    blocks = re.split(r'\n(?=    python -m )', synopsis)
+    for command in commands:
+        block = next(block for block in blocks if re.match(rf'    python -m \S+ {command} ',
+                                                           block))
+        assert '--fidelity' in block, block
