@@ -171,15 +171,16 @@ class SubcommandParser(CommandParser):
         return parsed, extras
 
 
-def add_command(commands: Any, name: str, summary: str, details: str = ''
-                ) -> argparse.ArgumentParser:
+def add_command(commands: Any, name: str, summary: str, details: str = '',
+                **options: Any) -> argparse.ArgumentParser:
     """
     Add subcommand ``name`` to ``commands`` (what ``add_subparsers`` returned); return it.
 
     ``summary`` (one line) is its entry in the command list and the first line of its own
-    ``--help``, followed by ``details`` when given.
+    ``--help``, followed by ``details`` when given; ``options`` go to its parser (a
+    ``usage`` argparse cannot write, such as one of two options required).
     """
     description = summary[:1].upper() + summary[1:] + ('.' if not summary.endswith('.') else '')
     if details:
         description += '\n\n' + details
-    return commands.add_parser(name, help=summary, description=description)
+    return commands.add_parser(name, help=summary, description=description, **options)

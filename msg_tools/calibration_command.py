@@ -49,7 +49,12 @@ def add_parser(commands: Any) -> None:
     calibrate = add_command(
         commands, 'calibrate', 'fit model parameters (and a tracker frame) to measured poses',
         'Pairs each recorded wrench with the measured pose of the same stamp, fits, reports '
-        'the fit and its cross-validation, and writes the fitted keys (--out).')
+        'the fit and its cross-validation, and writes the fitted keys (--out).',
+        # argparse has no "at least one of": the usage says it, run_calibrate enforces it
+        usage='%(prog)s [-h] (--fit NAME [NAME ...] [--fit-frame] | --fit-frame)\n'
+              '       [--frame N N N N N N] [--params PARAMS] [--out OUT] [--json] '
+              '[--plot PLOT]\n       [--stamp-tolerance S] [--sigma POS_M ANG_DEG] '
+              '[--folds FOLDS]\n       RUN.mcap [RUN.mcap ...]')
     calibrate.add_argument('inputs', nargs='+', metavar='RUN.mcap',
                            help='recordings holding wrenches and measured end-disk poses')
     fitted = calibrate.add_argument_group(

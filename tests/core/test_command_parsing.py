@@ -111,6 +111,11 @@ def test_calibrate_shows_that_something_must_be_fitted(capsys):
     """--fit and --fit-frame stand under a heading saying one of them is required."""
     text = ' '.join(_help(msg_tools_main.main, ['calibrate'], capsys).split())
     assert 'what to fit (required: --fit, --fit-frame or both):' in text
+    usage = text.split(' Fit model parameters')[0]
+    assert usage.startswith('usage: python -m msg_tools calibrate [-h] (--fit NAME [NAME ...] '
+                            '[--fit-frame] | --fit-frame) ')
+    options = set(re.findall(r'(?<=\s)--[a-z-]+', text.split(' options: ')[1]))
+    assert options and options <= set(re.findall(r'--[a-z-]+', usage))   # none left out
     with pytest.raises(SystemExit):
         msg_tools_main.main(['calibrate', '--help'])
     code = msg_tools_main.main(['calibrate', str(ROOT / 'bags' / 'paper_cases.mcap')])
