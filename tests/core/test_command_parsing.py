@@ -115,7 +115,7 @@ def test_calibrate_shows_that_something_must_be_fitted(capsys):
     assert usage.startswith('usage: python -m msg_tools calibrate [-h] (--fit NAME [NAME ...] '
                             '[--fit-frame] | --fit-frame) ')
     options = set(re.findall(r'(?<=\s)--[a-z-]+', text.split(' options: ')[1]))
-    assert options and options <= set(re.findall(r'--[a-z-]+', usage))   # none left out
+    assert options and options - {'--help'} <= set(re.findall(r'--[a-z-]+', usage))   # all
     with pytest.raises(SystemExit):
         msg_tools_main.main(['calibrate', '--help'])
     code = msg_tools_main.main(['calibrate', str(ROOT / 'bags' / 'paper_cases.mcap')])
