@@ -23,7 +23,7 @@ import sys
 import tempfile
 import threading
 from types import FrameType
-from typing import Any, Callable, List, Optional, Sequence, TextIO, Tuple, Type, Union
+from typing import Any, Callable, List, Optional, TextIO, Tuple, Type, Union
 import warnings
 
 #: Ctrl-C (128 + SIGINT), as a shell reports a process SIGINT ended.
@@ -161,9 +161,8 @@ class CommandParser(argparse.ArgumentParser):
 class SubcommandParser(CommandParser):
     """A subcommand's parser: an argument it does not take is an error with its own usage."""
 
-    def parse_known_args(self, args: Optional[Sequence[str]] = None,
-                         namespace: Optional[argparse.Namespace] = None
-                         ) -> Tuple[argparse.Namespace, List[str]]:
+    def parse_known_args(self, args: Any = None, namespace: Any = None
+                         ) -> Tuple[Any, List[str]]:
         """Parse ``args``; exit 2 with this subcommand's usage on an unrecognized argument."""
         parsed, extras = super().parse_known_args(args, namespace)
         if extras:

@@ -9,7 +9,7 @@ and radians; an empty cell is a value that does not exist or was not assessed.
 """
 
 import math
-from typing import Any, Dict, List, Mapping, Optional, Sequence
+from typing import Any, Dict, Iterable, List, Mapping, Optional
 
 from cdr_translator.estimation.wrench_estimate import WrenchEstimate
 from cdr_translator.interface import messages
@@ -54,7 +54,7 @@ def csv_row(cells: Mapping[str, Any]) -> List[Any]:
     return [cells.get(name, '') for name in CSV_COLUMNS]
 
 
-def wrench_row(index: int, raw: RawMessage, force: Sequence[float], moment: Sequence[float],
+def wrench_row(index: int, raw: RawMessage, force: Iterable[float], moment: Iterable[float],
                frame_id: str, stamp_ns: int, outcome: Outcome) -> List[Any]:
     """Return the CSV row of wrench message ``index`` (empty cells where there is no value)."""
     cells: Dict[str, Any] = dict(zip(CSV_COLUMNS[:11], [
