@@ -86,7 +86,7 @@ def thin_ticks(axes: Axes, bins: Sequence[int]) -> None:
             axis.set_major_locator(locator)
 
 
-def equal_aspect_3d(axes: Axes, points: np.ndarray, least: float = 0.05) -> None:
+def equal_aspect_3d(axes: Axes, points: np.ndarray, least: float = 0.3) -> None:
     """
     Give a 3-D ``axes`` equal scales on x, y and z around ``points`` (n, 3).
 

@@ -8,7 +8,8 @@ publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /d
 and, on request, backbones) with header stamps equal to the input stamps and log times equal
 to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
 gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
-(``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
+(``msg_tools.replay_estimates``). Optionally a CSV row per input message
+(``msg_tools.replay_csv``) and a plot. No rclpy needed.
 Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
 batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 
