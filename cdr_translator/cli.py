@@ -6,14 +6,17 @@ Command line: argument parsing and printing only; the physics lives in the solve
                                    [--max-position-error M] [--max-angle-error DEG]]
                                    [--params FILE] [--json]
     python -m cdr_translator paper [--params FILE]
-    python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ] [--params FILE] [--json]
-    python -m cdr_translator delta-ik --target X Y Z [--payload FX FY FZ] [--params FILE] [--json]
+    python -m cdr_translator delta --sliders Q1 Q2 Q3 [--payload FX FY FZ]
+                                   [--fidelity LEVEL [BUDGET]] [--params FILE] [--json]
+    python -m cdr_translator delta-ik --target X Y Z [--payload FX FY FZ]
+                                      [--fidelity LEVEL [BUDGET]] [--params FILE] [--json]
     python -m cdr_translator atlas --grid N [--payload FX FY FZ]... [--params FILE]...
                                    --out PATH.zarr [--workers K] [--scheduler ADDRESS]
-                                   [--chunk-size M] [--plot]
-    (delta, delta-ik, atlas: [--fidelity full|rod|cc|auto [--max-position-error M]
-                              [--max-angle-error DEG]], the legs' level)
+                                   [--chunk-size M] [--plot] [--fidelity LEVEL [BUDGET]]
     python -m cdr_translator compile [--params FILE]
+
+    LEVEL: full|rod|cc|auto, the legs' model level; BUDGET (auto): [--max-position-error M]
+    [--max-angle-error DEG], each leg's error budget.
 
 Exit codes: 0 converged (and stable), 3 not converged (the result is still printed; for
 ``paper``, either case), 2 bad input (every key of the params file is checked, as the nodes
@@ -36,8 +39,9 @@ import numpy as np
 from . import _jit
 from .analysis.compliance import MOBILITY_RATIO, SPARSITY_THRESHOLD
 from .bvp.problem import JACOBIANS
-from .console import json_text, run_command
+from .console import add_command, CommandParser, json_text, run_command
 from .fidelity import FIDELITIES, FidelitySolver
+from .interface.fidelity_options import add_fidelity_arguments
 from .interface.settings import CdrSettings, TranslatorSettings
 from .params.paper import TABLE_II
 from .params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH, ParameterError,
@@ -59,11 +63,13 @@ EXIT_UNSTABLE = 4
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog='python -m cdr_translator',
         description='Cosserat-rod kinestatics of the dual-continuum-joint translator.')
     commands = parser.add_subparsers(dest='command', required=True)
-    solve = commands.add_parser('solve', help='solve one end-disk wrench')
+    solve = add_command(commands, 'solve', 'solve one end-disk wrench',
+                        'Prints the bending angles, the end-disk pose and the verdicts '
+                        '(converged, stable, accuracy); --json one object.')
     solve.add_argument('--force', nargs=3, type=float, required=True,
                        metavar=('FX', 'FY', 'FZ'), help='force on the end disk, N, in {pe}')
     solve.add_argument('--moment', nargs=3, type=float, default=(0.0, 0.0, 0.0),
@@ -85,31 +91,24 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument('--mobility-ratio', type=float, default=MOBILITY_RATIO,
                        help='an eigen-twist at least this fraction of the most compliant one '
                             'is a primary mobility (default: %(default)s)')
-    solve.add_argument('--fidelity', choices=('full', 'rod', 'cc', 'auto'), default='full',
-                       help='model level (docs/howto/fidelity.md); auto: the cheapest '
-                            'level within --max-position-error and --max-angle-error')
-    solve.add_argument('--max-position-error', type=float, default=0.0, metavar='M',
-                       help='error budget of --fidelity auto: end-disk position, m')
-    solve.add_argument('--max-angle-error', type=float, default=0.0, metavar='DEG',
-                       help='error budget of --fidelity auto: bending angles and end-disk '
-                            'orientation, deg')
+    add_fidelity_arguments(solve)
     solve.add_argument('--json', action='store_true', help='print one JSON object')
-    paper = commands.add_parser('paper', help="solve the paper's Table II cases and compare")
-    delta = commands.add_parser('delta', help='Continuum Delta Robot forward statics: platform '
-                                              'pose and leg loads for slider positions')
+    paper = add_command(commands, 'paper', "solve the paper's Table II cases and compare")
+    delta = add_command(commands, 'delta', 'Continuum Delta Robot forward statics: platform '
+                                           'pose and leg loads for slider positions')
     delta.add_argument('--sliders', nargs=3, type=float, required=True,
                        metavar=('Q1', 'Q2', 'Q3'), help='slider positions from home, m')
     delta.add_argument('--json', action='store_true', help='print one JSON object')
-    inverse = commands.add_parser('delta-ik', help='Continuum Delta Robot inverse statics: '
-                                                   'slider positions for a platform target')
+    inverse = add_command(commands, 'delta-ik', 'Continuum Delta Robot inverse statics: '
+                                                'slider positions for a platform target')
     inverse.add_argument('--target', nargs=3, type=float, required=True,
                          metavar=('X', 'Y', 'Z'), help='platform centre, m, world frame')
     inverse.add_argument('--json', action='store_true', help='print one JSON object')
     for command in (delta, inverse):
         _add_payload_arguments(command)
-    atlas = commands.add_parser(
-        'atlas', help='Continuum Delta Robot workspace / stiffness atlas over the slider box '
-                      'x payloads x params files, on Dask, into Zarr')
+    atlas = add_command(
+        commands, 'atlas', 'Continuum Delta Robot workspace / stiffness atlas over the slider '
+                           'box x payloads x params files, on Dask, into Zarr')
     atlas.add_argument('--grid', type=int, required=True, metavar='N',
                        help='N slider positions per axis over the stroke (N^3 samples)')
     atlas.add_argument('--payload', nargs=3, type=float, action='append', default=None,
@@ -133,9 +132,9 @@ def _parser() -> argparse.ArgumentParser:
     atlas.add_argument('--no-progress', action='store_true', help='no progress bar')
     for command in (delta, inverse, atlas):
         _add_level_arguments(command)
-    compile_ = commands.add_parser(
-        'compile', help="compile the numba kernels into numba's cache (make setup's last "
-                        'step), so that no node or solve compiles them later')
+    compile_ = add_command(
+        commands, 'compile', "compile the numba kernels into numba's cache (make setup's "
+                             'last step), so that no node or solve compiles them later')
     for command in (solve, paper, delta, inverse, compile_):
         command.add_argument('--params', default=str(DEFAULT_PARAMS_PATH),
                              help='ROS 2 params YAML (default: %(default)s)')

@@ -9,8 +9,11 @@ What every command line of the project prints and how it ends at the console's e
 * ``quiet_sigint``: the same for a Ctrl-C while an entry point still imports (numpy,
   numba, scipy, rclpy take seconds), until ``run_command`` takes over.
 * ``unwritable_reason``: whether an output path can be written, asked before any work.
+* ``CommandParser`` and ``add_command``: the argument parsing of every command line with
+  subcommands: a subcommand's own usage on an option error, a description line of its own.
 """
 
+import argparse
 import json
 import math
 import os
@@ -20,7 +23,7 @@ import sys
 import tempfile
 import threading
 from types import FrameType
-from typing import Any, Callable, Optional, TextIO, Type, Union
+from typing import Any, Callable, List, Optional, TextIO, Tuple, Type, Union
 import warnings
 
 #: Ctrl-C (128 + SIGINT), as a shell reports a process SIGINT ended.
@@ -31,8 +34,9 @@ EXIT_BROKEN_PIPE = 141
 #: What a command prints on stderr when Ctrl-C ends it.
 INTERRUPTED_LINE = 'interrupted (Ctrl-C)'
 
-__all__ = ['EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED', 'finite_or_none', 'INTERRUPTED_LINE',
-           'json_text', 'one_line_warning', 'quiet_sigint', 'run_command', 'unwritable_reason']
+__all__ = ['add_command', 'CommandParser', 'EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED',
+           'finite_or_none', 'INTERRUPTED_LINE', 'json_text', 'one_line_warning',
+           'quiet_sigint', 'run_command', 'SubcommandParser', 'unwritable_reason']
 
 
 def finite_or_none(data: Any) -> Any:
@@ -137,3 +141,45 @@ def unwritable_reason(path: Union[str, Path], folder_ok: bool = False) -> Option
         reason = error.strerror or str(error)
         return reason + (f' ({error.filename})' if getattr(error, 'filename', None) else '')
     return None
+
+
+class CommandParser(argparse.ArgumentParser):
+    """
+    The parser of a command line with subcommands (``python -m cdr_translator``, ``msg_tools``).
+
+    Its subcommands' parsers are ``SubcommandParser``: an option a subcommand does not know
+    is reported with that subcommand's usage (argparse reports it with the top-level usage,
+    which does not show the options that were meant).
+    """
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        """Add the subcommands' action; their parsers are ``SubcommandParser``."""
+        kwargs.setdefault('parser_class', SubcommandParser)
+        return super().add_subparsers(**kwargs)
+
+
+class SubcommandParser(CommandParser):
+    """A subcommand's parser: an argument it does not take is an error with its own usage."""
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None
+                         ) -> Tuple[Any, List[str]]:
+        """Parse ``args``; exit 2 with this subcommand's usage on an unrecognized argument."""
+        parsed, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f'unrecognized arguments: {" ".join(extras)}')
+        return parsed, extras
+
+
+def add_command(commands: Any, name: str, summary: str, details: str = '',
+                **options: Any) -> argparse.ArgumentParser:
+    """
+    Add subcommand ``name`` to ``commands`` (what ``add_subparsers`` returned); return it.
+
+    ``summary`` (one line) is its entry in the command list and the first line of its own
+    ``--help``, followed by ``details`` when given; ``options`` go to its parser (a
+    ``usage`` argparse cannot write, such as one of two options required).
+    """
+    description = summary[:1].upper() + summary[1:] + ('.' if not summary.endswith('.') else '')
+    if details:
+        description += '\n\n' + details
+    return commands.add_parser(name, help=summary, description=description, **options)

@@ -3,8 +3,8 @@ Conventions shared by the project's figures, so that each reads without the docs
 
 Colour scales that do not exaggerate (a quantity that varies by under 1 % is shown as
 per cent from its mean, a constant one is said to be constant), tick density on 3-D
-panels, markers on short series, and the text of a load. The figures use
-``matplotlib.figure.Figure`` directly (no pyplot): no display, no global state.
+panels, equal scales on 3-D shapes, markers on short series, and the text of a load. The
+figures use ``matplotlib.figure.Figure`` directly (no pyplot): no display, no global state.
 """
 
 from dataclasses import dataclass
@@ -84,6 +84,24 @@ def thin_ticks(axes: Axes, bins: Sequence[int]) -> None:
                             if low + margin <= tick <= high - margin])
         else:
             axis.set_major_locator(locator)
+
+
+def equal_aspect_3d(axes: Axes, points: np.ndarray, least: float = 0.3) -> None:
+    """
+    Give a 3-D ``axes`` equal scales on x, y and z around ``points`` (n, 3).
+
+    A millimetre is as long on every axis, so a shape is not straightened or bent by its
+    box; a side spanning less than ``least`` of the longest is widened to that (around its
+    middle), so a flat shape still gets a box with room for its ticks.
+    """
+    points = np.asarray(points, dtype=float)
+    low, high = points.min(axis=0), points.max(axis=0)
+    middle, span = 0.5 * (low + high), high - low
+    sides = np.maximum(span, least * max(float(span.max()), np.finfo(float).tiny))
+    axes.set_xlim(middle[0] - sides[0] / 2, middle[0] + sides[0] / 2)
+    axes.set_ylim(middle[1] - sides[1] / 2, middle[1] + sides[1] / 2)
+    getattr(axes, 'set_zlim')(middle[2] - sides[2] / 2, middle[2] + sides[2] / 2)
+    getattr(axes, 'set_box_aspect')(sides)
 
 
 def number_text(value: float) -> str:

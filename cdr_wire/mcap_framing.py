@@ -6,11 +6,14 @@ holds. A damaged summary must not stand in for the data: a flipped byte in a cha
 topic would hide its messages, one in a chunk offset would lose a chunk. The footer's
 summary CRC covers the whole summary section and the footer itself, so a file whose CRC
 matches can be read through its index; otherwise the data section is read through
-(``cdr_wire.reader``). A file written without a summary CRC has its chunk index checked
-against the chunk records it points at instead.
+(``cdr_wire.reader``). A CRC only says the summary is as written, not that the writer wrote
+it right: the chunk index is also checked against the chunk records it points at
+(``chunk_index_problem``), so a wrong offset sends the read to the data section (when that
+section's own CRC holds) rather than losing an intact chunk.
 """
 
 import io
+import struct
 from typing import BinaryIO, Iterable, Tuple
 import zlib
 
@@ -26,6 +29,8 @@ CRC_BLOCK = 1 << 20
 CRC_SIZE = 4
 #: A record's opcode (1 byte) and length (8 bytes).
 RECORD_PREFIX = 9
+#: What opens a chunk record after its prefix: message start and end time, uncompressed size.
+CHUNK_HEAD = struct.Struct('<QQQ')
 
 
 def summary_problem(stream: BinaryIO, size: int) -> Tuple[str, bool]:
@@ -64,12 +69,28 @@ def summary_problem(stream: BinaryIO, size: int) -> Tuple[str, bool]:
 
 
 def chunk_index_problem(stream: BinaryIO, indexes: Iterable[ChunkIndex]) -> str:
-    """Return why a chunk index entry does not lead to its chunk record, or ''."""
+    """
+    Return why a chunk index entry does not lead to its chunk record, or ''.
+
+    The record at each entry's offset must be a chunk of the entry's length, time range and
+    uncompressed size, and no two entries may share an offset (one would hide a chunk).
+    """
+    seen = set()
     for index in indexes:
+        where = (f'the chunk index points at byte {index.chunk_start_offset}, where no '
+                 f'chunk of {index.chunk_length} bytes')
+        if index.chunk_start_offset in seen:
+            return f'the chunk index lists byte {index.chunk_start_offset} twice'
+        seen.add(index.chunk_start_offset)
         stream.seek(index.chunk_start_offset, io.SEEK_SET)
-        prefix = stream.read(RECORD_PREFIX)
-        if (len(prefix) < RECORD_PREFIX or prefix[0] != Opcode.CHUNK
-                or RECORD_PREFIX + int.from_bytes(prefix[1:], 'little') != index.chunk_length):
-            return (f'the chunk index points at byte {index.chunk_start_offset}, where no '
-                    f'chunk of {index.chunk_length} bytes starts')
+        prefix = stream.read(RECORD_PREFIX + CHUNK_HEAD.size)
+        if (len(prefix) < RECORD_PREFIX + CHUNK_HEAD.size or prefix[0] != Opcode.CHUNK
+                or RECORD_PREFIX + int.from_bytes(prefix[1:RECORD_PREFIX], 'little')
+                != index.chunk_length):
+            return where + ' starts'
+        start, end, size = CHUNK_HEAD.unpack_from(prefix, RECORD_PREFIX)
+        if (start, end, size) != (index.message_start_time, index.message_end_time,
+                                  index.uncompressed_size):
+            return (where + f' with messages logged {index.message_start_time}..'
+                    f'{index.message_end_time} ns starts')
     return ''

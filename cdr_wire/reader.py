@@ -1,7 +1,8 @@
 """
 Read every message of an MCAP file that can still be read, and say what could not.
 
-A finished file whose summary can be trusted (its CRC matches: ``cdr_wire.mcap_framing``)
+A finished file whose summary can be trusted (its CRC matches: ``cdr_wire.mcap_framing``;
+a chunk index that misses its chunks while the data section's own CRC holds is not trusted)
 is read through its summary (chunk index and statistics): each chunk is located by its
 index, checked against its CRC and decompressed on its own, so a damaged chunk loses only
 its own messages (counted from the statistics). A file without a trustworthy summary (the
@@ -37,7 +38,8 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.records import (Channel, Chunk, DataEnd, Footer, McapRecord, Message, Metadata,
+                          Schema)
 from mcap.stream_reader import (CRCValidationError, get_chunk_data_stream, MAGIC_SIZE,
                                 read_magic, StreamReader)
 from mcap_ros2.decoder import DecoderFactory
@@ -268,6 +270,40 @@ class McapSource:
                                (start, end) if start is not None and end is not None else None)
         return self._overview_read
 
+    def metadata(self) -> List[Tuple[str, Dict[str, str]]]:
+        """
+        Return the file's metadata records, (name, values), in file order.
+
+        Through the summary's metadata index when the summary can be trusted; otherwise by
+        streaming the data section up to its first unreadable record (what could be read).
+        Does not touch ``report``.
+        """
+        found: List[Tuple[str, Dict[str, str]]] = []
+        with open(self.path, 'rb') as stream:
+            summary, _ = self._summary(stream)
+            if summary is not None:
+                for index in sorted(summary.metadata_indexes, key=lambda item: item.offset):
+                    try:
+                        stream.seek(index.offset)
+                        record = next(StreamReader(stream, skip_magic=True).records)
+                    except READ_ERRORS:
+                        continue
+                    if isinstance(record, Metadata):
+                        found.append((record.name, dict(record.metadata)))
+                return found
+            stream.seek(MAGIC_SIZE)
+            records = StreamReader(stream, skip_magic=True, emit_chunks=True,
+                                   record_size_limit=max(self.report.size_bytes, 1)).records
+            try:
+                for record in records:
+                    if isinstance(record, Metadata):
+                        found.append((record.name, dict(record.metadata)))
+                    elif isinstance(record, DataEnd):
+                        break
+            except READ_ERRORS:
+                pass   # what was read before the damage is all there is
+        return found
+
     # indexed ------------------------------------------------------------------------------
     def _summary(self, stream: io.BufferedReader):
         """Return (summary, '') or (None, why the index cannot be used)."""
@@ -284,11 +320,31 @@ class McapSource:
             return None, 'the summary has no statistics'
         if summary.statistics.message_count and not summary.chunk_indexes:
             return None, 'the messages are not chunked'
+        problem = chunk_index_problem(stream, summary.chunk_indexes)
+        if not problem:
+            return summary, ''
         if not crc_stored:
-            problem = chunk_index_problem(stream, summary.chunk_indexes)
-            if problem:
-                return None, f'summary not used: {problem}'
+            return None, f'summary not used: {problem}'
+        # a summary CRC says the index is as written, not that the writer wrote it right:
+        # when the data section's own CRC holds, it has every chunk the index misplaces; when
+        # it does not, the index is the better guide (a damaged chunk loses only itself)
+        if self._data_section_valid(stream):
+            return None, (f'summary not used: {problem}; the data section, whose CRC is '
+                          'valid, was read instead')
         return summary, ''
+
+    def _data_section_valid(self, stream: io.BufferedReader) -> bool:
+        """Tell whether the data section reads through to a DataEnd whose stored CRC holds."""
+        stream.seek(0)
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True,
+                              record_size_limit=max(self.report.size_bytes, 1))
+        try:
+            for record in reader.records:
+                if isinstance(record, DataEnd):
+                    return bool(record.data_section_crc)
+        except READ_ERRORS:
+            return False
+        return False
 
     def _indexed(self, stream: io.BufferedReader, summary) -> Iterator[RawMessage]:
         """Yield the messages chunk by chunk through the chunk index."""

@@ -6,7 +6,8 @@ Command line of msg_tools (no ROS needed): info, synth, replay, calibrate.
                               [--measured-pose-noise POS_M ANG_DEG [--true-params FILE]
                                [--frame-offset X Y Z RX RY RZ] [--pose-stamp-jitter S]]
     python -m msg_tools replay IN.mcap --out OUT.mcap [--topic NAME] [--params FILE]
-                               [--csv FILE] [--plot FILE.png]
+                               [--csv FILE] [--plot FILE.png] [--fidelity full|rod|cc|auto
+                               [--max-position-error M] [--max-angle-error DEG]]
                                [--workers K | --scheduler ADDRESS]
                                [--estimate COMPONENTS] [--held-force FX FY FZ]
                                [--held-moment MX MY MZ] [--prior-force-sd N]
@@ -31,10 +32,13 @@ import argparse
 import sys
 from typing import Any, Dict, Optional, Sequence, Tuple
 
-from cdr_translator.console import EXIT_BROKEN_PIPE, quiet_sigint, run_command
+from cdr_translator.console import (add_command, CommandParser, EXIT_BROKEN_PIPE, quiet_sigint,
+                                    run_command)
 
 quiet_sigint()  # before the imports below load numpy and the solver: Ctrl-C stays one line
 
+from cdr_translator.interface.fidelity_options import (  # noqa: E402
+    add_fidelity_arguments, fidelity_parameters)
 from cdr_translator.interface.settings import check_value, TranslatorSettings  # noqa: E402
 from msg_tools import synth  # noqa: E402
 from msg_tools.calibration_command import (  # noqa: E402
@@ -49,23 +53,32 @@ from msg_tools.replay_windows import replay_on_dask  # noqa: E402
 from msg_tools.synth import PROFILES  # noqa: E402
 from msg_tools.synth_poses import check_noise, measure  # noqa: E402
 
-__all__ = ['ESTIMATE_FLAGS', 'estimate_parameters', 'EXIT_BROKEN_PIPE', 'main']
+__all__ = ['ESTIMATE_FLAGS', 'EXIT_BROKEN_PIPE', 'main', 'replay_parameters']
 
 
 def _parser() -> argparse.ArgumentParser:
     """Build the argument parser."""
-    parser = argparse.ArgumentParser(prog='python -m msg_tools', description=__doc__.split(
+    parser = CommandParser(prog='python -m msg_tools', description=__doc__.split(
         '\n\n')[0].strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest='command', required=True)
 
-    info = commands.add_parser('info', help='topics, types, counts and time range of an MCAP')
-    info.add_argument('file')
+    info = add_command(commands, 'info', 'topics, types, counts and time range of an MCAP',
+                       'Every chunk is read and its CRC checked; a damaged file is named '
+                       'DAMAGED with what was lost, a partial replay output as PARTIAL.')
+    info.add_argument('file', metavar='FILE.mcap', help='the MCAP file to describe')
     info.add_argument('--no-crc', action='store_true',
                       help='trust the summary: skip reading the chunks and checking CRCs')
 
-    synth = commands.add_parser('synth', help='write a synthetic WrenchStamped sequence')
-    synth.add_argument('output')
-    synth.add_argument('--profile', choices=PROFILES, required=True)
+    synth = add_command(commands, 'synth', 'write a synthetic WrenchStamped sequence',
+                        'Stamps start at 2024-01-01T00:00:00Z; the MCAP log time of each '
+                        'message is its stamp (reproducible files).')
+    synth.add_argument('output', metavar='OUT.mcap', help='the MCAP file written')
+    synth.add_argument('--profile', choices=PROFILES, required=True,
+                       help='ramp: zero to the peak wrench in equal steps; step: zero for the '
+                            'first third, then the peak; sinusoid: the peak times '
+                            'sin(2 pi f t); random-walk: seeded Gaussian increments within the '
+                            "peak; paper: the paper's two Table II cases; hard: large, "
+                            'reversing and invalid inputs a node must survive')
     synth.add_argument('--count', type=int, default=200,
                        help='samples (ramp, step, sinusoid, random-walk); default 200')
     synth.add_argument('--rate', type=float, default=100.0, help='Hz; default 100')
@@ -85,8 +98,11 @@ def _parser() -> argparse.ArgumentParser:
     synth.add_argument('--pose-stamp-jitter', type=float, default=0.0, metavar='S',
                        help='pose stamps = wrench stamps + uniform [-S, S] s; default 0')
 
-    replay = commands.add_parser('replay', help='solve recorded wrenches as the node would')
-    replay.add_argument('input')
+    replay = add_command(commands, 'replay', 'solve recorded wrenches as the node would',
+                         'Writes the inputs and every output translator_node would publish to '
+                         '--out; optionally a CSV row per input message and a plot.')
+    replay.add_argument('input', metavar='IN.mcap',
+                        help='recording holding WrenchStamped (and measured poses)')
     replay.add_argument('--out', required=True, help='output MCAP (inputs + node outputs)')
     replay.add_argument('--topic', action='append',
                         help='wrench topic (repeatable); default: every WrenchStamped channel')
@@ -106,6 +122,7 @@ def _parser() -> argparse.ArgumentParser:
                          help='replay in log-time windows on the Dask cluster at ADDRESS')
     replay.add_argument('--progress', choices=('auto', 'always', 'never'), default='auto',
                         help='progress bar on stderr; auto: when stderr is a terminal')
+    add_fidelity_arguments(replay.add_argument_group('model level'), from_params_file=True)
     estimate = replay.add_argument_group(
         "wrench estimates from measured poses (default: the params file's estimate_* keys)")
     estimate.add_argument('--estimate', metavar='COMPONENTS',
@@ -200,13 +217,15 @@ ESTIMATE_FLAGS = (
 )
 
 
-def estimate_parameters(args: argparse.Namespace) -> Dict[str, Any]:
+def replay_parameters(args: argparse.Namespace) -> Dict[str, Any]:
     """
-    Return the estimate parameters the replay flags given set, checked over ``--params``.
+    Return the node parameters the replay flags given set, checked over ``--params``.
 
-    ValueError naming the flag for a value the node would refuse.
+    The estimate's (``ESTIMATE_FLAGS``) and the model level's (``--fidelity`` and its
+    budget, ``fidelity_options.FIDELITY_FLAGS``). ValueError naming the flag for a value
+    the node would refuse.
     """
-    given: Dict[str, Tuple[str, Any]] = {}
+    given: Dict[str, Tuple[str, Any]] = fidelity_parameters(args)
     for flag, keys in ESTIMATE_FLAGS:
         value = getattr(args, flag[2:].replace('-', '_'))
         if value is None:
@@ -235,7 +254,7 @@ def _run_replay(args: argparse.Namespace) -> int:
         if args.plot:
             check_plot_path(args.plot)
         options = {'topics': args.topic, 'params_path': args.params,
-                   'parameters': estimate_parameters(args),
+                   'parameters': replay_parameters(args),
                    'compliance': not args.no_compliance, 'backbones': args.backbones,
                    'csv_path': args.csv, 'progress': stream,
                    'plot_samples': args.plot_samples or (),
@@ -267,7 +286,8 @@ def _run_replay(args: argparse.Namespace) -> int:
         if summary.series.time_s:
             try:
                 samples = plot_replay(summary.series, args.plot, params_path=args.params,
-                                      samples=args.plot_samples)
+                                      samples=args.plot_samples, level=summary.level_text(),
+                                      origin_ns=summary.first_stamp_ns)
                 print(f'wrote {args.plot} (deflected shapes of messages {samples})')
             except ValueError as error:   # chosen messages that did not converge
                 print(f'error: no plot written: {error}', file=sys.stderr)

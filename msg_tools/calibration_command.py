@@ -24,7 +24,7 @@ from cdr_translator.calibration.pose_error import check_frame, FRAME_NAMES
 from cdr_translator.calibration.pose_fit import (fit_poses, fit_summary, FitResult,
                                                  MAX_REDUCED_CHI_SQUARE, rms_angle_deg,
                                                  rms_position, UnidentifiableError)
-from cdr_translator.console import finite_or_none
+from cdr_translator.console import add_command, finite_or_none
 from cdr_translator.params.translator_params import translator_values, TranslatorParams
 from msg_tools.calibration import fitted_params_text, Pairing, read_pairs
 from msg_tools.calibration_plot import plot_calibration
@@ -46,13 +46,23 @@ def add_frame_option(parser: argparse.ArgumentParser, flag: str, what: str) -> N
 
 def add_parser(commands: Any) -> None:
     """Add the ``calibrate`` subcommand to the subparsers ``commands``."""
-    calibrate = commands.add_parser(
-        'calibrate', help='fit model parameters (and a tracker frame) to measured poses')
-    calibrate.add_argument('inputs', nargs='+', metavar='RUN.mcap')
-    calibrate.add_argument('--fit', nargs='+', default=[], metavar='NAME',
-                           help='translator_node keys to fit, e.g. youngs_modulus tube_length')
-    calibrate.add_argument('--fit-frame', action='store_true',
-                           help='also fit the tracker frame (6 numbers: x y z, rotation vector)')
+    calibrate = add_command(
+        commands, 'calibrate', 'fit model parameters (and a tracker frame) to measured poses',
+        'Pairs each recorded wrench with the measured pose of the same stamp, fits, reports '
+        'the fit and its cross-validation, and writes the fitted keys (--out).',
+        # argparse has no "at least one of": the usage says it, run_calibrate enforces it
+        usage='%(prog)s [-h] (--fit NAME [NAME ...] [--fit-frame] | --fit-frame)\n'
+              '       [--frame N N N N N N] [--params PARAMS] [--out OUT] [--json] '
+              '[--plot PLOT]\n       [--stamp-tolerance S] [--sigma POS_M ANG_DEG] '
+              '[--folds FOLDS]\n       RUN.mcap [RUN.mcap ...]')
+    calibrate.add_argument('inputs', nargs='+', metavar='RUN.mcap',
+                           help='recordings holding wrenches and measured end-disk poses')
+    fitted = calibrate.add_argument_group(
+        'what to fit (required: --fit, --fit-frame or both)')
+    fitted.add_argument('--fit', nargs='+', default=[], metavar='NAME',
+                        help='translator_node keys to fit, e.g. youngs_modulus tube_length')
+    fitted.add_argument('--fit-frame', action='store_true',
+                        help='fit the tracker frame (6 numbers: x y z, rotation vector)')
     add_frame_option(calibrate, '--frame', 'tracker frame when not fitted')
     calibrate.add_argument('--params', help='params file of the starting values (default: '
                                             'config/translator.yaml)')

@@ -7,14 +7,17 @@ file is reported as such with what was lost, even when its summary is intact (a 
 summary is not used: the data section is read through, ``cdr_wire.reader``).
 ``verify=False`` (``--no-crc``) takes the counts from the summary without reading the
 chunks (fast, for trusted files). Memory stays bounded: messages are counted as they
-stream by.
+stream by. A replay's output that holds only part of the replay (interrupted, a write
+error: its ``msg_tools.replay`` metadata record says 'partial') is named PARTIAL, however
+intact the file.
 """
 
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Union
+from typing import Dict, List, Tuple, Union
 
 from cdr_wire.reader import McapSource, ReadReport
+from msg_tools.replay_summary import REPLAY_RECORD
 
 
 def _utc(time_ns: int) -> str:
@@ -33,6 +36,26 @@ def damage_text(report: ReadReport) -> str:
     return 'DAMAGED: ' + report.describe()
 
 
+def replay_text(metadata: List[Tuple[str, Dict[str, str]]]) -> str:
+    """
+    Return what a replay's output says of itself ('' for a file no replay wrote).
+
+    'PARTIAL: ...' when its record says the replay stopped early (the file can be intact
+    and still hold only the first messages of the input).
+    """
+    records = [values for name, values in metadata if name == REPLAY_RECORD]
+    if not records:
+        return ''
+    values = records[-1]
+    counts = (f"{values.get('messages_replayed', '?')} of "
+              f"{values.get('messages_in_input', 'unknown')} input messages replayed")
+    level = f", fidelity {values['fidelity']}" if values.get('fidelity') else ''
+    if values.get('status') == 'complete':
+        return f'complete replay output: {counts}{level}'
+    reason = values.get('reason') or 'stopped early'
+    return f'PARTIAL replay output ({reason}): only {counts}{level}'
+
+
 def describe(path: Union[str, Path], verify: bool = True) -> str:
     """Return the info text of ``path``; salvages a damaged file and says so."""
     source = McapSource(path, check_data_crc=verify)
@@ -48,6 +71,9 @@ def describe(path: Union[str, Path], verify: bool = True) -> str:
         if verify:
             read += f'; {_DATA_CRC[source.data_crc]}'
     lines = [f'file:      {source.path} ({report.size_bytes} bytes)', f'read:      {read}']
+    replayed = replay_text(source.metadata())
+    if replayed:
+        lines.append(f'replay:    {replayed}')
     total = sum(counts.values()) if counts else 0
     lines.append(f'messages:  {total}')
     if span is not None:

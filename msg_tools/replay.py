@@ -8,7 +8,8 @@ publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /d
 and, on request, backbones) with header stamps equal to the input stamps and log times equal
 to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
 gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
-(``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
+(``msg_tools.replay_estimates``). Optionally a CSV row per input message
+(``msg_tools.replay_csv``) and a plot. No rclpy needed.
 Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
 batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 
@@ -34,8 +35,9 @@ from msg_tools.errors import OutputError, ReplayError
 from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.output_paths import check_distinct, check_output
+from msg_tools.replay_csv import CSV_COLUMNS, csv_row, wrench_row
 from msg_tools.replay_estimates import pose_processors, register_poses, replay_pose
-from msg_tools.replay_summary import ReplaySummary
+from msg_tools.replay_summary import fidelity_text, REPLAY_RECORD, ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
 import numpy as np
 
@@ -43,15 +45,6 @@ import numpy as np
 #: enough that a block's Python overhead is shared, few enough that memory and the work
 #: lost to an interrupt stay small.
 BLOCK_SIZE = 256
-
-#: CSV columns, one row per input message (SI units, radians).
-CSV_COLUMNS = (
-    ['index', 'topic', 'stamp_ns', 'log_time_ns', 'frame_id', 'fx_n', 'fy_n', 'fz_n',
-     'mx_nm', 'my_nm', 'mz_nm', 'status', 'message', 'iterations', 'residual_norm',
-     'solve_time_ms']
-    + [f'{name}_rad' for name in messages.JOINT_NAMES]
-    + ['x_m', 'y_m', 'z_m', 'qx', 'qy', 'qz', 'qw']
-    + [f'compliance_eigenvalue_{k}' for k in range(1, 7)])
 
 
 class Progress:
@@ -85,25 +78,6 @@ class Progress:
         self.update(done, force=True)
         self.stream.write('\n')
         self.stream.flush()
-
-
-def _csv_row(index: int, raw, force, moment, frame_id, stamp_ns, outcome) -> list:
-    """Return one CSV row (empty cells where there is no value)."""
-    row = [index, raw.topic, stamp_ns, raw.log_time_ns, frame_id, *force, *moment]
-    result = outcome.result
-    if result is None:
-        return row + [outcome.error.split(':')[0], outcome.error] + [''] * (
-            len(CSV_COLUMNS) - len(row) - 2)
-    row += ['solved' if result.converged else 'not converged', result.message,
-            result.iterations, result.residual_norm, 1e3 * result.solve_time_s]
-    if not result.converged:
-        return row + [''] * (len(CSV_COLUMNS) - len(row))
-    row += messages.joint_positions(result)
-    row += result.end_disk_position.tolist() + result.end_disk_quaternion_xyzw.tolist()
-    compliance = getattr(result, 'compliance', None)
-    row += ([float(v) for v in compliance.eigenvalues] if compliance is not None
-            else [''] * 6)
-    return row
 
 
 class _Block:
@@ -168,9 +142,9 @@ class _Block:
         self.summary.undecodable += 1
         self.summary.warn(f'message {index} on {raw.topic}: {error}')
         if self.table:
-            row = ([index, raw.topic, '', raw.log_time_ns, ''] + [''] * 6
-                   + ['undecodable', str(error)])
-            self.table.writerow(row + [''] * (len(CSV_COLUMNS) - len(row)))
+            self.table.writerow(csv_row({'index': index, 'topic': raw.topic,
+                                         'log_time_ns': raw.log_time_ns,
+                                         'status': 'undecodable', 'message': str(error)}))
         if self.bar:
             self.bar.update(self.summary.messages)
 
@@ -185,11 +159,14 @@ class _Block:
         result = outcome.result
         if result is None:
             summary.rejected += 1
+            summary.series.add_gap(stamp_ns, 'rejected')
         elif not result.converged:
             summary.not_converged += 1
+            summary.series.add_gap(stamp_ns, 'not converged')
             summary.solve_times.add(result.solve_time_s)
         else:
             summary.solved += 1
+            summary.count_level(result.fidelity)
             summary.solve_times.add(result.solve_time_s)
             if summary.first_stamp_ns is None:
                 summary.first_stamp_ns = stamp_ns
@@ -199,8 +176,8 @@ class _Block:
             summary.series.add(index, 1e-9 * (stamp_ns - summary.first_stamp_ns), joints,
                                position, np.concatenate([result.force, result.moment]))
         if self.table:
-            self.table.writerow(_csv_row(index, raw, force, moment, frame_id, stamp_ns,
-                                         outcome))
+            self.table.writerow(wrench_row(index, raw, force, moment, frame_id, stamp_ns,
+                                           outcome))
         if self.bar:
             self.bar.update(summary.messages)
 
@@ -259,7 +236,10 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     estimators = pose_processors(poses, settings)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
-    summary = ReplaySummary(source.report, chosen, warnings, total=total)
+    summary = ReplaySummary(source.report, chosen, warnings, total=total,
+                            fidelity=fidelity_text(settings.fidelity,
+                                                   settings.max_position_error,
+                                                   settings.max_angle_error))
     summary.series.keep = frozenset(plot_samples)
     decoders = ShippedDecoders()
 
@@ -295,7 +275,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                     if raw.topic in estimators:
                         if not block.flush():
                             break
-                        replay_pose(log, raw, estimators[raw.topic], decoders, summary, index)
+                        replay_pose(log, raw, estimators[raw.topic], decoders, summary, index,
+                                    table)
                         continue
                     try:
                         wrench = messages.wrench_from_message(decoders.decode(raw))
@@ -314,6 +295,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                 summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
             summary.settle()
+            log.add_metadata(REPLAY_RECORD, summary.record())   # 'partial' if stopped early
             summary.output_status = log.close()
             if csv_file:
                 try:

@@ -12,7 +12,7 @@ the table ``python -m msg_tools replay`` prints; ``EXIT_CODES`` its exit codes
 
 from dataclasses import dataclass, field
 import math
-from typing import Collection, Dict, List, Optional
+from typing import Collection, Dict, List, Optional, Tuple
 
 from cdr_translator.interface.joint_summary import JointSummary
 from cdr_wire.log_status import LogStatus
@@ -42,6 +42,10 @@ EXIT_CODES: Dict[int, str] = {
                       'done',
 }
 
+#: Name of the metadata record a replay's output MCAP ends with (``ReplaySummary.record``):
+#: whether it holds the whole replay ('complete') or only part of it ('partial').
+REPLAY_RECORD = 'msg_tools.replay'
+
 #: Most points kept in ``Series`` (thinned by halves beyond that).
 SERIES_LIMIT = 5_000
 #: Most per-message warnings kept (the rest are counted).
@@ -65,6 +69,15 @@ class Series:
     limit: int = field(default_factory=lambda: SERIES_LIMIT)
     keep: Collection[int] = ()
     stride: int = 1
+    #: Messages without an answer to plot: (header stamp ns, 'rejected' or 'not
+    #: converged'); at most ``limit``, thinned by halves beyond that.
+    gaps: List[Tuple[int, str]] = field(default_factory=list)
+
+    def add_gap(self, stamp_ns: int, kind: str) -> None:
+        """Remember a message that was rejected or did not converge, for the plot."""
+        self.gaps.append((stamp_ns, kind))
+        if len(self.gaps) > self.limit:
+            self.gaps = self.gaps[::2]
 
     def add(self, index: int, time_s: float, joints: List[float], position: List[float],
             wrench: np.ndarray) -> None:
@@ -92,6 +105,9 @@ class Series:
         coarser stride of the two, doubled until at most ``limit`` points remain.
         """
         self.stride = max(self.stride, later.stride)
+        self.gaps += later.gaps
+        while len(self.gaps) > self.limit:
+            self.gaps = self.gaps[::2]
         self.time_s += [time_s + time_shift_s for time_s in later.time_s]
         for name in ('joints', 'position', 'index', 'wrench'):
             getattr(self, name).extend(getattr(later, name))
@@ -180,12 +196,46 @@ class ReplaySummary:
     first_stamp_ns: Optional[int] = None
     #: Joint angles and positions of converged messages not counted yet (``settle``).
     pending: List[List[float]] = field(default_factory=list, repr=False)
+    #: The model level asked for (translator_node's ``fidelity``, with the budget of
+    #: 'auto': ``fidelity_text``); '' when not said.
+    fidelity: str = ''
+    #: Converged messages by the level that answered them ('full', 'cc', ...).
+    levels: Dict[str, int] = field(default_factory=dict)
+
+    def count_level(self, level: str) -> None:
+        """Count a converged message answered at ``level``."""
+        self.levels[level] = self.levels.get(level, 0) + 1
+
+    def level_text(self) -> str:
+        """Return the level asked for and those that answered ('auto (...); answered by ...')."""
+        answered = ', '.join(f'{count} {level}' for level, count in sorted(
+            self.levels.items(), key=lambda item: -item[1]))
+        if not answered:
+            return self.fidelity or 'not said'
+        if list(self.levels) == [self.fidelity]:
+            return self.fidelity
+        return f'{self.fidelity or "not said"}; answered by {answered}'
 
     @property
     def stopped_early(self) -> bool:
         """Tell whether the replay ended before the input did (Ctrl-C or a write error)."""
         return self.interrupted or bool(self.output_error) or bool(
             self.output_status is not None and self.output_status.lost)
+
+    def record(self) -> Dict[str, str]:
+        """
+        Return the metadata (``REPLAY_RECORD``) the output MCAP ends with.
+
+        'status' is 'partial' when the replay stopped before the input ended (Ctrl-C, a
+        write error; 'reason' says which), else 'complete'; the message counts and the
+        model level go with it.
+        """
+        reason = ('interrupted (Ctrl-C)' if self.interrupted
+                  else self.output_error or ('write error' if self.stopped_early else ''))
+        return {'status': 'partial' if self.stopped_early else 'complete', 'reason': reason,
+                'messages_replayed': str(self.messages),
+                'messages_in_input': 'unknown' if self.total is None else str(self.total),
+                'fidelity': self.fidelity}
 
     def not_replayed(self) -> str:
         """Return how much of the input a replay that stopped early left (for the table)."""
@@ -240,6 +290,9 @@ class ReplaySummary:
             setattr(self, name, getattr(self, name) + getattr(later, name))
         for text in later.warnings:
             self.warn(text)
+        for level, count in later.levels.items():
+            self.levels[level] = self.levels.get(level, 0) + count
+        self.fidelity = self.fidelity or later.fidelity
         self.solve_times.merge(later.solve_times)
         self.estimate_times.merge(later.estimate_times)
         self.joints.merge(later.joints)
@@ -287,6 +340,7 @@ class ReplaySummary:
             read += ' up to where the replay stopped'
         rows = [('input', read),
                 ('wrench topics', ', '.join(self.topics)),
+                ('fidelity (model level)', self.level_text()),
                 ('messages', str(self.messages)),
                 ('solved (converged)', str(self.solved)),
                 ('not converged', str(self.not_converged)),
@@ -321,3 +375,12 @@ class ReplaySummary:
             rows.append(('not replayed', self.not_replayed()))
         width = max(len(name) for name, _ in rows)
         return '\n'.join(f'{name:<{width}}  {value}' for name, value in rows)
+
+
+def fidelity_text(fidelity: str, max_position_error: float, max_angle_error: float) -> str:
+    """Return the model level asked for as the summary and the plot name it ('auto (...)')."""
+    if fidelity != 'auto':
+        return fidelity
+    if max_position_error <= 0.0 or max_angle_error <= 0.0:   # as fidelity.admission reads it
+        return 'auto (no error budget: it needs a position and an angle error, so full)'
+    return f'auto (budget {1e3 * max_position_error:g} mm, {max_angle_error:g} deg)'

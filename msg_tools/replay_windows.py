@@ -36,8 +36,9 @@ from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.part_merge import PartMerger
-from msg_tools.replay import CSV_COLUMNS, Progress, replay
-from msg_tools.replay_summary import ReplaySummary
+from msg_tools.replay import Progress, replay
+from msg_tools.replay_csv import CSV_COLUMNS
+from msg_tools.replay_summary import fidelity_text, REPLAY_RECORD, ReplaySummary
 from msg_tools.replay_topics import select_topics
 
 #: Fewest messages per window: shorter windows spend too much on warm-up and reading.
@@ -110,8 +111,9 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
         raise ValueError(f'--workers must be at least 1, got {workers}')
     _check_outputs(input_path, [('output MCAP', output_path), ('CSV', csv_path),
                                 *other_outputs])
+    settings = TranslatorSettings.from_params_file(params_path)
     if parameters:  # refused here, not in every window
-        TranslatorSettings.from_params_file(params_path).with_values(**parameters)
+        settings = settings.with_values(**parameters)
     source = McapSource(input_path)
     chosen, warnings, total, _ = select_topics(source, topics)
     span = source.channel_overview()[3]
@@ -124,7 +126,10 @@ def replay_on_dask(input_path: Union[str, Path], output_path: Union[str, Path], 
     if owned:
         client, cluster = dask_client(workers, scheduler)
     parts = Path(tempfile.mkdtemp(prefix='.replay-parts-', dir=Path(output_path).parent))
-    summary = ReplaySummary(source.report, chosen, warnings, total=total)
+    summary = ReplaySummary(source.report, chosen, warnings, total=total,
+                            fidelity=fidelity_text(settings.fidelity,
+                                                   settings.max_position_error,
+                                                   settings.max_angle_error))
     summary.series.keep = frozenset(plot_samples)
     futures: List[Any] = []   # distributed.Future (distributed is the atlas's optional extra)
     try:
@@ -191,6 +196,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
         except OSError as error:
             summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
+            log.add_metadata(REPLAY_RECORD, summary.record())   # 'partial' if stopped early
             summary.output_status = log.close()
             if table:
                 table.close()

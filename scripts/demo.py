@@ -101,14 +101,28 @@ def summary(recorded: Path, latencies_ms: Sequence[float]) -> List[Tuple[str, st
     return rows
 
 
+def demo_parser() -> argparse.ArgumentParser:
+    """Return the demo's argument parser (every flag with its help)."""
+    parser = argparse.ArgumentParser(
+        description='translator_node live on sample bags over DDS, recorded to MCAP, '
+                    'summarized.')
+    parser.add_argument('--bags', type=Path, nargs='+', default=list(DEFAULT_BAGS),
+                        metavar='FILE.mcap',
+                        help='WrenchStamped recordings played to the node, in order, with '
+                             'their timing (default: bags/sinusoid_oblique.mcap, then '
+                             'bags/hard_cases.mcap)')
+    parser.add_argument('--out', type=Path, default=ROOT / 'cdr_runs' / datetime.datetime.now(
+        datetime.timezone.utc).strftime('demo_%Y-%m-%d_%H-%M-%S.mcap'), metavar='FILE.mcap',
+        help="the node's MCAP log (default: cdr_runs/demo_<UTC time>.mcap); its console "
+             'output goes beside it (.log)')
+    parser.add_argument('--speed', type=float, default=1.0, metavar='FACTOR',
+                        help='playback speed factor: 2 plays twice as fast (default: 1)')
+    return parser
+
+
 def main() -> int:
     """Run the demo; return the exit code."""
-    parser = argparse.ArgumentParser(description='translator_node on a sample bag.')
-    parser.add_argument('--bags', type=Path, nargs='+', default=list(DEFAULT_BAGS))
-    parser.add_argument('--out', type=Path, default=ROOT / 'cdr_runs' / datetime.datetime.now(
-        datetime.timezone.utc).strftime('demo_%Y-%m-%d_%H-%M-%S.mcap'))
-    parser.add_argument('--speed', type=float, default=1.0, help='playback speed factor')
-    args = parser.parse_args()
+    args = demo_parser().parse_args()
     bags = [(bag, read_wrenches(bag)) for bag in args.bags]
     env = isolated_ros_env()
     os.environ.update(env)

@@ -4,7 +4,8 @@ Readability checks of a matplotlib Figure, shared by the figure tests.
 A figure is drawn once on an Agg canvas while every Text artist that actually draws is
 recorded with its window extent (tick labels of ticks outside the view are never drawn,
 so they are never counted). Then: no two drawn texts overlap, no text lies on another
-axes (a colour bar over a 3-D axis label), every panel has a title, every axis that shows
+axes (a colour bar over a 3-D axis label), no text is cut by the figure's edge (a legend
+placed past it), every panel has a title, every axis that shows
 tick labels has a label with a unit in parentheses or brackets, and every short line has
 markers.
 """
@@ -58,9 +59,14 @@ def _is_colour_bar(axes: Axes) -> bool:
 
 
 def text_problems(figure: Figure) -> List[str]:
-    """Return what overlaps: text on text, and text on an axes it does not belong to."""
+    """Return what overlaps: text on text, on an axes it does not belong to, off the page."""
     drawn = drawn_texts(figure)
     problems = []
+    page = figure.bbox
+    for text, extent in drawn:
+        if (extent.x0 < page.x0 - TOLERANCE_PX or extent.y0 < page.y0 - TOLERANCE_PX
+                or extent.x1 > page.x1 + TOLERANCE_PX or extent.y1 > page.y1 + TOLERANCE_PX):
+            problems.append(f'{text.get_text()!r} is cut by the edge of the figure')
     for k, (text, extent) in enumerate(drawn):
         for other, other_extent in drawn[k + 1:]:
             if _overlap(extent, other_extent):

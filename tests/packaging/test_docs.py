@@ -15,6 +15,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / 'README.md'
+#: Markdown pages outside docs/ that GitHub shows a reader (a folder's README).
+FOLDER_READMES = [ROOT / 'bags' / 'README.md']
 DOCS = sorted(path for path in (ROOT / 'docs').rglob('*.md') if '_build' not in path.parts)
 #: The README stays a front page; everything else lives in docs/.
 README_MAX_BYTES = 12 * 1024
@@ -38,7 +40,7 @@ DIARY = re.compile(r'what would (?:remove|reach)[ ]', re.IGNORECASE)
 JOURNAL = re.compile(r'session [0-9]|\bissue[ -]?#?[0-9]|this[ ]branch|\*\*changed', re.IGNORECASE)
 #: Where journal wording is looked for (CHANGELOG.rst is the one place for history).
 JOURNAL_PLACES = ('docs', 'README.md', 'tests', 'cdr_translator', 'cdr_wire', 'msg_tools',
-                  'bench', 'scripts')
+                  'bench', 'scripts', 'bags/README.md', 'config')
 JOURNAL_SUFFIXES = {'.md', '.py', '.rst', '.txt', '.yaml', '.cfg'}
 #: A path outside the repository: the parent of the checkout, or an absolute path.
 OUTSIDE_PATH = re.compile(r'\.\./shared|(?<![\w.~])/(?:home|tmp|work|root|mnt)/')
@@ -97,11 +99,12 @@ def test_docs_exist():
         assert name in names, name
 
 
-@pytest.mark.parametrize('path', [README] + DOCS, ids=lambda path: path.name)
+@pytest.mark.parametrize('path', [README] + FOLDER_READMES + DOCS,
+                         ids=lambda path: path.relative_to(ROOT).as_posix())
 def test_relative_links_resolve(path):
     """Every relative link (and its #anchor, if a Markdown heading) points to something."""
     links = _relative_links(path)
-    assert links or path != README, 'the README links to nothing'
+    assert links or path not in [README] + FOLDER_READMES, f'{path.name} links to nothing'
     for file_part, fragment in links:
         target = (path.parent / file_part).resolve() if file_part else path
         assert target.exists(), f'{path.name}: broken link {file_part}'
@@ -192,3 +195,13 @@ def test_no_paths_outside_the_repository(path):
         if file_part:
             target = (path.parent / file_part).resolve()
             assert ROOT in target.parents, f'{path.name} links outside the repository: {file_part}'
+
+
+def test_params_file_states_the_refinement_limit_of_the_code():
+    """config/translator.yaml's comment on the refinement gives the code's step limit."""
+    text = (ROOT / 'config' / 'translator.yaml').read_text(encoding='utf-8')
+    stated = re.findall(r'at most (\d+)\)', text)
+    limit = re.search(r'^MAX_STEPS_PER_SEGMENT = (\d+)$', (
+        ROOT / 'cdr_translator' / 'params' / 'translator_params.py').read_text(
+            encoding='utf-8'), re.MULTILINE)
+    assert limit is not None and stated == [limit.group(1)]
