@@ -10,11 +10,13 @@ import math
 from cdr_translator import TranslatorSolver
 from cdr_translator._linalg import factorize, solve_lu
 from cdr_translator.analysis.stability import pose_twist
+from cdr_translator.cli import main
 from cdr_translator.params.translator_params import Accuracy
 from cdr_translator.robot.delta import DeltaRobot
-from cdr_translator.robot.held_leg import held_reference, held_verdict, HeldReference
+from cdr_translator.robot.held_leg import euler_critical_load, held_reference, held_verdict
+from cdr_translator.robot.held_leg import HeldReference
 from cdr_translator.robot.linearization import chain_verdict
-from cdr_translator.studies.buckling import euler_critical_load, held_critical_compression
+from cdr_translator.studies.buckling import held_critical_compression
 import numpy as np
 import pytest
 
@@ -74,6 +76,27 @@ def test_held_verdict_on_both_sides_of_the_held_buckling_load(held, params):
     assert below.parity_ok and above.parity_ok
     # past the free-end buckling load both legs are unstable under a dead tip load
     assert below.negative_stiffness_directions >= 2
+
+
+def test_a_leg_in_tension_is_said_to_be_in_tension(params):
+    """A tension reads as one in the verdict and the table, never as a negative compression."""
+    unloaded = straight_leg(params, 0.0)
+    origin = held_reference(unloaded[0], unloaded[1], params.stack_height, 1110.0)
+    pulled = held_verdict(*straight_leg(params, -233.6), origin)
+    assert pulled.stable is True and pulled.axial_load_n == pytest.approx(-233.6)
+    assert 'tension 233.6 N, below the held buckling load 1110 N' in pulled.message
+    assert 'compression' not in pulled.message and '-233' not in pulled.message
+    pushed = held_verdict(*straight_leg(params, 233.6), origin)
+    assert 'compression 233.6 N, below the held buckling load' in pushed.message
+
+
+def test_delta_table_prints_a_tension_as_one(capsys):
+    """`delta` under 500 N pulling the platform away from the base: each leg in tension."""
+    assert main(['delta', '--sliders', '0', '0', '0', '--payload', '0', '0', '-500']) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith('legs held at both ends'))
+    assert row.count('tension') == 3 and 'compression' not in row and '-' not in row
+    assert 'N, held buckling load' in row
 
 
 def test_perturbed_held_solves_confirm_both_sides(held):
