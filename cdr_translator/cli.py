@@ -257,7 +257,7 @@ def _inverse_table(result: InverseResult) -> str:
             ('sliders', _mm(data['sliders_m'])),
             ('target', _mm(data['target_m'])),
             ('platform position', _mm(data['platform_position_m'])),
-            ('position error', f"{1e3 * data['position_error_m']:.3g} mm"),
+            ('position error', f"{1e3 * data['position_error_m']:.5g} mm"),
             ('platform rotation', f"{data['platform_rotation_deg']:.4f} deg (parasitic)"),
             ('binding limits', ', '.join(data['binding_limits']) or 'none'),
             ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "

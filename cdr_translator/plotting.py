@@ -67,8 +67,8 @@ def colour_scale(values: np.ndarray, name: str, unit: str,
     Return the honest colour scale of ``values`` (already in ``unit``).
 
     A colour bar stretched to the data's range paints a tiny variation as a large one, so
-    the colours span at least COLOUR_SPAN_AT_LEAST of the mean (centred on the data), and
-    the note says what they span when it is more than the data. A spread under
+    the colours span at least COLOUR_SPAN_AT_LEAST of the mean (centred on the data; the
+    colour bar shows what they span, the note what the data span). A spread under
     RELATIVE_BELOW of the mean is shown as per cent from the mean, in the diverging
     DEVIATION_COLOURS (the mean pale, ``colour_map`` otherwise), and the note says how
     small it is; a constant quantity gets no scale at all.
@@ -86,15 +86,13 @@ def colour_scale(values: np.ndarray, name: str, unit: str,
         return ColourScale(100.0 * (values / mean - 1.0),
                            f'{name} (% from its mean {mean:.3g} {unit})', False,
                            f'varies by only {100.0 * spread / size:.2g} % around '
-                           f'{mean:.3g} {unit} (colours span \u00b1{half:g} %)',
-                           (-half, half), DEVIATION_COLOURS)
+                           f'{mean:.3g} {unit}', (-half, half), DEVIATION_COLOURS)
     low, high = float(np.min(values)), float(np.max(values))
     note = f'{low:.3g} to {high:.3g} {unit}'
     widen = COLOUR_SPAN_AT_LEAST * size - spread
-    if widen > 0.0:
-        low, high = low - 0.5 * widen, high + 0.5 * widen
-        note += f' (colours span {low:.3g} to {high:.3g})'
-    return ColourScale(values, f'{name} ({unit})', False, note, (low, high), colour_map)
+    return ColourScale(values, f'{name} ({unit})', False, note,
+                       (low - 0.5 * widen, high + 0.5 * widen) if widen > 0.0 else (low, high),
+                       colour_map)
 
 
 def thin_ticks(axes: Axes, bins: Sequence[int]) -> None:
