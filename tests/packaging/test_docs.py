@@ -192,3 +192,23 @@ def test_no_paths_outside_the_repository(path):
         if file_part:
             target = (path.parent / file_part).resolve()
             assert ROOT in target.parents, f'{path.name} links outside the repository: {file_part}'
+
+
+def test_the_two_atlas_rates_say_why_they_differ():
+    """
+    Two benchmark files rate the full-leg atlas: each says under what conditions.
+
+    robot_levels.md times one chunk in one process, atlas_scale.md the `atlas` command's
+    chunks on Dask workers with Zarr writes: each names the other, and the benchmarks page
+    explains the difference, so that two different samples/s do not read as a contradiction.
+    """
+    results = ROOT / 'bench' / 'results'
+    levels = (results / 'robot_levels.md').read_text(encoding='utf-8')
+    scale = (results / 'atlas_scale.md').read_text(encoding='utf-8')
+    assert 'one chunk' in levels and 'no Dask, no Zarr' in levels
+    assert 'atlas_scale.md' in levels
+    assert 'Each chunk starts cold' in scale and 'robot_levels.md' in scale
+    page = (ROOT / 'docs' / 'howto' / 'benchmarks.md').read_text(encoding='utf-8')
+    section = page.split('## Two atlas rates', 1)[1].split('\n## ', 1)[0]
+    assert 'robot_levels.md' in section and 'atlas_scale.md' in section
+    assert 'starts cold' in section and 'Dask' in section
