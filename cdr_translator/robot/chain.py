@@ -141,8 +141,8 @@ class Chain:
                     residual[6 * k + 3:6 * k + 6] = rotation_vector(
                         state.frames[k, :3, :3] @ target.T)
                 except ValueError as error:  # an improper matrix: the shot diverged
-                    raise ArithmeticError(f'leg {k + 1}\'s end-disk frame is no rotation: its '
-                                          'shot diverged') from error
+                    raise ArithmeticError(f'the end-disk frame of leg {k + 1} is no rotation: '
+                                          'its shot diverged') from error
         return residual
 
     def input_sensitivity(self, state: ChainState, inputs: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ import math
 from cdr_translator import geometry, ParameterError, TranslatorParams
 from cdr_translator.cli import main
 from cdr_translator.interface.settings import CdrSettings
+from cdr_translator.robot.chain import Chain, ChainState
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.params import CDR_NODE_NAME, DeltaParams
@@ -272,6 +273,21 @@ def test_cli_delta_upward_payload_past_the_free_end_buckling_load(capsys):
     assert data['converged'] is True and data['stable'] is True
     assert data['message'] == 'converged'
     assert max(max(leg) for leg in data['leg_bending_deg']) < 15.0  # not a far branch
+
+
+def test_a_diverged_leg_frame_is_an_arithmetic_error(robot):
+    """
+    A leg shot whose end-disk frame is no rotation fails the Newton step that made it.
+
+    An ArithmeticError, which the continuation answers by a shorter step, not scipy's
+    ValueError out of ``solve`` (seen on a coupled walk from home to 1000 N).
+    """
+    chain = Chain(robot.legs, robot.params)
+    state = ChainState(robot.home_position.copy(), np.eye(3), np.zeros((3, 6)),
+                       np.zeros((3, 1)), frames=np.tile(np.eye(4), (3, 1, 1)))
+    state.frames[1, :3, :3] = np.diag([-1e10, -3e9, -2e9])  # improper, far from a rotation
+    with pytest.raises(ArithmeticError, match='end-disk frame of leg 2 is no rotation'):
+        chain.residual(state, np.zeros(12))
 
 
 @pytest.mark.parametrize('kwargs, fragment', [

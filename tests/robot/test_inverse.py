@@ -157,7 +157,7 @@ def test_cli_delta_ik_table_says_what_happened(capsys):
 
 
 def test_cli_delta_ik_table_is_in_mm_and_counts_in_words(capsys):
-    """Every length of the table in mm, the position error too; '1 iteration', '1 forward solve'."""
+    """Every length of the table in mm, the position error too; '1 iteration', 'forward solve'."""
     assert main(['delta-ik', '--target', '0.001', '0', '-0.127']) == 0
     rows = dict(re.split(r'\s{2,}', line, maxsplit=1)
                 for line in capsys.readouterr().out.splitlines())
