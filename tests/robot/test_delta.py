@@ -7,8 +7,8 @@ import math
 from cdr_translator import geometry, ParameterError, TranslatorParams
 from cdr_translator.cli import main
 from cdr_translator.interface.settings import CdrSettings
-from cdr_translator.robot.chain import Chain, ChainState
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
+from cdr_translator.robot.chain import Chain, ChainState
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.params import CDR_NODE_NAME, DeltaParams
 import numpy as np
