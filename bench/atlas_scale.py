@@ -58,15 +58,18 @@ def _measure(spec: AtlasSpec, chunk_size: int, client, label: str, rows: List[di
 
 
 def _serial(spec: AtlasSpec, chunk_size: int, rows: List[dict]) -> None:
+    """In one process: the chunks of the clusters' runs, then all samples as one chunk."""
     solve_chunk(AtlasSpec.build(2, [GRAVITY_1KG]), 0, 1)
-    load = os.getloadavg()[0]
-    started = time.perf_counter()
-    for start, stop in chunk_bounds(spec.size, chunk_size):
-        solve_chunk(spec, start, stop)
-    elapsed = time.perf_counter() - started
-    rows.append({'label': 'in-process, no Dask, no Zarr', 'workers': 1, 'samples': spec.size,
-                 'seconds': elapsed, 'rate': spec.size / elapsed, 'load': load})
-    print(json.dumps(rows[-1]), flush=True)
+    for size, label in ((chunk_size, 'in-process, no Dask, no Zarr'),
+                        (spec.size, 'in-process, no Dask, no Zarr, one chunk of all samples')):
+        load = os.getloadavg()[0]
+        started = time.perf_counter()
+        for start, stop in chunk_bounds(spec.size, size):
+            solve_chunk(spec, start, stop)
+        elapsed = time.perf_counter() - started
+        rows.append({'label': label, 'workers': 1, 'samples': spec.size, 'seconds': elapsed,
+                     'rate': spec.size / elapsed, 'load': load})
+        print(json.dumps(rows[-1]), flush=True)
 
 
 def _separate_processes(spec: AtlasSpec, chunk_size: int, rows: List[dict]) -> None:
@@ -199,7 +202,13 @@ def main() -> None:
         '',
         f'## Atlas throughput ({spec.size} samples = {args.grid}^3 slider grid x 1 payload '
         f'(1 kg), chunks of {args.chunk_size}; every sample a forward solve plus its '
-        'platform compliance; Zarr writes included except in the first row)',
+        'platform compliance; Zarr writes included except in the in-process rows)',
+        '',
+        'Each chunk starts cold (from home), its samples then warm from each other: '
+        'the fewer the chunks, the fewer the cold solves. bench/results/robot_levels.md '
+        'times one chunk of 4^3 samples in one process, no Dask, no Zarr (the solver, to '
+        'compare the leg levels), so its full-leg rate is higher than these (the `atlas` '
+        "command's path, to size a sweep with).",
         '',
         '| executor | workers | samples | wall time (s) | samples/s | load avg at start |',
         '| --- | ---: | ---: | ---: | ---: | ---: |',

@@ -132,7 +132,10 @@ def main() -> None:
                      f"{values['unvalidated_share']:.0%} of solves |")
     lines += ['', 'Speed: warm forward statics along the slider circle (1 kg, no compliance, '
               'median; with the mean Newton iterations and leg Jacobians made per solve) and '
-              'atlas samples/s (one process, compliance and verdicts):', '',
+              'atlas samples/s (one chunk of grid^3 samples, started cold, in one process: '
+              f'grids {ATLAS_GRID}; compliance and verdicts, no Dask, no Zarr: the '
+              "solver's rate; the `atlas` command's, in chunks on Dask workers with Zarr "
+              'writes, is in atlas_scale.md):', '',
               '| level | warm forward statics | vs full | iterations | leg Jacobians | '
               'atlas samples/s | vs full |',
               '|---|---|---|---|---|---|---|']

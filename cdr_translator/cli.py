@@ -48,6 +48,7 @@ from .params.translator_params import (Accuracy, DEFAULT_PARAMS_PATH, ParameterE
                                        TranslatorParams)
 from .robot.atlas import run_cli as run_atlas
 from .robot.delta import DeltaRobot
+from .robot.held_leg import axial_load_text
 from .robot.inverse import InverseResult
 from .robot.levels import ROBOT_FIDELITIES
 from .robot.result import DeltaResult
@@ -215,7 +216,7 @@ def _delta_table(result: DeltaResult) -> str:
             ('platform rotation', f"{data['platform_rotation_deg']:.3e} deg"),
             ('equilibrium residual', f"{data['equilibrium_residual_norm']:.3e} (N, N m)"),
             ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "
-                           f"({data['leg_solves']} leg solves)")]
+                           f"({_counted(data['leg_solves'], 'leg solve')})")]
     rows.extend(_stability_rows(data))
     for leg, ((pj, dj), wrench) in enumerate(zip(data['leg_bending_deg'],
                                                  data['leg_tip_wrench']), start=1):
@@ -237,7 +238,8 @@ def _stability_rows(data: dict) -> List[Tuple[str, str]]:
     return [('stable (closed chain)', f"{data['stable']} (stiffness margin "
                                       f"{data['stiffness_margin_n_per_m']:.4g} N/m)"),
             ('legs held at both ends', ', '.join(
-                f"{leg['stable']} ({leg['axial_load_n']:.4g} / {leg['critical_load_n']:.4g} N)"
+                f"{leg['stable']} ({axial_load_text(leg['axial_load_n'])}, held buckling load "
+                f"{leg['critical_load_n']:.4g} N)"
                 if leg['critical_load_n'] is not None else str(leg['stable']) for leg in legs)),
             ('compliance eig. transl.', '  '.join(
                 f'{v:.4e}' for v in eigenvalues['translation_m_per_n']) + ' m/N'),
@@ -254,12 +256,12 @@ def _inverse_table(result: InverseResult) -> str:
             ('sliders', _mm(data['sliders_m'])),
             ('target', _mm(data['target_m'])),
             ('platform position', _mm(data['platform_position_m'])),
-            ('position error', f"{data['position_error_m']:.3e} m"),
+            ('position error', f"{1e3 * data['position_error_m']:.5g} mm"),
             ('platform rotation', f"{data['platform_rotation_deg']:.4f} deg (parasitic)"),
             ('binding limits', ', '.join(data['binding_limits']) or 'none'),
             ('solve time', f"{1e3 * data['solve_time_s']:.1f} ms "
-                           f"({data['iterations']} iterations, "
-                           f"{data['forward_solves']} forward solves)")]
+                           f"({_counted(data['iterations'], 'iteration')}, "
+                           f"{_counted(data['forward_solves'], 'forward solve')})")]
     if 'stable' in data:
         rows.extend(_stability_rows(data))
     width = max(len(name) for name, _ in rows)
@@ -268,6 +270,11 @@ def _inverse_table(result: InverseResult) -> str:
 
 def _mm(values: List[float]) -> str:
     return '[' + ', '.join(f'{1e3 * v:.4f}' for v in values) + '] mm'
+
+
+def _counted(count: int, noun: str) -> str:
+    """Return '1 iteration', '2 iterations'."""
+    return f'{count} {noun}' + ('' if count == 1 else 's')
 
 
 def _comparison_cell(paper: float, ours: float, spec: str) -> str:
@@ -305,7 +312,7 @@ def _paper_comparison(params: TranslatorParams, accuracy: Accuracy) -> Tuple[str
                  f'spacers_per_joint {params.spacers_per_joint}, steps_per_segment '
                  f'{params.steps_per_segment}')
     lines.append('Converged: ' + ', '.join(
-        f'{r.converged} in {r.iterations} iterations, {1e3 * r.solve_time_s:.1f} ms'
+        f"{r.converged} in {_counted(r.iterations, 'iteration')}, {1e3 * r.solve_time_s:.1f} ms"
         for r in results))
     return '\n'.join(lines), all(result.converged for result in results)
 

@@ -2,13 +2,15 @@
 Conventions shared by the project's figures, so that each reads without the docs.
 
 Colour scales that do not exaggerate (a quantity that varies by under 1 % is shown as
-per cent from its mean, a constant one is said to be constant), tick density on 3-D
-panels, equal scales on 3-D shapes, markers on short series, and the text of a load. The
-figures use ``matplotlib.figure.Figure`` directly (no pyplot): no display, no global state.
+per cent from its mean, a colour bar spans at least 5 % of the mean so that a small
+variation takes only its share of the colours, a constant quantity is said to be
+constant), tick density on 3-D panels, equal scales on 3-D shapes, markers on short
+series, and the text of a load. The figures use ``matplotlib.figure.Figure`` directly (no
+pyplot): no display, no global state.
 """
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 from matplotlib.axes import Axes
 from matplotlib.ticker import MaxNLocator
@@ -26,6 +28,15 @@ CORNER_MARGIN = 0.08
 #: Below this relative spread the quantity is called constant.
 CONSTANT_BELOW = 1e-9
 
+#: A colour bar spans at least this fraction of the mean's magnitude, centred on the data:
+#: a colour map stretched over the data's own range paints a 0.8 % variation in the same
+#: dark-to-bright colours as a 50 % one; so a smaller variation fills only its share of the
+#: colours (0.8 % a sixth) and reads as small.
+COLOUR_SPAN_AT_LEAST = 0.05
+
+#: Colour map of a deviation from the mean (per cent): diverging, the mean in its pale middle.
+DEVIATION_COLOURS = 'coolwarm'
+
 
 def sample_marker(count: int) -> Optional[str]:
     """Return the marker for a line of ``count`` samples: 'o' when they are few, else None."""
@@ -34,21 +45,33 @@ def sample_marker(count: int) -> Optional[str]:
 
 @dataclass(frozen=True)
 class ColourScale:
-    """What a colour scale shows: the values, the colour-bar label and a note for the title."""
+    """
+    What a colour scale shows: the values, the colour-bar label and a note for the title.
+
+    ``limits`` are the values at the two ends of the colour map (matplotlib's vmin, vmax),
+    ``colour_map`` its name: the figure's own sequential map, or DEVIATION_COLOURS for a
+    deviation from the mean.
+    """
 
     values: np.ndarray
     label: str
     constant: bool
     note: str
+    limits: Tuple[float, float]
+    colour_map: str
 
 
-def colour_scale(values: np.ndarray, name: str, unit: str) -> ColourScale:
+def colour_scale(values: np.ndarray, name: str, unit: str,
+                 colour_map: str = 'viridis') -> ColourScale:
     """
     Return the honest colour scale of ``values`` (already in ``unit``).
 
-    A spread under RELATIVE_BELOW of the mean would paint a tiny variation as a large one
-    (a colour bar stretches to the data's range), so it is shown as per cent from the mean
-    and the note says how small it is; a constant quantity gets no scale at all.
+    A colour bar stretched to the data's range paints a tiny variation as a large one, so
+    the colours span at least COLOUR_SPAN_AT_LEAST of the mean (centred on the data; the
+    colour bar shows what they span, the note what the data span). A spread under
+    RELATIVE_BELOW of the mean is shown as per cent from the mean, in the diverging
+    DEVIATION_COLOURS (the mean pale, ``colour_map`` otherwise), and the note says how
+    small it is; a constant quantity gets no scale at all.
     """
     values = np.asarray(values, dtype=float)
     mean = float(np.mean(values)) if values.size else 0.0
@@ -56,14 +79,20 @@ def colour_scale(values: np.ndarray, name: str, unit: str) -> ColourScale:
     size = max(abs(mean), np.finfo(float).tiny)
     if spread <= CONSTANT_BELOW * size:
         return ColourScale(values, f'{name} ({unit})', True,
-                           f'constant: {mean:.4g} {unit} at every sample')
+                           f'constant: {mean:.4g} {unit} at every sample', (mean, mean),
+                           colour_map)
     if spread < RELATIVE_BELOW * size:
+        half = 50.0 * COLOUR_SPAN_AT_LEAST
         return ColourScale(100.0 * (values / mean - 1.0),
                            f'{name} (% from its mean {mean:.3g} {unit})', False,
-                           f'varies by only {100.0 * spread / size:.2g} % '
-                           f'around {mean:.3g} {unit}')
-    return ColourScale(values, f'{name} ({unit})', False,
-                       f'{np.min(values):.3g} to {np.max(values):.3g} {unit}')
+                           f'varies by only {100.0 * spread / size:.2g} % around '
+                           f'{mean:.3g} {unit}', (-half, half), DEVIATION_COLOURS)
+    low, high = float(np.min(values)), float(np.max(values))
+    note = f'{low:.3g} to {high:.3g} {unit}'
+    widen = COLOUR_SPAN_AT_LEAST * size - spread
+    return ColourScale(values, f'{name} ({unit})', False, note,
+                       (low - 0.5 * widen, high + 0.5 * widen) if widen > 0.0 else (low, high),
+                       colour_map)
 
 
 def thin_ticks(axes: Axes, bins: Sequence[int]) -> None:

@@ -107,12 +107,14 @@ def workspace_figure(block: AtlasBlock) -> Figure:
     axes = figure.add_subplot(1, 2, 2, projection='3d')
     converged = block.converged
     scale = colour_scale(np.degrees(block.parasitic_rad[converged]), 'parasitic rotation',
-                         'deg')
+                         'deg', 'viridis')
     if scale.constant:
         axes.scatter(*position[converged].T, color='tab:blue', s=8)
         _label_3d(axes, f'Parasitic rotation of the platform\n{scale.note}')
     else:
-        points = axes.scatter(*position[converged].T, c=scale.values, s=8, cmap='viridis')
+        points = axes.scatter(*position[converged].T, c=scale.values, s=8,
+                              cmap=scale.colour_map, vmin=scale.limits[0],
+                              vmax=scale.limits[1])
         figure.colorbar(points, ax=axes, orientation='horizontal', shrink=0.6, pad=0.08,
                         label=scale.label)
         _label_3d(axes, 'Parasitic rotation of the platform (converged samples)')
@@ -132,7 +134,7 @@ def stiffness_figure(block: AtlasBlock) -> Figure:
                   (block.margin, 'stiffness margin'))
     for row, (values, name) in enumerate(quantities):
         shown = block.converged & np.isfinite(values)
-        scale = colour_scale(1e-3 * values[shown], name, 'kN/m')
+        scale = colour_scale(1e-3 * values[shown], name, 'kN/m', 'plasma')
         points = None
         for column, (i, j, view) in enumerate(views):
             panel = axes[row, column]
@@ -141,7 +143,8 @@ def stiffness_figure(block: AtlasBlock) -> Figure:
                                        color='tab:purple')
             else:
                 points = panel.scatter(position[shown, i], position[shown, j], s=12,
-                                       c=scale.values, cmap='plasma')
+                                       c=scale.values, cmap=scale.colour_map,
+                                       vmin=scale.limits[0], vmax=scale.limits[1])
             panel.set_title(f'{name[0].upper() + name[1:]}, {view}\n{scale.note}', fontsize=9)
             panel.set_xlabel(f'{"xyz"[i]} (mm)')
             panel.set_ylabel(f'{"xyz"[j]} (mm)')

@@ -122,7 +122,11 @@ class Chain:
         return forces, arms
 
     def residual(self, state: ChainState, inputs: np.ndarray) -> np.ndarray:
-        """Compatibility (18: m, rad, in {pe_i}) and equilibrium (6: N, N m, in {w})."""
+        """
+        Compatibility (18: m, rad, in {pe_i}) and equilibrium (6: N, N m, in {w}).
+
+        ArithmeticError when a leg's end-disk frame is no rotation (a diverged shot).
+        """
         if state.frames is None:
             raise RuntimeError('the legs have not been evaluated at this state')
         residual = np.empty(SIZE)
@@ -133,8 +137,12 @@ class Chain:
             # a rotation error of 90 degrees or more (far from the solution)
             for k in range(3):
                 target = rotations[k].T @ state.rotation @ rotations[k]
-                residual[6 * k + 3:6 * k + 6] = rotation_vector(
-                    state.frames[k, :3, :3] @ target.T)
+                try:
+                    residual[6 * k + 3:6 * k + 6] = rotation_vector(
+                        state.frames[k, :3, :3] @ target.T)
+                except ValueError as error:  # an improper matrix: the shot diverged
+                    raise ArithmeticError(f'the end-disk frame of leg {k + 1} is no rotation: '
+                                          'its shot diverged') from error
         return residual
 
     def input_sensitivity(self, state: ChainState, inputs: np.ndarray) -> np.ndarray:

@@ -85,7 +85,9 @@ class ChainContinuation:
         dx = -J^-1 (dr/du) du (coupled, a whole step along a steadily followed path: to
         higher order, ``extrapolate``), and Newton corrects it (``coupled``: leg unknowns
         and platform together; else every iterate's legs solved in full); a failed step is
-        halved, a good one doubled.
+        halved, a good one doubled. A step the nested iterates fail is taken again coupled,
+        and so is the rest of the walk: past a leg's free-end buckling load a nested
+        iterate is ill posed (legs.NESTED_COMPRESSION), a coupled one is not.
         """
         if self.previous is None:
             raise RuntimeError('continuation needs a previous solution')
@@ -96,6 +98,7 @@ class ChainContinuation:
         if factorization is not None:
             factorization.secants.count = 0  # a solve's Broyden updates are its own
         done, step, iterations = 0.0, 1.0, 0
+        coupling = coupled  # the iterates' kind: nested ones hand over when they fail
         current = start
         outcome: Optional[Outcome] = None
         first = chain.input_sensitivity(state, start)
@@ -117,27 +120,32 @@ class ChainContinuation:
                         predicted = self.extrapolate(state, inputs - start, first,
                                                      factorization)
                 if predicted is None:
-                    predicted = newton.correction(change, None, factorization, coupled)
+                    predicted = newton.correction(change, None, factorization, coupling)
                 reach = float(np.abs(predicted).max())
-                if coupled and reach > PREDICTOR_REACH and not along_grid:
+                if coupling and reach > PREDICTOR_REACH and not along_grid:
                     # beyond the linear regime of the legs' shooting: a shorter step
                     fraction = max(PREDICTOR_REACH / reach,
                                    MIN_CONTINUATION_STEP / (target - done))
                     target = done + fraction * (target - done)
                     goal = start + target * (inputs - start)
                     predicted = fraction * newton.correction(change, None, factorization,
-                                                             coupled)
+                                                             coupling)
                 guess = state.moved(predicted, chain.x_scale)
             # along the grid the legs' Jacobians at the last solution are too far off for
             # chord steps (at 12 mm steps the first contracted by 0.4, then a rebuild; at
             # 20 mm it failed its line search, thirty leg shots): made at the guess at once
             outcome = newton.correct(guess, goal, None if along_grid else factorization,
-                                     coupled)
+                                     coupling)
             iterations += outcome.iterations
             if outcome.converged:
                 done, state, current = target, outcome.state, goal
                 factorization = outcome.factorization
                 step *= 2.0
+                continue
+            if not coupling and not newton.legs.out_of_time():
+                # the same step coupled, from the last solution: a leg compressed past its
+                # free-end buckling load has no nested iterate (or a leg solve failed)
+                coupling = True
                 continue
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or newton.legs.out_of_time():

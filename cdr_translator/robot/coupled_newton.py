@@ -132,12 +132,15 @@ class CoupledNewton:
         max_iterations = self.limits.max_iterations
         try:
             evaluated = self.legs.evaluate(state, coupled)
-        except Deadline as error:
+            residual = self.chain.residual(state, inputs) if evaluated else None
+        except (Deadline, ArithmeticError) as error:
             return Outcome(state, np.full(SIZE, np.inf), 0, False, str(error), factorization)
-        if not evaluated:
+        if residual is None:
             return Outcome(state, np.full(SIZE, np.inf), 0, False,
-                           'a leg did not converge at the predicted wrenches', factorization)
-        residual = self.chain.residual(state, inputs)
+                           'a leg did not converge at the predicted wrenches'
+                           if coupled or self.legs.load_controlled(state.wrenches)
+                           else 'a leg is compressed past its free-end buckling load, where '
+                                'its wrench alone does not fix its shape', factorization)
         fresh, chord_steps, chord_log = False, 0, 0.0
         step: Optional[np.ndarray] = None  # the next correction, once an iteration made it
         far = False  # the compiled iterations left the current one to this loop

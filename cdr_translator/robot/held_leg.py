@@ -57,11 +57,28 @@ MARCH_STEP = 0.005
 MARCH_START = 0.8
 
 
+def euler_critical_load(params: TranslatorParams) -> float:
+    """
+    Closed-form Euler buckling load (N) of the straight translator under axial compression.
+
+    The translating (S-shaped) mode: each joint is a column of bending stiffness 5 EI (the
+    five backbones bend together) and length (S + 1) D; the tube is rigid; the base is
+    clamped and the end disk keeps its orientation. By antisymmetry the tube's midpoint is
+    an inflection point, so each half is a clamped column of length l carrying a rigid arm
+    a = L_m / 2 to a moment-free tip: w = d (1 - cos k s), d = w(l) + a w'(l), which gives
+    k l tan(k l) = l / a, and P = 5 EI k^2.
+    """
+    length = params.joint_length
+    arm = 0.5 * params.tube_length
+    root = brentq(lambda u: u * math.tan(u) - length / arm, 1e-12, 0.5 * math.pi - 1e-12)
+    return 5.0 * params.bending_stiffness * (root / length) ** 2
+
+
 def held_euler_load(params: TranslatorParams) -> float:
     """
     Closed-form buckling load (N) of the straight translator with both end disks held.
 
-    As cdr_translator.studies.buckling.euler_critical_load: each joint a column of bending
+    As ``euler_critical_load``: each joint a column of bending
     stiffness 5 EI and length l = (S + 1) D, the tube rigid (length 2 a), the base clamped;
     the end disk now clamped too, free to move axially only. Two modes, the lower wins:
 
@@ -300,5 +317,14 @@ def held_verdict(lu: tuple, compliance: np.ndarray, wrench: np.ndarray,
                            f'unstable held: compression {compression:.4g} N at or past the '
                            f'held buckling load {critical:.4g} N')
     return HeldVerdict(True, margin, compression, critical, True, negative,
-                       f'stable held: compression {compression:.4g} N below the held '
+                       f'stable held: {axial_load_text(compression)}, below the held '
                        f'buckling load {critical:.4g} N, parity as unloaded')
+
+
+def axial_load_text(compression: float) -> str:
+    """Return a leg's axial load (N, compression positive) in words: 'tension 233.6 N'."""
+    if compression > 0.0:
+        return f'compression {compression:.4g} N'
+    if compression < 0.0:
+        return f'tension {-compression:.4g} N'
+    return 'no axial load'

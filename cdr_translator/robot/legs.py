@@ -14,6 +14,7 @@ from typing import Dict, List, Optional, Protocol, Sequence, Tuple
 import numpy as np
 
 from .chain import ChainState
+from .held_leg import euler_critical_load
 from .kernels import leg_frames, shoot_legs
 from .result import DeltaResult, LegResults
 from ..geometry import bending_between
@@ -23,6 +24,17 @@ from ..solve.solver import TranslatorSolver
 
 #: The work counters of a solve (DeltaResult fields of the same names).
 COUNTS = ('leg_solves', 'leg_shots', 'leg_jacobians')
+
+#: A nested iterate solves each leg under its end-disk wrench alone (load control). Past
+#: the leg's free-end buckling load (held_leg.euler_critical_load, 29.6 N for the shipped
+#: translator) that wrench no longer fixes the leg's shape: strongly bent shapes carry it
+#: too, a leg solve walking the wrench there lands on one of them (55-66 deg of bending,
+#: where the chain's legs bend 9 deg), and the chain's Newton on the wrenches stalls. Legs
+#: compressed beyond this fraction of that load are therefore never solved nested; the
+#: continuation goes on coupled (robot/continuation.py), where the legs' unknowns iterate
+#: with the platform's and each leg is held at both ends, well posed up to the held buckling
+#: load (37 times higher). Cold solves under 1 kg stay far below it.
+NESTED_COMPRESSION = 0.8
 
 
 class LegFactors(Protocol):
@@ -79,6 +91,8 @@ class ChainLegs:
         self.time_limit_s = time_limit_s
         #: start_at arguments of each leg solver, applied before the next full leg solve
         self.starts: Optional[Tuple[tuple, ...]] = None
+        #: the largest compression (N) a leg is solved under in a nested iterate
+        self.nested_compression_n = NESTED_COMPRESSION * euler_critical_load(params)
 
     def begin(self, started: float, time_limit_s: float) -> None:
         """Start a solve at ``started`` (time.perf_counter) with a fresh count and deadline."""
@@ -115,9 +129,12 @@ class ChainLegs:
         Give ``state`` its legs' end-disk frames; False if a leg cannot be evaluated there.
 
         ``coupled``: one residual shot per leg at the state's leg unknowns. Else each leg
-        is solved under its wrench (warm-started), its unknowns replaced by the solution.
+        is solved under its wrench (warm-started), its unknowns replaced by the solution;
+        False, none solved, when a leg is compressed past ``nested_compression_n``.
         """
         if not coupled:
+            if not self.load_controlled(state.wrenches):
+                return False
             legs = [self._solve(k, state.wrenches[k]) for k in range(3)]
             self.store(state, legs)
             return all(leg.converged for leg in legs)
@@ -128,6 +145,10 @@ class ChainLegs:
         self.counts['leg_shots'] += 3
         state.leg_residuals, state.frames = residuals, frames
         return math.isfinite(state.leg_error)
+
+    def load_controlled(self, wrenches: np.ndarray) -> bool:
+        """Whether every leg's wrench (3, 6; {pe_i}) leaves it for a nested solve."""
+        return bool(np.all(-wrenches[:, 2] <= self.nested_compression_n))
 
     def store(self, state: ChainState, legs: List[SolveResult]) -> None:
         """Set ``state``'s leg unknowns, frames and residual size from solved legs."""

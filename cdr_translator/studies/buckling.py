@@ -3,7 +3,8 @@ Axial buckling of the straight translator: the numerical critical load and the E
 
 :func:`critical_compression` finds the load where the shooting Jacobian becomes singular along
 the straight compression branch and judges stability on both sides of it;
-:func:`euler_critical_load` gives the closed-form Euler estimate of the same structure.
+:func:`~cdr_translator.robot.held_leg.euler_critical_load` gives the closed-form Euler
+estimate of the same structure.
 :func:`held_critical_compression` does the same with both end disks held (a leg of the
 robot, cdr_translator/robot/held_leg.py) and confirms each side by a perturbed held solve
 (:func:`perturbed_held_solve`).
@@ -15,34 +16,18 @@ import time
 from typing import Optional
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from .hard_cases import stability, study_solver
 from .._blas import one_blas_thread
 from ..params.translator_params import TranslatorParams
-from ..robot.held_leg import held_critical_load, held_jacobian, held_solve, HeldCritical
+from ..robot.held_leg import euler_critical_load, held_critical_load, held_jacobian, held_solve
+from ..robot.held_leg import HeldCritical
 
 #: Amplitudes (in the unit null vector of J_d, nondimensional unknowns and wrench) of the
 #: perturbations a held re-solve starts from: within the buckled branch's reach 2 % past the
 #: held buckling load, below the amplitude at which Newton's method leaves every equilibrium.
 PERTURBATIONS = (0.1, 0.2, 0.3, 0.5)
-
-
-def euler_critical_load(params: TranslatorParams) -> float:
-    """
-    Closed-form Euler buckling load (N) of the straight translator under axial compression.
-
-    The translating (S-shaped) mode: each joint is a column of bending stiffness 5 EI (the
-    five backbones bend together) and length (S + 1) D; the tube is rigid; the base is
-    clamped and the end disk keeps its orientation. By antisymmetry the tube's midpoint is
-    an inflection point, so each half is a clamped column of length l carrying a rigid arm
-    a = L_m / 2 to a moment-free tip: w = d (1 - cos k s), d = w(l) + a w'(l), which gives
-    k l tan(k l) = l / a, and P = 5 EI k^2.
-    """
-    length = params.joint_length
-    arm = 0.5 * params.tube_length
-    root = brentq(lambda u: u * math.tan(u) - length / arm, 1e-12, 0.5 * math.pi - 1e-12)
-    return 5.0 * params.bending_stiffness * (root / length) ** 2
 
 
 @dataclass

@@ -61,9 +61,27 @@ def test_colour_scale_is_relative_below_one_percent_and_says_constant():
     assert 'varies by only 0.85 %' in small.note
     constant = colour_scale(np.full(4, 2.5), 'rotation', 'deg')
     assert constant.constant and constant.note == 'constant: 2.5 deg at every sample'
-    wide = colour_scale(np.array([180.0, 270.0]), 'stiffness', 'kN/m')
+    wide = colour_scale(np.array([180.0, 270.0]), 'stiffness', 'kN/m', 'plasma')
     assert wide.label == 'stiffness (kN/m)' and not wide.constant
     assert np.array_equal(wide.values, [180.0, 270.0])
+    assert wide.limits == (180.0, 270.0) and wide.colour_map == 'plasma'
+    assert wide.note == '180 to 270 kN/m'
+
+
+def test_colour_scale_paints_a_small_variation_small():
+    """
+    The colours span at least 5 % of the mean: a 0.85 % variation fills a sixth of them.
+
+    A colour bar stretched over the data's own range would paint it dark to bright, as it
+    paints a 40 % one.
+    """
+    small = colour_scale(np.array([5.88, 5.90, 5.93]), 'stiffness margin', 'kN/m')
+    assert small.limits == (-2.5, 2.5) and small.colour_map == 'coolwarm'
+    assert np.ptp(small.values) / np.diff(small.limits)[0] < 0.2
+    narrow = colour_scale(np.array([99.0, 100.0, 101.0]), 'stiffness', 'kN/m', 'plasma')
+    assert narrow.label == 'stiffness (kN/m)' and narrow.colour_map == 'plasma'
+    assert narrow.limits == pytest.approx((97.5, 102.5))  # a 2 % spread on 5 % of colours
+    assert narrow.note == '99 to 101 kN/m'
 
 
 def test_load_text_names_force_and_moment():
@@ -216,6 +234,10 @@ def test_atlas_stiffness_figure_is_readable_and_honest():
     assert labels[1].startswith('stiffness margin (% from its mean 5.9')
     titles = [axes.get_title() for axes in figure.axes if axes not in colour_bars]
     assert len(titles) == 4 and all('varies by only' in title for title in titles[2:])
+    # the margin's 0.6 % fills a small share of a colour bar of +-2.5 %, pale about its mean
+    margin = [panel.collections[0] for panel in figure.axes[2:4]]
+    assert all(points.get_clim() == (-2.5, 2.5) for points in margin)
+    assert all(points.get_cmap().name == 'coolwarm' for points in margin)
     assert any('Stiffness margin: smallest eigenvalue' in text.get_text()
                for text in figure.texts)
 

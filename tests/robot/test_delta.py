@@ -6,7 +6,9 @@ import math
 
 from cdr_translator import geometry, ParameterError, TranslatorParams
 from cdr_translator.cli import main
+from cdr_translator.interface.settings import CdrSettings
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
+from cdr_translator.robot.chain import Chain, ChainState
 from cdr_translator.robot.delta import DeltaRobot
 from cdr_translator.robot.params import CDR_NODE_NAME, DeltaParams
 import numpy as np
@@ -237,6 +239,55 @@ def test_warm_and_cold_solves_agree(robot):
     cold = converged(robot, (0.012, 0.002, -0.008), (1.0, 2.0, -9.81))
     assert np.allclose(warm.platform_position, cold.platform_position, atol=1e-10)
     assert np.allclose(warm.leg_tip_wrenches, cold.leg_tip_wrenches, atol=1e-6)
+
+
+def test_cold_solves_under_upward_payloads_across_the_node_force_range():
+    """
+    Every slider corner, edge and centre under upward payloads up to cdr_node's max_force.
+
+    An upward payload compresses the legs past their free-end buckling load (29.6 N each
+    near 90 N), where a leg solved under its wrench alone has strongly bent shapes besides
+    the chain's: each solve must still converge, stable (held at both ends the legs buckle
+    only near 1100 N), with the legs in compression. Cold: the continuation from home.
+    """
+    settings = CdrSettings.from_params_file(DEFAULT_PARAMS_PATH)
+    robot = DeltaRobot(settings.params, settings.geometry, time_limit_s=5.0)
+    stroke = robot.geometry.slider_stroke
+    failed = []
+    for sliders in itertools.product((-stroke, 0.0, stroke), repeat=3):
+        for share in (0.25, 0.5, 0.75, 1.0):
+            payload = (0.0, 0.0, share * settings.max_force)
+            result = robot.solve(sliders, payload, warm_start=False, compliance=True)
+            if not (result.converged and result.stable is True):
+                failed.append((sliders, payload, result.message))
+            elif share == 1.0:
+                assert np.all(result.leg_tip_wrenches[:, 2] < 0.0)  # compression
+    assert not failed, failed
+
+
+def test_cli_delta_upward_payload_past_the_free_end_buckling_load(capsys):
+    """The sliders that converge at 0, +30 and -90 N converge at +90 N too, exit 0."""
+    assert main(['delta', '--sliders', '0.02', '-0.01', '0', '--payload', '0', '0', '90',
+                 '--time-limit', '5', '--json']) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data['converged'] is True and data['stable'] is True
+    assert data['message'] == 'converged'
+    assert max(max(leg) for leg in data['leg_bending_deg']) < 15.0  # not a far branch
+
+
+def test_a_diverged_leg_frame_is_an_arithmetic_error(robot):
+    """
+    A leg shot whose end-disk frame is no rotation fails the Newton step that made it.
+
+    An ArithmeticError, which the continuation answers by a shorter step, not scipy's
+    ValueError out of ``solve`` (seen on a coupled walk from home to 1000 N).
+    """
+    chain = Chain(robot.legs, robot.params)
+    state = ChainState(robot.home_position.copy(), np.eye(3), np.zeros((3, 6)),
+                       np.zeros((3, 1)), frames=np.tile(np.eye(4), (3, 1, 1)))
+    state.frames[1, :3, :3] = np.diag([-1e10, -3e9, -2e9])  # improper, far from a rotation
+    with pytest.raises(ArithmeticError, match='end-disk frame of leg 2 is no rotation'):
+        chain.residual(state, np.zeros(12))
 
 
 @pytest.mark.parametrize('kwargs, fragment', [

@@ -1,6 +1,7 @@
 """Inverse statics of the Continuum Delta Robot, and the platform compliance / stability."""
 
 import json
+import re
 
 from cdr_translator.cli import main
 from cdr_translator.robot.delta import DeltaRobot
@@ -153,6 +154,18 @@ def test_cli_delta_ik_table_says_what_happened(capsys):
     assert main(['delta-ik', '--target', '0.01', '0', '-0.13']) == 0
     assert capsys.readouterr().out.splitlines()[0].split(None, 1)[1].startswith(
         'target reached')
+
+
+def test_cli_delta_ik_table_is_in_mm_and_counts_in_words(capsys):
+    """Every length of the table in mm, the position error too; '1 iteration', 'forward solve'."""
+    assert main(['delta-ik', '--target', '0.001', '0', '-0.127']) == 0
+    rows = dict(re.split(r'\s{2,}', line, maxsplit=1)
+                for line in capsys.readouterr().out.splitlines())
+    error = rows['position error']
+    assert error.endswith(' mm') and float(error[:-3]) < 1e-3
+    assert '(1 iteration, 2 forward solves)' in rows['solve time']
+    assert main(['delta-ik', '--target', '0', '0', '-0.12714']) == 0
+    assert '(0 iterations, 1 forward solve)' in capsys.readouterr().out
 
 
 def test_cli_delta_has_stability(capsys):

@@ -10,11 +10,13 @@ import math
 from cdr_translator import TranslatorSolver
 from cdr_translator._linalg import factorize, solve_lu
 from cdr_translator.analysis.stability import pose_twist
+from cdr_translator.cli import main
 from cdr_translator.params.translator_params import Accuracy
 from cdr_translator.robot.delta import DeltaRobot
-from cdr_translator.robot.held_leg import held_reference, held_verdict, HeldReference
+from cdr_translator.robot.held_leg import euler_critical_load, held_reference, held_verdict
+from cdr_translator.robot.held_leg import HeldReference
 from cdr_translator.robot.linearization import chain_verdict
-from cdr_translator.studies.buckling import euler_critical_load, held_critical_compression
+from cdr_translator.studies.buckling import held_critical_compression
 import numpy as np
 import pytest
 
@@ -76,6 +78,27 @@ def test_held_verdict_on_both_sides_of_the_held_buckling_load(held, params):
     assert below.negative_stiffness_directions >= 2
 
 
+def test_a_leg_in_tension_is_said_to_be_in_tension(params):
+    """A tension reads as one in the verdict and the table, never as a negative compression."""
+    unloaded = straight_leg(params, 0.0)
+    origin = held_reference(unloaded[0], unloaded[1], params.stack_height, 1110.0)
+    pulled = held_verdict(*straight_leg(params, -233.6), origin)
+    assert pulled.stable is True and pulled.axial_load_n == pytest.approx(-233.6)
+    assert 'tension 233.6 N, below the held buckling load 1110 N' in pulled.message
+    assert 'compression' not in pulled.message and '-233' not in pulled.message
+    pushed = held_verdict(*straight_leg(params, 233.6), origin)
+    assert 'compression 233.6 N, below the held buckling load' in pushed.message
+
+
+def test_delta_table_prints_a_tension_as_one(capsys):
+    """`delta` under 500 N pulling the platform away from the base: each leg in tension."""
+    assert main(['delta', '--sliders', '0', '0', '0', '--payload', '0', '0', '-500']) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith('legs held at both ends'))
+    assert row.count('tension') == 3 and 'compression' not in row and '-' not in row
+    assert 'N, held buckling load' in row
+
+
 def test_perturbed_held_solves_confirm_both_sides(held):
     """
     Perturbed along the buckling mode with the end disk held: back below, away above.
@@ -128,12 +151,15 @@ def test_legs_past_their_held_buckling_load_make_the_chain_unstable(robot, held)
     The platform stiffness is positive definite again past the legs' held buckling load.
 
     The legs' straight state is then a pair of held modes past buckling, which the
-    condensed stiffness does not see: the legs' verdicts make the chain unstable.
+    condensed stiffness does not see: the legs' verdicts make the chain unstable. At
+    2800 N (each leg 1310 N) the walk from home lands on the straight state; at 2420 N it
+    ends on a state whose legs bend 1.5 deg, unstable too, but by its platform stiffness.
     """
     robot.reset()
-    payload = 2420.0
+    payload = 2800.0
     result = robot.solve([0.0, 0.0, 0.0], (0.0, 0.0, payload), compliance=True)
     assert result.converged and result.stiffness_margin > 0.0
+    assert np.degrees(result.leg_bending).max() < 0.1
     assert all(leg.axial_load_n > held.critical_load_n for leg in result.leg_stability)
     assert all(leg.stable is False for leg in result.leg_stability)
     assert result.stable is False and 'leg 1: unstable held' in result.message
