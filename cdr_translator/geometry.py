@@ -165,6 +165,17 @@ def rotation_of_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
                      [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)]])
 
 
+def rotation_of_vector(rotation_vector: np.ndarray) -> np.ndarray:
+    """Return the rotation matrix of a rotation vector (axis times angle, rad): Rodrigues."""
+    angle = float(np.linalg.norm(rotation_vector))
+    x, y, z = (float(value) for value in rotation_vector)
+    skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    if angle < 1e-8:  # sin(a)/a and (1 - cos(a))/a^2 to rounding
+        return np.eye(3) + skew + 0.5 * skew @ skew
+    return (np.eye(3) + math.sin(angle) / angle * skew
+            + (1.0 - math.cos(angle)) / angle ** 2 * skew @ skew)
+
+
 #: Points whose second principal spread is below this fraction of the first are a line:
 #: far above rounding (1e-15) and far below a real arc (1e-4 for a 1 mrad bend).
 STRAIGHT_SPREAD_RATIO = 1e-9

@@ -10,18 +10,17 @@ pose, False otherwise (WrenchEstimate's docstring).
 from dataclasses import replace
 import math
 import time
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
-from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc
 
 from .problem import estimated_name, Evaluation, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
 from ..analysis.compliance import frame_twist
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
-from ..geometry import quaternion_xyzw
+from ..geometry import quaternion_xyzw, rotation_of_vector
 
 __all__ = ['CHI2_TAIL', 'estimate_from']
 
@@ -41,7 +40,7 @@ def _finished(best: Evaluation, finish: np.ndarray) -> Evaluation:
     twist = best.compliance @ finish
     frame = best.frame.copy()
     frame[:3, 3] += twist[:3]
-    frame[:3, :3] = Rotation.from_rotvec(twist[3:]).as_matrix() @ best.frame[:3, :3]
+    frame[:3, :3] = rotation_of_vector(twist[3:]) @ best.frame[:3, :3]
     return replace(best, wrench=best.wrench + finish, frame=frame)
 
 
@@ -104,8 +103,15 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
         estimate_time_s=time.perf_counter() - started, position=best.frame[:3, 3].copy(),
         quaternion_xyzw=rotation, sensitivity=sensitivity, solution=best.solution,
         standard_deviation=deviation if covariance is not None else np.full(6, np.nan),
-        target_sd=np.where(np.isin(np.arange(6), free), target.target_sd, np.nan),
+        target_sd=_on(free, target.target_sd),
         chi_square=chi_square, chi_square_p=tail, flags=flags)
+
+
+def _on(free: Sequence[int], values: np.ndarray) -> np.ndarray:
+    """Return ``values`` at the ``free`` components, NaN (not estimated) elsewhere."""
+    shown = np.full(6, math.nan)
+    shown[list(free)] = values[list(free)]
+    return shown
 
 
 def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarray,

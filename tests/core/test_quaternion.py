@@ -1,6 +1,6 @@
 """geometry.quaternion_xyzw and rotation_of_quaternion against scipy's Rotation."""
 
-from cdr_translator.geometry import quaternion_xyzw, rotation_of_quaternion
+from cdr_translator.geometry import quaternion_xyzw, rotation_of_quaternion, rotation_of_vector
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -59,3 +59,13 @@ def test_rotation_of_quaternion_is_scipys_and_inverts_quaternion_xyzw():
         back = quaternion_xyzw(matrix)
         assert np.allclose(back, quaternion if quaternion[3] >= 0 else -quaternion,
                            atol=1e-14)
+
+
+@pytest.mark.parametrize('scale', [0.0, 1e-12, 1e-9, 1e-6, 0.3, 3.0])
+def test_rotation_of_vector_is_scipys(scale):
+    """The matrix of a rotation vector equals scipy's, small angles included."""
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        vector = scale * rng.normal(size=3)
+        assert np.allclose(rotation_of_vector(vector), Rotation.from_rotvec(vector).as_matrix(),
+                           rtol=0.0, atol=1e-15)
