@@ -29,7 +29,7 @@ from ..interface import messages, pose_estimation
 
 #: What a client listens to unless told otherwise.
 DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
-                  messages.DIAGNOSTICS_TOPIC)
+                  messages.SOLVE_STATUS_TOPIC, messages.DIAGNOSTICS_TOPIC)
 
 
 #: The node run as a module of this interpreter, and as the installed console script.
@@ -167,7 +167,7 @@ class TranslatorClient:
 
     def handshake(self, timeout_s: float, period_s: float = 0.25) -> bool:
         """
-        Send zero wrenches until one is answered on /diagnostics; False on timeout.
+        Send zero wrenches until one is answered on ``solve_status``; False on timeout.
 
         Matching is not symmetric: the publisher may see the node's subscription before the
         node's reader accepts its samples, so the first best-effort wrenches can be lost.
@@ -180,7 +180,8 @@ class TranslatorClient:
         sent = self.handshake_stamps
         while time.monotonic() < deadline:
             sent.append(self.publish((0.0, 0.0, 0.0)))
-            if self.wait_for(lambda: any(self.messages_stamped(messages.DIAGNOSTICS_TOPIC, stamp)
+            if self.wait_for(lambda: any(self.messages_stamped(messages.SOLVE_STATUS_TOPIC,
+                                                               stamp)
                                          for stamp in sent), period_s):
                 return True
         return False

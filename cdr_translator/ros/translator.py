@@ -3,8 +3,11 @@ translator_node: wrenches in, the translator's loaded shape out, every run logge
 
 Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
-``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
-defines their content). The subscription callback only counts and logs a wrench and hands
+``compliance``, ``backbones`` and every wrench's status, ``solve_status``
+(cdr_translator.interface.messages defines their content); and every
+``diagnostics_period_s`` (1 s) one aggregated DiagnosticArray on ``/diagnostics`` (REP 107:
+the wrenches', the estimates' and the MCAP log's status over the period, with counts, rates,
+worst residual and the last fault; interface.diagnostics_period). The subscription callback only counts and logs a wrench and hands
 its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
 one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
 one solve are both answered and, when they keep arriving faster than the solver, the newest
@@ -40,14 +43,14 @@ from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
 from .latest_mailbox import LatestMailbox
-from .node_log import LOG_CHECK_PERIOD_S, log_health, log_lost, LogWatch, node_diagnostic_log
-from .node_log import NodeLog, open_log
+from .node_log import log_lost, log_status, LogWatch, node_diagnostic_log, NodeLog, open_log
 from .parameter_checks import check_parameters
 from .parameters import declare, ros_parameter_sources, SPECS
 from .spin import run, SHUTDOWN_JOIN_S
 from .topics import OUTPUTS, sensor_qos, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
+from ..interface.diagnostics_period import diagnostics_array
 from ..interface.pose_estimation import PoseProcessor
 from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import WrenchProcessor
@@ -104,8 +107,11 @@ class TranslatorNode(Node):
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._log_watch = LogWatch(self._log) if self._log is not None else None
-        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
-                           if self._log is not None else None)
+        started_s = time.monotonic()
+        self.processor.diagnostics.begin(started_s)
+        self.estimator.diagnostics.begin(started_s)
+        self._diagnostics_timer = self.create_timer(self._settings.diagnostics_period_s,
+                                                    self._publish_diagnostics)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._estimates = EstimateStream(
@@ -149,7 +155,7 @@ class TranslatorNode(Node):
         result = solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
         for topic, _, values in messages.output_messages(
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
-                backbones_params=solver.params, extra_values=self._counts()):
+                backbones_params=solver.params):
             self._encoders[topic](values)
         pose = messages.pose_message(result, {'sec': 0, 'nanosec': 0}, '')
         pose['pose'] = {'pose': pose['pose'], 'covariance': [0.0] * 36}
@@ -168,10 +174,21 @@ class TranslatorNode(Node):
                    for topic, publisher in self._publishers_by_topic.items()]
         return open_log(self._settings, 'translator', topics)
 
-    def _check_log(self) -> None:
-        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        self._publish_all(self._serialized(log_health(self._log_watch, NODE_NAME,
-                                                      self._counts())))
+    def _publish_diagnostics(self) -> None:
+        """
+        Timer: publish (and log) the period's aggregated DiagnosticArray on /diagnostics.
+
+        Its statuses: the wrenches', the measured poses' and, while logging, the MCAP log's
+        (an ERROR while writing fails, WARN once it resumed). Each is logged at its level.
+        """
+        now_s = time.monotonic()
+        statuses = [self.processor.diagnostics_status(now_s),
+                    self.estimator.diagnostics_status(now_s)]
+        if self._log_watch is not None:
+            statuses.append(log_status(self._log_watch, NODE_NAME))
+        array = diagnostics_array(messages.stamp_from_ns(time.time_ns()), statuses)
+        built = [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE, array)]
+        self._publish_all(self._serialized(self._diagnostic_log.logged(built)))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes) -> None:
@@ -211,7 +228,7 @@ class TranslatorNode(Node):
                     stamp, f'internal error: {error!r}')))
 
     def _reject(self, stamp: dict, reason: str) -> None:
-        """Count a rejected wrench and publish (and so log) the ERROR diagnostic."""
+        """Count a rejected wrench and publish (and so log) its ERROR status."""
         self._publish_all(self._serialized(self.processor.reject(stamp, reason)))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
@@ -253,7 +270,7 @@ class TranslatorNode(Node):
         return self.processor.counts['not_converged']
 
     def _counts(self) -> Dict[str, Any]:
-        """Return the running message counts reported with every diagnostic."""
+        """Return the running message counts the aggregated diagnostics report."""
         return self.processor.report_counts()
 
     def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
@@ -261,13 +278,11 @@ class TranslatorNode(Node):
         CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
         Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
-        straight from the dict, no rclpy message in between). Every diagnostic, wanted or
-        not, is logged here at its level (DiagnosticLog), and nowhere else.
+        straight from the dict, no rclpy message in between).
         """
         logged = self._log is not None
         subscribed = self._subscribers.subscribed()
-        return ((topic, self._encoders[topic](values))
-                for topic, _, values in self._diagnostic_log.logged(built)
+        return ((topic, self._encoders[topic](values)) for topic, _, values in built
                 if logged or topic in subscribed)
 
     def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:
@@ -301,8 +316,8 @@ class TranslatorNode(Node):
         counts = self._counts()
         self.get_logger().info(count_line('wrenches', counts, 'solved', SKIPPED_INPUT))
         self.get_logger().info(count_line('measured poses', self._estimates.close(self)))
-        if self._log_timer is not None:
-            self.destroy_timer(self._log_timer)
+        self.destroy_timer(self._diagnostics_timer)
+        self._publish_diagnostics()  # the last period: the closing counts, in the log too
         if self._log is not None:
             log = self._log
             log.close()
