@@ -5,9 +5,11 @@ A part is an MCAP that one window's replay wrote (``msg_tools.replay_windows``),
 indexed. Its records are copied into the output log as CDR bytes, never decoded: each chunk
 is decompressed once and its message records are cut out with ``struct``, so the copy costs
 a few microseconds per record instead of a read and a write through the MCAP libraries'
-record objects. The one change a record needs is to the /diagnostics message counters
-(``COUNTERS``), which a window counts from its own start: they are continued from the
-windows merged before, rewritten in place in the CDR bytes (``continue_counters``).
+record objects. The one change a record needs is to the counters of the aggregated
+/diagnostics arrays (``COUNTERS`` of their first status, the wrenches'), which a window
+counts from its own start: they are continued from the windows merged before, rewritten in
+place in the CDR bytes (``continue_counters``). Every message's own status (solve_status,
+estimate_status) is copied as it is.
 """
 
 from pathlib import Path
@@ -23,7 +25,7 @@ from mcap.stream_reader import get_chunk_data_stream, StreamReader
 import zstandard
 
 #: The /diagnostics values that count messages since the start (WrenchProcessor.counts).
-COUNTERS = ('received', 'rejected', 'solved', 'not_converged', 'skipped')
+COUNTERS = ('received', 'rejected', 'solved', 'flagged', 'not_converged', 'skipped')
 
 #: MCAP opcode of a Message record, and the fixed fields that open one.
 MESSAGE_OPCODE = 0x05
@@ -153,7 +155,7 @@ class PartMerger:
         for name, schema_name, data, log_time, publish_time in part_messages(part):
             if schema_name == messages.WRENCH_TYPE:
                 topic = name
-            elif schema_name == messages.DIAGNOSTIC_ARRAY_TYPE:
+            elif name == messages.DIAGNOSTICS_TOPIC:   # the aggregated array's counts
                 data = continue_counters(data, offsets.get(topic, {}),
                                          self.counts.setdefault(topic, {}))
             write(name, schema_name, data, log_time, publish_time)

@@ -113,7 +113,13 @@ class TranslatorClient:
 
     def __init__(self, topics: Sequence[str] = DEFAULT_TOPICS, name: str = 'translator_client',
                  depth: int = 1000) -> None:
-        """Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``."""
+        """
+        Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``.
+
+        ``solve_status`` is always subscribed too: ``handshake`` waits for it.
+        """
+        if messages.SOLVE_STATUS_TOPIC not in topics:
+            topics = (*topics, messages.SOLVE_STATUS_TOPIC)
         self.context = Context()
         rclpy.init(args=[], context=self.context)
         self.node = Node(name, context=self.context)

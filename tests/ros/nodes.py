@@ -17,6 +17,7 @@ ANSWER_TIMEOUT_S = 30.0
 POSE = messages.END_DISK_POSE_TOPIC
 ANGLES = messages.BENDING_ANGLES_TOPIC
 DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
+STATUS = messages.SOLVE_STATUS_TOPIC
 
 
 class Running:
@@ -27,7 +28,7 @@ class Running:
     ``tmp_path / '<name>.log'``.
     """
 
-    def __init__(self, tmp_path: Path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS),
+    def __init__(self, tmp_path: Path, env, ros_args=(), topics=(POSE, ANGLES, STATUS, DIAGNOSTICS),
                  command=MODULE_COMMAND, mcap: Optional[Path] = None, name: str = 'node'):
         """Start the node and wait for its first answer."""
         self.mcap = tmp_path / 'run.mcap' if mcap is None else mcap
@@ -64,8 +65,25 @@ class Running:
         return self.client.messages_stamped(topic, stamp)[0]
 
     def last_diagnostic(self):
-        """Return the key/values of the last diagnostic received."""
+        """Return the key/values of the wrenches' status in the last /diagnostics array."""
         return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])
+
+    def counts_after(self, stamp, topic=STATUS):
+        """
+        Return the wrenches' aggregated status values of the first /diagnostics array stamped
+        after the status of ``stamp`` (on ``topic``) arrived: counts that include it.
+        """
+        self.answer(topic, stamp)
+        with self.client._condition:
+            arrived = min(time_ns for message, time_ns in self.client.received[topic]
+                          if messages.stamp_to_ns(message.header.stamp)
+                          == messages.stamp_to_ns(stamp))
+
+        def later():
+            return [message for message, _ in list(self.client.received[DIAGNOSTICS])
+                    if messages.stamp_to_ns(message.header.stamp) > arrived]
+        assert self.client.wait_for(lambda: bool(later()), ANSWER_TIMEOUT_S), self.node.text()
+        return diagnostic_values(later()[0])
 
 
 def stamped_wrenches(count: int, axis: str, first: float) -> list:
