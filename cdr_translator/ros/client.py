@@ -228,6 +228,31 @@ class TranslatorClient:
                     if message.header.stamp.sec == stamp['sec']
                     and message.header.stamp.nanosec == stamp['nanosec']]
 
+    def diagnostics_after(self, stamp: Mapping[str, int], timeout_s: float,
+                          topic: str = messages.SOLVE_STATUS_TOPIC) -> Optional[Any]:
+        """
+        Wait for the first /diagnostics array stamped after the status of ``stamp`` arrived.
+
+        Its counts include that input (the node counts an input before it publishes its
+        status on ``topic``). Both /diagnostics and ``topic`` must be subscribed. None on
+        timeout.
+        """
+        deadline = time.monotonic() + timeout_s
+        wanted = messages.stamp_to_ns(stamp)
+        if not self.wait_for(lambda: bool(self.messages_stamped(topic, stamp)), timeout_s):
+            return None
+        with self._condition:
+            arrived = min(received for message, received in self.received[topic]
+                          if messages.stamp_to_ns(message.header.stamp) == wanted)
+
+        def later() -> List[Any]:
+            return [message for message, _ in self.received[messages.DIAGNOSTICS_TOPIC]
+                    if messages.stamp_to_ns(message.header.stamp) > arrived]
+        if not self.wait_for(lambda: bool(later()), max(deadline - time.monotonic(), 0.0)):
+            return None
+        with self._condition:
+            return later()[0]
+
     def close(self) -> None:
         """Stop spinning and shut the context down."""
         self._stop.set()

@@ -7,9 +7,9 @@ with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``
 (cdr_translator.interface.messages defines their content); and every
 ``diagnostics_period_s`` (1 s) one aggregated DiagnosticArray on ``/diagnostics`` (REP 107:
 the wrenches', the estimates' and the MCAP log's status over the period, with counts, rates,
-worst residual and the last fault; interface.diagnostics_period). The subscription callback only counts and logs a wrench and hands
-its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
-one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
+worst residual and the last fault; interface.diagnostics_period). The subscription callback
+only counts and logs a wrench and hands its bytes to a solver thread through a mailbox
+where ``pending_wrenches`` (2) may wait: when one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
 one solve are both answered and, when they keep arriving faster than the solver, the newest
 wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
 with the offline replay's code (a cdr_translator.interface.wrench_processing.WrenchProcessor:

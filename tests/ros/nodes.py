@@ -70,20 +70,15 @@ class Running:
 
     def counts_after(self, stamp, topic=STATUS):
         """
-        Return the wrenches' aggregated status values of the first /diagnostics array stamped
-        after the status of ``stamp`` (on ``topic``) arrived: counts that include it.
+        Return the wrenches' status values in the first /diagnostics array after ``stamp``'s.
+
+        That array was published after the status of ``stamp`` (on ``topic``) arrived: its
+        counts include that wrench.
         """
         self.answer(topic, stamp)
-        with self.client._condition:
-            arrived = min(time_ns for message, time_ns in self.client.received[topic]
-                          if messages.stamp_to_ns(message.header.stamp)
-                          == messages.stamp_to_ns(stamp))
-
-        def later():
-            return [message for message, _ in list(self.client.received[DIAGNOSTICS])
-                    if messages.stamp_to_ns(message.header.stamp) > arrived]
-        assert self.client.wait_for(lambda: bool(later()), ANSWER_TIMEOUT_S), self.node.text()
-        return diagnostic_values(later()[0])
+        array = self.client.diagnostics_after(stamp, ANSWER_TIMEOUT_S, topic)
+        assert array is not None, self.node.text()
+        return diagnostic_values(array)
 
 
 def stamped_wrenches(count: int, axis: str, first: float) -> list:
