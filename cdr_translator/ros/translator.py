@@ -8,22 +8,24 @@ with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``
 ``diagnostics_period_s`` (1 s) one aggregated DiagnosticArray on ``/diagnostics`` (REP 107:
 the wrenches', the estimates' and the MCAP log's status over the period, with counts, rates,
 worst residual and the last fault; interface.diagnostics_period). The subscription callback
-only counts and logs a wrench and hands its bytes to a solver thread through a mailbox
-where ``pending_wrenches`` (2) may wait: when one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
-one solve are both answered and, when they keep arriving faster than the solver, the newest
-wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
-with the offline replay's code (a cdr_translator.interface.wrench_processing.WrenchProcessor:
-the same checks, frames, follower-load solve and counts). The subscription's queue is
-``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, spin.run) spins
-it. Outputs are built only for topics someone subscribes to (all of them while logging),
-one by one with the pose first (it is published before the others are built), encoded
-straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
-and the same bytes logged: every received wrench and every output goes to an MCAP file
-written by a child process (node_log.NodeLog), so that the writing takes no time from the
-solve. Measured end-disk poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``)
-give ``estimated_wrench`` and ``estimated_wrench_covariance`` through a mailbox and thread
-of their own (estimate_stream.EstimateStream, interface.pose_estimation), logged alike.
-Only cdr_translator.ros imports rclpy or ROS message classes.
+only counts and logs a wrench and hands its bytes to a solver thread through a mailbox where
+``pending_wrenches`` (2) may wait: when one more arrives, the oldest waiting one is skipped
+(counted), so two wrenches arriving within one solve are both answered and, when they keep
+arriving faster than the solver, the newest wins. The solver thread decodes
+(serialization.decoder) and checks the wrench it takes with the offline replay's code (a
+cdr_translator.interface.wrench_processing.WrenchProcessor: the same checks, frames,
+follower-load solve and counts). The subscription's queue is ``wrench_queue_depth`` deep and
+an EventsExecutor (rclpy.experimental, spin.run) spins it. Outputs are built only for topics
+someone subscribes to (all of them while logging), one by one with the pose first (it is
+published before the others are built), encoded straight to CDR from their dicts
+(serialization.encode), published only where someone subscribes, and the same bytes logged:
+every received wrench and every output goes to an MCAP file written by a child process
+(node_log.NodeLog), so that the writing takes no time from the solve. Measured end-disk
+poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``) give ``estimated_wrench``
+and ``estimated_wrench_covariance``, each pose its status on ``estimate_status``, through
+a mailbox and thread of their own (estimate_stream.EstimateStream,
+interface.pose_estimation), logged alike. Only
+cdr_translator.ros imports rclpy or ROS message classes.
 """
 
 from pathlib import Path
