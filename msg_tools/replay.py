@@ -261,13 +261,13 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     estimators = pose_processors(poses, settings)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
-    diagnostics = ReplayDiagnostics(settings.diagnostics_period_s, processors, estimators,
-                                    closing=window is None or window.stop_ns is None)
+    diagnostics = ReplayDiagnostics(settings.diagnostics_period_s, processors, estimators)
     summary = ReplaySummary(source.report, chosen, warnings, total=total)
     summary.series.keep = frozenset(plot_samples)
     decoders = ShippedDecoders()
 
     def warm_wrench(raw: RawMessage) -> None:
+        diagnostics.preceding(raw.log_time_ns)
         if raw.topic in processors:  # a measured pose's estimate warm-starts by itself
             warm_up(processors[raw.topic], decoders, raw)
     bar = Progress(progress, total) if progress is not None else None

@@ -194,6 +194,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
         except OSError as error:
             summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
+            merger.finish()   # the last merged window's closing arrays
             summary.output_status = log.close()
             if table:
                 table.close()

@@ -71,6 +71,11 @@ class StreamDiagnostics:
         """Start the first period at ``now_s`` (s, on the clock ``status`` is given)."""
         self._started_s = now_s
 
+    def discard_notes(self) -> None:
+        """Forget the answers noted in this period (a replay window's warm-up solves)."""
+        with self._lock:
+            self._notes = PeriodNotes()
+
     def note(self, level: int, message: str, residual: Optional[float] = None,
              time_s: Optional[float] = None) -> None:
         """

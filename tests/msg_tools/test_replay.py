@@ -373,7 +373,8 @@ def test_sigint_inside_a_write_waits_for_the_message(tmp_path, monkeypatch):
     assert summary.interrupted and summary.messages == summary.solved == 3
     source = McapSource(tmp_path / 'out.mcap')
     topics = [m.topic for m in source.messages()]
-    assert source.report.complete and len(topics) == 12   # 3 inputs, 3 x 3 outputs
+    # 3 inputs, 3 x 3 outputs, the closing /diagnostics array
+    assert source.report.complete and len(topics) == 13 and topics[-1] == '/diagnostics'
 
 
 def _default_sigint() -> None:
