@@ -165,21 +165,22 @@ def test_diagnostics_aggregated_at_its_period_and_statuses_logged_per_wrench(tmp
     decoders = ShippedDecoders()
     records = list(McapSource(run.mcap).messages())
     logged = [decoders.decode(raw) for raw in records if raw.topic == '/diagnostics']
-    names = [status.name for status in logged[0].status]
+    names = [status['name'] for status in logged[0]['status']]
     assert names == ['translator_node: kinestatics', 'translator_node: wrench estimate',
                      'translator_node: mcap_log']
-    stamps = np.array([messages.stamp_to_ns(array.header.stamp) for array in logged]) * 1e-9
+    stamps = np.array([messages.stamp_to_ns(array['header']['stamp']) for array in logged]) * 1e-9
     assert 0.2 <= float(np.median(np.diff(stamps[:-1]))) <= 1.0   # the closing one aside
-    periods = [{pair.key: pair.value for pair in array.status[0].values} for array in logged]
+    periods = [{pair['key']: pair['value'] for pair in array['status'][0]['values']}
+               for array in logged]
     final = periods[-1]
     answered = sum(int(final[key]) for key in ('solved', 'not_converged', 'rejected'))
     assert answered + int(final['skipped']) == int(final['received'])
     assert sum(int(period['answered_in_period']) for period in periods) == answered
     statuses = [raw for raw in records if raw.topic == '/solve_status']
     assert len(statuses) == answered
-    wrench_stamps = {messages.stamp_to_ns(decoders.decode(raw).header.stamp)
+    wrench_stamps = {messages.stamp_to_ns(decoders.decode(raw)['header']['stamp'])
                      for raw in records if raw.topic == '/wrench'}
-    assert {messages.stamp_to_ns(decoders.decode(raw).header.stamp)
+    assert {messages.stamp_to_ns(decoders.decode(raw)['header']['stamp'])
             for raw in statuses} <= wrench_stamps
 
 
@@ -381,6 +382,6 @@ def test_wrenches_waiting_at_shutdown_are_answered_and_counted(tmp_path):
     assert topics.count('/solve_status') == 3
     # no executor spun the timer: the one array is the closing one, its counts add up
     (closing,) = [raw for raw in records if raw.topic == '/diagnostics']
-    status = ShippedDecoders().decode(closing).status[0]
-    counts = {pair.key: pair.value for pair in status.values}
+    status = ShippedDecoders().decode(closing)['status'][0]
+    counts = {pair['key']: pair['value'] for pair in status['values']}
     assert (counts['received'], counts['solved'], counts['skipped']) == ('3', '3', '0')
