@@ -7,9 +7,10 @@ time limit) and writes a new MCAP holding the input messages and every output th
 publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, solve_status
 and, on request, backbones) with header stamps equal to the input stamps and log times equal
 to the input log times, and one aggregated /diagnostics array every ``diagnostics_period_s``
-of log time (``msg_tools.replay_diagnostics``). Output topics take the input topic's namespace ('/robot/wrench'
-gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
-(``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a plot. No rclpy needed.
+of log time (``msg_tools.replay_diagnostics``). Output topics take the input topic's
+namespace ('/robot/wrench' gives '/robot/end_disk_pose'). Measured end-disk poses give the
+node's wrench estimates (``msg_tools.replay_estimates``). Optionally a CSV row per wrench and a
+plot. No rclpy needed.
 Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
 batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 

@@ -5,7 +5,8 @@ Each pose is handled as the node does (``pose_estimation.PoseProcessor``: the sa
 the estimation solver warm-started along the stream, the same messages); both measured-pose
 topics of one namespace share one processor, as they share one in the node. The input
 and the outputs (``estimated_wrench``, ``estimated_wrench_covariance``, ``estimate_status``,
-in the input's namespace; the aggregated /diagnostics: ``msg_tools.replay_diagnostics``) are written with the input's log time; a pose gets no CSV row.
+in the input's namespace; the aggregated /diagnostics: ``msg_tools.replay_diagnostics``) are
+written with the input's log time; a pose gets no CSV row.
 The summary counts every pose as estimated, flagged, failed or rejected.
 """
 

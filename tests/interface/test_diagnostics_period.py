@@ -61,7 +61,7 @@ def test_wrench_processor_counts_add_up_and_statuses_stay_per_wrench():
         assert status['header']['stamp'] == STAMP
         assert not {'received', 'solved', 'skipped'} & set(_values(status['status'][0]))
     status = processor.diagnostics_status(2.0)
-    values = {key: value for key, value in _values(status).items()}
+    values = _values(status)
     received = int(values['received'])
     assert received == len(wrenches)
     assert received == sum(int(values[key])

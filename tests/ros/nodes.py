@@ -28,8 +28,9 @@ class Running:
     ``tmp_path / '<name>.log'``.
     """
 
-    def __init__(self, tmp_path: Path, env, ros_args=(), topics=(POSE, ANGLES, STATUS, DIAGNOSTICS),
-                 command=MODULE_COMMAND, mcap: Optional[Path] = None, name: str = 'node'):
+    def __init__(self, tmp_path: Path, env, ros_args=(),
+                 topics=(POSE, ANGLES, STATUS, DIAGNOSTICS), command=MODULE_COMMAND,
+                 mcap: Optional[Path] = None, name: str = 'node'):
         """Start the node and wait for its first answer."""
         self.mcap = tmp_path / 'run.mcap' if mcap is None else mcap
         # rcl applies --params-file and -p in command-line order: mcap_path comes last, so
