@@ -82,8 +82,9 @@ def stream(client: TranslatorClient, seconds: float, poses: bool) -> Tuple[dict,
         force = 6.0 - 6.0 * math.cos(math.pi * index / RATE_HZ)
         last_wrench = client.publish((force, 0.5 * force, 0.0))
         if poses:
-            last_pose = client.publish_pose(pose.end_disk_position + noise[index],
-                                            pose.end_disk_quaternion_xyzw)
+            last_pose = client.publish_pose(
+                (pose.end_disk_position + noise[index]).tolist(),
+                pose.end_disk_quaternion_xyzw.tolist())
     return last_wrench, last_pose
 
 

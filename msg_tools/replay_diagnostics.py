@@ -13,7 +13,7 @@ node that would have run), each on /diagnostics; a namespace's statuses are its 
 topic's and, when it has measured poses, its estimates'.
 """
 
-from typing import Dict, List, Mapping, Optional, Union
+from typing import Dict, List, Mapping, Optional, Tuple, Union
 
 from cdr_translator.interface import messages
 from cdr_translator.interface.diagnostics_period import diagnostics_array
@@ -31,7 +31,9 @@ class ReplayDiagnostics:
         """Sum up ``wrenches`` and ``poses`` (input topic -> processor) by namespace."""
         self.period_ns = max(int(round(period_s * 1e9)), 1)
         self._by_namespace: Dict[str, List[Union[WrenchProcessor, PoseProcessor]]] = {}
-        for topic, processor in [*wrenches.items(), *poses.items()]:
+        streams: List[Tuple[str, Union[WrenchProcessor, PoseProcessor]]] = [
+            *wrenches.items(), *poses.items()]
+        for topic, processor in streams:
             found = self._by_namespace.setdefault(output_topic(topic, ''), [])
             if not any(known is processor for known in found):
                 found.append(processor)
