@@ -255,6 +255,13 @@ def backbones_message(result: SolveResult, params: TranslatorParams,
 
 def value_text(value: Any) -> str:
     """Format a diagnostic value: bools lower case, floats with 6 significant digits."""
+    kind = type(value)   # the plain types first: a status per wrench formats a dozen
+    if kind is float:
+        return f'{value:.6g}'
+    if kind is bool:
+        return 'true' if value else 'false'
+    if kind is int or kind is str:
+        return str(value)
     if isinstance(value, (bool, np.bool_)):
         return 'true' if value else 'false'
     if isinstance(value, (float, np.floating)):

@@ -32,7 +32,7 @@ from pathlib import Path
 import sys
 import threading
 import time
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
+from typing import Any, Dict, FrozenSet, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
@@ -105,6 +105,9 @@ class TranslatorNode(Node):
         self._decode_wrench = serialization.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in NODE_OUTPUTS.items()}
+        # resolved once: the log names every record, and a name costs a call into rcl
+        self._resolved = {topic: publisher.topic_name
+                          for topic, publisher in self._publishers_by_topic.items()}
         self._diagnostic_log = node_diagnostic_log(self.get_logger(), NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
@@ -120,6 +123,7 @@ class TranslatorNode(Node):
             self, TRANSLATOR_ESTIMATE_INPUTS, self.estimator,
             lambda built: self._publish_all(self._serialized(built)), self._log,
             self._settings.wrench_queue_depth, self._settings.pending_wrenches)
+        self._wrench_topic = self.resolve_topic_name(messages.WRENCH_TOPIC)  # as logged
         self._subscription = self.create_subscription(
             WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
             sensor_qos(self._settings.wrench_queue_depth), raw=True)
@@ -205,8 +209,7 @@ class TranslatorNode(Node):
         received_ns = time.time_ns()
         self.processor.receive()
         if self._log is not None:
-            self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
-                             received_ns)
+            self._log.submit(self._wrench_topic, messages.WRENCH_TYPE, data, received_ns)
         self._mailbox.put(data)
 
     # solving ---------------------------------------------------------------------------------
@@ -248,7 +251,7 @@ class TranslatorNode(Node):
                           or messages.BACKBONES_TOPIC in subscribed)
         answer = self.processor.answer(force, moment, frame_id, stamp,
                                        compliance=want_compliance, backbones=want_backbones)
-        self._publish_all(self._serialized(answer.outputs))
+        self._publish_all(self._serialized(answer.outputs, subscribed), subscribed)
 
     # output ----------------------------------------------------------------------------------
     @property
@@ -275,28 +278,32 @@ class TranslatorNode(Node):
         """Return the running message counts the aggregated diagnostics report."""
         return self.processor.report_counts()
 
-    def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
+    def _serialized(self, built: Iterable[Tuple[str, str, dict]],
+                    subscribed: Optional[FrozenSet[str]] = None) -> Iterator[Tuple[str, bytes]]:
         """
         CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
         Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
-        straight from the dict, no rclpy message in between).
+        straight from the dict, no rclpy message in between). ``subscribed``: the topics
+        with subscribers, if the caller has just counted them.
         """
         logged = self._log is not None
-        subscribed = self._subscribers.subscribed()
+        if subscribed is None:
+            subscribed = self._subscribers.subscribed()
         return ((topic, self._encoders[topic](values)) for topic, _, values in built
                 if logged or topic in subscribed)
 
-    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:
+    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]],
+                     subscribed: Optional[FrozenSet[str]] = None) -> None:
         """Publish each serialized output that someone subscribes to; log all of them."""
-        subscribed = self._subscribers.subscribed()
+        if subscribed is None:
+            subscribed = self._subscribers.subscribed()
         records = []
         for topic, data in topic_data:
-            publisher = self._publishers_by_topic[topic]
             if topic in subscribed:
-                publisher.publish(data)
+                self._publishers_by_topic[topic].publish(data)
             if self._log is not None:
-                records.append((publisher.topic_name, self._type_names[topic], data,
+                records.append((self._resolved[topic], self._type_names[topic], data,
                                 time.time_ns(), None))
         if records:
             assert self._log is not None
