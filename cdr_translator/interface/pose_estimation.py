@@ -249,7 +249,8 @@ class MeasuredPoseProcessor(abc.ABC):
 
         ``count_received`` False: the caller counted the pose when it arrived (the node).
         """
-        self.counts['received'] += int(count_received)
+        if count_received:   # no write otherwise: the node's callback counts in another thread
+            self.counts['received'] += 1
         try:
             measured = pose_from_message(message)
         except ValueError as error:  # a covariance of another size than 36

@@ -170,6 +170,7 @@ class TranslatorNode(Node):
         solver.reset()
         self.estimator.solver.reset()
         self.estimator.counts.update(dict.fromkeys(self.estimator.counts, 0))
+        self.estimator.diagnostics.discard_notes()
 
     def _open_log(self) -> Tuple[Optional[NodeLog], str]:
         """Open the MCAP log (unless disabled) and register the wrench and output topics."""
