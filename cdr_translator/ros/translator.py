@@ -24,8 +24,8 @@ every received wrench and every output goes to an MCAP file written by a child p
 poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``) give ``estimated_wrench``
 and ``estimated_wrench_covariance``, each pose its status on ``estimate_status``, through
 a mailbox and thread of their own (estimate_stream.EstimateStream,
-interface.pose_estimation), logged alike. Only
-cdr_translator.ros imports rclpy or ROS message classes.
+interface.pose_estimation), logged alike. Only cdr_translator.ros imports rclpy or ROS
+message classes.
 """
 
 from pathlib import Path
