@@ -70,3 +70,12 @@ def test_wrench_processor_counts_add_up_and_statuses_stay_per_wrench():
     assert status['level'] == messages.ERROR and "unknown frame_id 'tool'" in status['message']
     assert float(values['received_per_s']) == 2.0 and float(values['worst_residual_norm']) < 1e-9
     assert processor.diagnostics_status(3.0)['level'] == messages.OK
+
+
+@pytest.mark.parametrize('period', [0.0, -1.0, 1e4])
+def test_diagnostics_period_must_be_positive_and_bounded(period):
+    """diagnostics_period_s <= 0 (or beyond an hour) is refused, naming the key; 1 s ships."""
+    settings = TranslatorSettings.from_params_file()
+    assert settings.diagnostics_period_s == 1.0
+    with pytest.raises(ValueError, match='diagnostics_period_s'):
+        settings.with_values(diagnostics_period_s=period)
