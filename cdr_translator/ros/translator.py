@@ -188,12 +188,15 @@ class TranslatorNode(Node):
         Its statuses: the wrenches', the measured poses' and, while logging, the MCAP log's
         (an ERROR while writing fails, WARN once it resumed). Each is logged at its level.
         """
+        # stamped before the counts are read: an input whose status went out before the
+        # stamp is in them
+        stamp = messages.stamp_from_ns(time.time_ns())
         now_s = time.monotonic()
         statuses = [self.processor.diagnostics_status(now_s),
                     self.estimator.diagnostics_status(now_s)]
         if self._log_watch is not None:
             statuses.append(log_status(self._log_watch, NODE_NAME))
-        array = diagnostics_array(messages.stamp_from_ns(time.time_ns()), statuses)
+        array = diagnostics_array(stamp, statuses)
         built = [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE, array)]
         self._publish_all(self._serialized(self._diagnostic_log.logged(built)))
 
