@@ -161,6 +161,9 @@ def test_diagnostics_aggregated_at_its_period_and_statuses_logged_per_wrench(tmp
         arrays = [message for message, _ in run.client.received[DIAGNOSTICS]]
         assert any(status.level == bytes([messages.ERROR]) and 'is nan' in status.message
                    for array in arrays for status in array.status)
+        # a few periods more, so that the log holds enough arrays to show their spacing
+        assert run.client.wait_for(lambda: len(run.client.received[DIAGNOSTICS]) >= 5,
+                                   ANSWER_TIMEOUT_S), run.node.text()
         assert run.node.stop(signal.SIGINT) == 0, run.node.text()
     decoders = ShippedDecoders()
     records = list(McapSource(run.mcap).messages())
@@ -169,6 +172,7 @@ def test_diagnostics_aggregated_at_its_period_and_statuses_logged_per_wrench(tmp
     assert names == ['translator_node: kinestatics', 'translator_node: wrench estimate',
                      'translator_node: mcap_log']
     stamps = np.array([messages.stamp_to_ns(array['header']['stamp']) for array in logged]) * 1e-9
+    assert len(stamps) >= 6   # five or more periods, then the closing one
     assert 0.2 <= float(np.median(np.diff(stamps[:-1]))) <= 1.0   # the closing one aside
     periods = [{pair['key']: pair['value'] for pair in array['status'][0]['values']}
                for array in logged]
