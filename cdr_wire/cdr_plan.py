@@ -124,15 +124,26 @@ def _sequence_field(name: str, base: int, element: Any) -> Tuple[str, int, Any, 
     return (name, PRIMITIVE_SEQUENCE, element, ())
 
 
+#: Short strings' CDR bytes (length, UTF-8, NUL), kept once seen: the keys, names and
+#: frame ids of a node's messages repeat in every message. Bounded: at most
+#: ``_ENCODED_MAX`` strings of at most ``_ENCODED_LONGEST`` characters.
+_ENCODED: Dict[str, bytes] = {}
+_ENCODED_MAX = 4096
+_ENCODED_LONGEST = 64
+
+
 def _write_string(buffer: bytearray, text: str) -> None:
     """Append a CDR string: uint32 length with the NUL, the UTF-8 bytes, the NUL."""
     remainder = (len(buffer) - 4) % 4
     if remainder:
         buffer += _ZEROS[4 - remainder]
-    data = text.encode()
-    buffer += _UINT32.pack(len(data) + 1)
-    buffer += data
-    buffer += b'\x00'
+    encoded = _ENCODED.get(text)
+    if encoded is None:
+        data = text.encode()
+        encoded = _UINT32.pack(len(data) + 1) + data + b'\x00'
+        if len(text) <= _ENCODED_LONGEST and len(_ENCODED) < _ENCODED_MAX:
+            _ENCODED[text] = encoded
+    buffer += encoded
 
 
 def _byte(value: Any) -> Any:

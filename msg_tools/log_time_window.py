@@ -63,7 +63,7 @@ def window_messages(source: Iterable[RawMessage], window: Optional[LogTimeWindow
 
 
 def warm_up(processor: WrenchProcessor, decoders: Decoders, raw: RawMessage) -> None:
-    """Solve ``raw`` to warm ``processor`` up: its outputs and counts are left out."""
+    """Solve ``raw`` to warm ``processor`` up: its outputs, counts and notes are left out."""
     counts = dict(processor.counts)
     try:
         force, moment, frame_id, stamp = messages.wrench_from_message(decoders.decode(raw))
@@ -71,3 +71,4 @@ def warm_up(processor: WrenchProcessor, decoders: Decoders, raw: RawMessage) -> 
         return
     processor.process(force, moment, frame_id, stamp)
     processor.counts.update(counts)
+    processor.diagnostics.discard_notes()

@@ -5,9 +5,13 @@ A part is an MCAP that one window's replay wrote (``msg_tools.replay_windows``),
 indexed. Its records are copied into the output log as CDR bytes, never decoded: each chunk
 is decompressed once and its message records are cut out with ``struct``, so the copy costs
 a few microseconds per record instead of a read and a write through the MCAP libraries'
-record objects. The one change a record needs is to the /diagnostics message counters
-(``COUNTERS``), which a window counts from its own start: they are continued from the
-windows merged before, rewritten in place in the CDR bytes (``continue_counters``).
+record objects. The one change a record needs is to the counters of the aggregated
+/diagnostics arrays (``COUNTERS`` of their first status, the wrenches'), which a window
+counts from its own start: they are continued from the windows merged before, rewritten in
+place in the CDR bytes (``continue_counters``). Every message's own status (solve_status,
+estimate_status) is copied as it is. Each window closes with arrays of its final counts
+(``replay_diagnostics``): the merge takes the counts from them but writes only the last
+window's (``finish``), so that the output holds the arrays a one-process replay writes.
 """
 
 from pathlib import Path
@@ -23,7 +27,7 @@ from mcap.stream_reader import get_chunk_data_stream, StreamReader
 import zstandard
 
 #: The /diagnostics values that count messages since the start (WrenchProcessor.counts).
-COUNTERS = ('received', 'rejected', 'solved', 'not_converged', 'skipped')
+COUNTERS = ('received', 'rejected', 'solved', 'flagged', 'not_converged', 'skipped')
 
 #: MCAP opcode of a Message record, and the fixed fields that open one.
 MESSAGE_OPCODE = 0x05
@@ -136,28 +140,48 @@ def continue_counters(data: bytes, offsets: Dict[str, int], counts: Dict[str, in
     return b''.join(pieces)
 
 
+#: One stored message record: topic, schema name, CDR bytes, log time, publish time.
+Record = Tuple[str, str, bytes, int, int]
+
+
 class PartMerger:
     """Copies window parts into the output in order, continuing the diagnostics counters."""
 
     def __init__(self, log: McapLog, table: Optional[IO[str]]) -> None:
         """Merge into ``log`` and (rows without header) into the open CSV ``table``."""
         self.log, self.table = log, table
-        #: Counters of each input topic at the end of the windows merged so far.
-        self.counts: Dict[str, Dict[str, int]] = {}
+        #: Counters at the end of the windows merged so far, by the array's place among
+        #: those written together (one per namespace, always in the same order).
+        self.counts: Dict[int, Dict[str, int]] = {}
+        #: The last arrays of the last part merged: its closing ones, written by ``finish``.
+        self._held: List[Record] = []
 
     def merge(self, part: Path, csv_part: Optional[Path]) -> None:
         """Append the records of ``part`` (and the rows of ``csv_part``)."""
-        offsets = {topic: dict(counts) for topic, counts in self.counts.items()}
+        offsets = {place: dict(counts) for place, counts in self.counts.items()}
         write = self.log.write_serialized
-        topic = ''
+        self._held = []   # the part before closed where this one goes on
+        place, grouped = 0, False
         for name, schema_name, data, log_time, publish_time in part_messages(part):
-            if schema_name == messages.WRENCH_TYPE:
-                topic = name
-            elif schema_name == messages.DIAGNOSTIC_ARRAY_TYPE:
-                data = continue_counters(data, offsets.get(topic, {}),
-                                         self.counts.setdefault(topic, {}))
-            write(name, schema_name, data, log_time, publish_time)
+            if name != messages.DIAGNOSTICS_TOPIC:
+                write(name, schema_name, data, log_time, publish_time)
+                grouped = False
+                continue
+            if grouped:
+                place += 1   # the next namespace's array, written right after the last
+            else:
+                self.finish()
+                place, grouped = 0, True
+            data = continue_counters(data, offsets.get(place, {}),
+                                     self.counts.setdefault(place, {}))
+            self._held.append((name, schema_name, data, log_time, publish_time))
         if csv_part is not None and self.table is not None:
             with open(csv_part, newline='') as rows:
                 rows.readline()
                 shutil.copyfileobj(rows, self.table)
+
+    def finish(self) -> None:
+        """Write the arrays held back: the closing ones once the last part is merged."""
+        for record in self._held:
+            self.log.write_serialized(*record)
+        self._held = []

@@ -4,12 +4,13 @@ Replay recorded wrenches through the solver offline: what translator_node would 
 Reads the WrenchStamped messages of an MCAP (salvaging a damaged file), handles each as the
 node does (``wrench_processing.WrenchProcessor``: same checks, frames, warm-started solver,
 time limit) and writes a new MCAP holding the input messages and every output the node
-publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, /diagnostics
+publishes (end_disk_pose, bending_angles, compliance_eigenvalues, compliance, solve_status
 and, on request, backbones) with header stamps equal to the input stamps and log times equal
-to the input log times. Output topics take the input topic's namespace ('/robot/wrench'
-gives '/robot/end_disk_pose'). Measured end-disk poses give the node's wrench estimates
-(``msg_tools.replay_estimates``). Optionally a CSV row per input message
-(``msg_tools.replay_csv``) and a plot. No rclpy needed.
+to the input log times, and one aggregated /diagnostics array every ``diagnostics_period_s``
+of log time (``msg_tools.replay_diagnostics``). Output topics take the input topic's
+namespace ('/robot/wrench' gives '/robot/end_disk_pose'). Measured end-disk poses give the
+node's wrench estimates (``msg_tools.replay_estimates``). Optionally a CSV row per input
+message (``msg_tools.replay_csv``) and a plot. No rclpy needed.
 Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
 batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
 
@@ -36,6 +37,7 @@ from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.replay_csv import CSV_COLUMNS, csv_row, wrench_row
+from msg_tools.replay_diagnostics import ReplayDiagnostics
 from msg_tools.replay_estimates import pose_processors, register_poses, replay_pose
 from msg_tools.replay_summary import fidelity_text, REPLAY_RECORD, ReplaySummary
 from msg_tools.replay_topics import output_topic, select_topics
@@ -236,6 +238,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     estimators = pose_processors(poses, settings)
     processors = {topic: WrenchProcessor(params, settings, compliance=compliance,
                                          backbones=backbones) for topic in chosen}
+    diagnostics = ReplayDiagnostics(settings.diagnostics_period_s, processors, estimators)
     summary = ReplaySummary(source.report, chosen, warnings, total=total,
                             fidelity=fidelity_text(settings.fidelity,
                                                    settings.max_position_error,
@@ -244,6 +247,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
     decoders = ShippedDecoders()
 
     def warm_wrench(raw: RawMessage) -> None:
+        diagnostics.preceding(raw.log_time_ns)
         if raw.topic in processors:  # a measured pose's estimate warm-starts by itself
             warm_up(processors[raw.topic], decoders, raw)
     bar = Progress(progress, total) if progress is not None else None
@@ -272,6 +276,10 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                         summary.interrupted = True
                         block.flush()  # the messages read before it are answered
                         break
+                    if diagnostics.due(raw.log_time_ns):
+                        if not block.flush():   # the period's messages answered first
+                            break
+                        diagnostics.write(log, raw.log_time_ns)
                     if raw.topic in estimators:
                         if not block.flush():
                             break
@@ -294,6 +302,7 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             except OSError as error:   # the CSV (the MCAP writer reports through its status)
                 summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
+            diagnostics.close(log)   # the closing counts
             summary.settle()
             log.add_metadata(REPLAY_RECORD, summary.record())   # 'partial' if stopped early
             summary.output_status = log.close()

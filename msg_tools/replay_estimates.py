@@ -4,9 +4,10 @@ Measured end-disk poses in a replay: the wrench estimates translator_node would 
 Each pose is handled as the node does (``pose_estimation.PoseProcessor``: the same checks,
 the estimation solver warm-started along the stream, the same messages); both measured-pose
 topics of one namespace share one processor, as they share one in the node. The input
-and the outputs (``estimated_wrench``, ``estimated_wrench_covariance``, ``/diagnostics``,
-in the input's namespace) are written with the input's log time; a pose's CSV row holds the
-estimate (``replay_csv.pose_row``).
+and the outputs (``estimated_wrench``, ``estimated_wrench_covariance``, ``estimate_status``,
+in the input's namespace; the aggregated /diagnostics: ``msg_tools.replay_diagnostics``) are
+written with the input's log time; a pose's CSV row holds the estimate
+(``replay_csv.pose_row``).
 The summary counts every pose as estimated, flagged, failed or rejected.
 """
 

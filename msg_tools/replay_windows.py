@@ -14,9 +14,12 @@ single-threaded worker processes that ignore Ctrl-C, or a running scheduler whos
 can read the input and the output's folder (a shared file system). The output equals a
 one-process replay within the solver's accuracy: a window's first solves start from the
 warm-up's state, not from the exact state the sequential replay reaches there. The
-per-topic counters of /diagnostics (received, solved, ...) count from the start of the
-input, as in a one-process replay: the merge adds the earlier windows' counts to them
-(``part_merge.continue_counters``).
+aggregated /diagnostics arrays are written at the same messages as in a one-process replay
+(``replay_diagnostics``: at multiples of the period in log time; only the last window
+closes), and their counters (received, solved, ...) count from the start of the input: the
+merge adds the earlier windows' counts to them (``part_merge.continue_counters``). The
+period values (rates, worst residual, answered in the period) of the first array after a
+window's start cover that window's messages only.
 """
 
 import csv
@@ -196,6 +199,7 @@ def _merge(futures: List[Any], parts: Path, output_path: Union[str, Path],
         except OSError as error:
             summary.output_error = f'cannot write {error.filename or csv_path}: {error}'
         finally:
+            merger.finish()   # the last merged window's closing arrays
             log.add_metadata(REPLAY_RECORD, summary.record())   # 'partial' if stopped early
             summary.output_status = log.close()
             if table:

@@ -81,11 +81,12 @@ def summary(recorded: Path, latencies_ms: Sequence[float]) -> List[Tuple[str, st
         by_topic.setdefault(message.channel.topic, []).append(message.ros_msg)
     rows = [(f'messages {topic}', str(len(found))) for topic, found in sorted(by_topic.items())]
     diagnostics = by_topic.get(messages.DIAGNOSTICS_TOPIC, [])
-    if diagnostics:
+    if diagnostics:   # the last aggregated array: the node's closing counts
         last = diagnostic_values(diagnostics[-1])
         rows += [(f'node {key}', last[key]) for key in
                  ('received', 'solved', 'rejected', 'not_converged', 'skipped')]
-    solve_ms = [float(diagnostic_values(d)['solve_time_ms']) for d in diagnostics
+    statuses = by_topic.get('/' + messages.SOLVE_STATUS_TOPIC, [])
+    solve_ms = [float(diagnostic_values(d)['solve_time_ms']) for d in statuses
                 if 'solve_time_ms' in diagnostic_values(d)]
     rows.append(('solve time ms p50/p90/p99/max', percentiles_ms(solve_ms)))
     rows.append(('latency stamp->pose ms p50/p90/p99/max', percentiles_ms(latencies_ms)))
@@ -141,7 +142,7 @@ def main() -> int:
                       f'{(wrenches[-1][0] - wrenches[0][0]) * 1e-9 / args.speed:.2f} s')
                 stamps += play(client, wrenches, args.speed)
             answered = client.wait_for(lambda: bool(client.messages_stamped(
-                messages.DIAGNOSTICS_TOPIC, stamps[-1])), ANSWER_TIMEOUT_S)
+                messages.SOLVE_STATUS_TOPIC, stamps[-1])), ANSWER_TIMEOUT_S)
             played = {(stamp['sec'], stamp['nanosec']) for stamp in stamps}
             latencies_ms = [1e-6 * (received - messages.stamp_to_ns(pose.header.stamp))
                             for pose, received in client.received[messages.END_DISK_POSE_TOPIC]

@@ -29,6 +29,9 @@ COMPLIANCE_EIGENVALUES_TOPIC = 'compliance_eigenvalues'
 COMPLIANCE_TOPIC = 'compliance'
 BACKBONES_TOPIC = 'backbones'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+#: Every wrench's own status (a DiagnosticArray of one status, stamped like the wrench);
+#: /diagnostics carries one aggregated array a period (interface.diagnostics_period).
+SOLVE_STATUS_TOPIC = 'solve_status'
 
 #: Message types ('package/msg/Name') of the topics above.
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
@@ -48,6 +51,7 @@ TOPIC_TYPES: Mapping[str, str] = {
     COMPLIANCE_TOPIC: FLOAT64_MULTI_ARRAY_TYPE,
     BACKBONES_TOPIC: MARKER_ARRAY_TYPE,
     DIAGNOSTICS_TOPIC: DIAGNOSTIC_ARRAY_TYPE,
+    SOLVE_STATUS_TOPIC: DIAGNOSTIC_ARRAY_TYPE,
 }
 
 #: JointState names, in the order of ``joint_positions``.
@@ -249,8 +253,15 @@ def backbones_message(result: SolveResult, params: TranslatorParams,
     return {'markers': markers}
 
 
-def _value_text(value: Any) -> str:
+def value_text(value: Any) -> str:
     """Format a diagnostic value: bools lower case, floats with 6 significant digits."""
+    kind = type(value)   # the plain types first: a status per wrench formats a dozen
+    if kind is float:
+        return f'{value:.6g}'
+    if kind is bool:
+        return 'true' if value else 'false'
+    if kind is int or kind is str:
+        return str(value)
     if isinstance(value, (bool, np.bool_)):
         return 'true' if value else 'false'
     if isinstance(value, (float, np.floating)):
@@ -272,7 +283,7 @@ def diagnostics_message(stamp: Mapping[str, int], level: int, message: str,
     return {'header': header(stamp, ''),
             'status': [{'level': int(level), 'name': name, 'message': str(message),
                         'hardware_id': hardware_id,
-                        'values': [{'key': str(key), 'value': _value_text(value)}
+                        'values': [{'key': str(key), 'value': value_text(value)}
                                    for key, value in values.items()]}]}
 
 
@@ -328,9 +339,10 @@ def output_messages(result: Solved, stamp: Mapping[str, int], base_frame: str, *
 
     A converged result gives the pose, the bending angles, the compliance eigenvalues and
     matrix (when ``compliance`` and the result holds one) and the backbone markers (when
-    ``backbones_params`` is given); every result, converged or not, gives the diagnostics,
-    whose values are ``solve_diagnostic_values`` followed by ``extra_values`` (e.g. skipped
-    messages). A result that did not converge publishes no pose: only an ERROR diagnostic.
+    ``backbones_params`` is given); every result, converged or not, gives its status on
+    ``SOLVE_STATUS_TOPIC`` (a DiagnosticArray of one status, stamped ``stamp``), whose values
+    are ``solve_diagnostic_values`` followed by ``extra_values`` (e.g. the follower load's
+    solves). A result that did not converge publishes no pose: only an ERROR status.
     """
     return list(iter_output_messages(result, stamp, base_frame, compliance=compliance,
                                      backbones_params=backbones_params,
@@ -362,19 +374,21 @@ def iter_output_messages(result: Solved, stamp: Mapping[str, int], base_frame: s
                    backbones_message(result, backbones_params, stamp, base_frame))
     values = solve_diagnostic_values(result)
     values.update(extra_values or {})
-    yield (DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
+    yield (SOLVE_STATUS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
            diagnostics_message(stamp, solve_level(result), result.message, values))
 
 
 def rejection_messages(stamp: Mapping[str, int], reason: str,
                        extra_values: Optional[Mapping[str, Any]] = None, *,
-                       name: str = DIAGNOSTIC_NAME) -> List[Tuple[str, str, dict]]:
+                       name: str = DIAGNOSTIC_NAME, topic: str = DIAGNOSTICS_TOPIC
+                       ) -> List[Tuple[str, str, dict]]:
     """
     Return (topic, type, message) published for an input that was not solved (ERROR).
 
-    ``name`` is the status of the stage the input was for (the translator's solve).
+    ``name`` is the status of the stage the input was for (the translator's solve);
+    ``topic`` where it goes (translator_node: ``SOLVE_STATUS_TOPIC``; cdr_node: /diagnostics).
     """
     values = {'converged': False}
     values.update(extra_values or {})
-    return [(DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE,
+    return [(topic, DIAGNOSTIC_ARRAY_TYPE,
              diagnostics_message(stamp, ERROR, reason, values, name=name))]

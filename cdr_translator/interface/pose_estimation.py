@@ -19,6 +19,7 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from . import messages
+from .diagnostics_period import StreamDiagnostics
 from .settings import estimate_components, TranslatorSettings
 from ..estimation import diagonal_prior, measured_target, WrenchEstimate
 from ..params.translator_params import TranslatorParams
@@ -30,11 +31,15 @@ MEASURED_POSE_COV_TOPIC = 'measured_end_disk_pose_cov'
 #: Outputs: the estimated end-disk wrench and its covariance.
 ESTIMATED_WRENCH_TOPIC = 'estimated_wrench'
 ESTIMATED_WRENCH_COVARIANCE_TOPIC = 'estimated_wrench_covariance'
+#: Every pose's own estimate status (a DiagnosticArray of one status, stamped like the
+#: pose); /diagnostics carries one aggregated array a period.
+ESTIMATE_STATUS_TOPIC = 'estimate_status'
 #: Type of each input and output topic of the estimation.
 ESTIMATION_TOPIC_TYPES: Mapping[str, str] = {
     MEASURED_POSE_TOPIC: messages.POSE_TYPE, MEASURED_POSE_COV_TOPIC: messages.POSE_COV_TYPE,
     ESTIMATED_WRENCH_TOPIC: messages.WRENCH_TYPE,
-    ESTIMATED_WRENCH_COVARIANCE_TOPIC: messages.FLOAT64_MULTI_ARRAY_TYPE}
+    ESTIMATED_WRENCH_COVARIANCE_TOPIC: messages.FLOAT64_MULTI_ARRAY_TYPE,
+    ESTIMATE_STATUS_TOPIC: messages.DIAGNOSTIC_ARRAY_TYPE}
 
 #: DiagnosticStatus name of the translator's wrench estimates.
 ESTIMATE_DIAGNOSTIC_NAME = 'translator_node: wrench estimate'
@@ -145,13 +150,16 @@ def estimate_messages(estimate: WrenchEstimate, stamp: Mapping[str, int], base_f
                       extra_values: Optional[Mapping[str, Any]] = None, *,
                       wrench_topic: str = ESTIMATED_WRENCH_TOPIC,
                       covariance_topic: str = ESTIMATED_WRENCH_COVARIANCE_TOPIC,
-                      name: str = ESTIMATE_DIAGNOSTIC_NAME) -> List[Tuple[str, str, dict]]:
+                      name: str = ESTIMATE_DIAGNOSTIC_NAME,
+                      status_topic: str = messages.DIAGNOSTICS_TOPIC
+                      ) -> List[Tuple[str, str, dict]]:
     """
     Return (topic, type, message) of everything published for one estimate.
 
     A converged estimate gives the wrench (in ``base_frame``, stamped ``stamp``) and, when
     the pose came with a covariance, the wrench covariance; every estimate gives a
-    diagnostic (``estimate_values`` then ``extra_values``) with the estimator's message.
+    status on ``status_topic`` (``estimate_values`` then ``extra_values``) with the
+    estimator's message.
     """
     built = []
     if estimate.converged:
@@ -163,7 +171,7 @@ def estimate_messages(estimate: WrenchEstimate, stamp: Mapping[str, int], base_f
                           messages.matrix_message(estimate.covariance)))
     values = estimate_values(estimate)
     values.update(extra_values or {})
-    built.append((messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE,
+    built.append((status_topic, messages.DIAGNOSTIC_ARRAY_TYPE,
                   messages.diagnostics_message(stamp, estimate_level(estimate),
                                                estimate.message, values, name=name)))
     return built
@@ -199,22 +207,41 @@ class MeasuredPoseProcessor(abc.ABC):
     ``solved`` (a matching load found: converged), split into ``estimated`` (no flag) and
     ``flagged`` (not to be acted on); ``not_converged`` (failed: no load matches); and
     ``skipped`` (the caller's: pushed out of the mailbox; 0 offline). Once idle,
-    received = solved + not_converged + rejected + skipped.
+    received = solved + not_converged + rejected + skipped. Each pose's status goes to
+    ``status_topic``; ``diagnostics`` sums a period of them up (``diagnostics_status``).
     """
 
     diagnostic_name = ESTIMATE_DIAGNOSTIC_NAME
+    status_topic = messages.DIAGNOSTICS_TOPIC
 
     def __init__(self) -> None:
         """Start the counts at zero."""
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
                                        'estimated': 0, 'flagged': 0, 'not_converged': 0,
                                        'skipped': 0}
+        self.diagnostics = StreamDiagnostics(self.diagnostic_name, 'poses',
+                                             residual_key='residual_m',
+                                             time_key='estimate_time')
+
+    def diagnostics_status(self, now_s: float) -> dict:
+        """Return the aggregated status of the period ending at ``now_s`` (s); start the next."""
+        return self.diagnostics.status(dict(self.counts), now_s)
 
     def reject(self, stamp: Mapping[str, int], reason: str) -> EstimateOutcome:
-        """Count a rejected pose; return its ERROR diagnostic."""
+        """Count a rejected pose; return its ERROR status."""
         self.counts['rejected'] += 1
+        self.diagnostics.note(messages.ERROR, f'rejected: {reason}')
         return EstimateOutcome(None, f'rejected: {reason}', messages.rejection_messages(
-            stamp, f'rejected: {reason}', dict(self.counts), name=self.diagnostic_name))
+            stamp, f'rejected: {reason}', dict(self.counts), name=self.diagnostic_name,
+            topic=self.status_topic))
+
+    def internal_error(self, stamp: Mapping[str, int], reason: str
+                       ) -> List[Tuple[str, str, dict]]:
+        """Count a pose a bug left unanswered (not converged); return its ERROR status."""
+        self.counts['not_converged'] += 1
+        self.diagnostics.note(messages.ERROR, reason)
+        return messages.rejection_messages(stamp, reason, dict(self.counts),
+                                           name=self.diagnostic_name, topic=self.status_topic)
 
     def process(self, message: Any, count_received: bool = True) -> EstimateOutcome:
         """
@@ -222,7 +249,8 @@ class MeasuredPoseProcessor(abc.ABC):
 
         ``count_received`` False: the caller counted the pose when it arrived (the node).
         """
-        self.counts['received'] += int(count_received)
+        if count_received:   # no write otherwise: the node's callback counts in another thread
+            self.counts['received'] += 1
         try:
             measured = pose_from_message(message)
         except ValueError as error:  # a covariance of another size than 36
@@ -237,6 +265,8 @@ class MeasuredPoseProcessor(abc.ABC):
             self.counts['flagged' if estimate.flagged else 'estimated'] += 1
         else:
             self.counts['not_converged'] += 1
+        self.diagnostics.note(estimate_level(estimate), estimate.message,
+                              float(estimate.residual_m), float(estimate.estimate_time_s))
         return EstimateOutcome(estimate, '' if estimate.converged else estimate.message,
                                self.outputs(estimate, measured.stamp, dict(self.counts)))
 
@@ -297,6 +327,8 @@ def assumed_pose_covariance(settings: TranslatorSettings) -> Optional[np.ndarray
 class PoseProcessor(MeasuredPoseProcessor):
     """translator_node's measured end-disk poses: the wrench, warm along the stream."""
 
+    status_topic = ESTIMATE_STATUS_TOPIC
+
     def __init__(self, params: TranslatorParams, settings: TranslatorSettings) -> None:
         """Build the estimation solver for ``params``; the estimate follows ``settings``."""
         super().__init__()
@@ -333,4 +365,5 @@ class PoseProcessor(MeasuredPoseProcessor):
     def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
                 counts: Mapping[str, int]) -> List[Tuple[str, str, dict]]:
         """Return the estimated wrench, its covariance and the diagnostic."""
-        return estimate_messages(estimate, stamp, self.settings.base_frame, counts)
+        return estimate_messages(estimate, stamp, self.settings.base_frame, counts,
+                                 status_topic=self.status_topic)

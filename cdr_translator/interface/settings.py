@@ -119,6 +119,9 @@ _NODE = (
                   'one more arrives the oldest waiting one is skipped. 1: latest wins (only '
                   'the newest waits); 2: two wrenches arriving within one solve are both '
                   'answered', read_only=True, bounds=(1, 1000)),
+    ParameterSpec('diagnostics_period_s', 's, publish one aggregated DiagnosticArray on '
+                  '/diagnostics this often (REP 107: about 1 s); each wrench has its status '
+                  'on solve_status', read_only=True, bounds=(1e-3, 3600.0)),
 )
 
 _FIDELITY = (
@@ -323,6 +326,7 @@ class TranslatorSettings:
     mcap_flush_s: float
     wrench_queue_depth: int
     pending_wrenches: int
+    diagnostics_period_s: float
     fidelity: str
     max_position_error: float
     max_angle_error: float

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from . import messages
 from .batch_row import BatchRow
+from .diagnostics_period import StreamDiagnostics
 from .settings import TranslatorSettings
 from ..fidelity import FidelitySolver
 from ..params.translator_params import TranslatorParams
@@ -128,10 +129,13 @@ class WrenchProcessor:
     """
     The node's handling of a sequence of wrenches, warm-starting one solver along it.
 
-    Counts received, rejected, solved and not converged messages and reports them in every
-    diagnostic (``report_counts``). translator_node holds one and adds its own counts
-    (``extra_counts``: skipped wrenches, lost log records); offline ``skipped`` is always 0,
-    nothing is dropped.
+    Counts received, rejected, solved (of them ``flagged``: converged to an answer not to
+    act on, a WARN) and not converged messages, and reports them in the aggregated
+    diagnostics (``report_counts``, ``diagnostics_status``); each answer is noted in
+    ``diagnostics`` (the period's levels, worst residual, solve times, last fault) and has
+    its own status among its outputs (``messages.SOLVE_STATUS_TOPIC``). translator_node
+    holds one and adds its own counts (``extra_counts``: skipped wrenches, lost log
+    records); offline ``skipped`` is always 0, nothing is dropped.
     """
 
     def __init__(self, params: TranslatorParams, settings: TranslatorSettings, *,
@@ -141,7 +145,7 @@ class WrenchProcessor:
         Build the solver (the node's time limit) for ``params``.
 
         ``extra_counts`` returns counts kept elsewhere, reported after (or in place of) the
-        processor's own in every diagnostic.
+        processor's own in the aggregated diagnostics.
         """
         self.settings = settings
         self.solver = node_solver(params, settings)
@@ -149,8 +153,9 @@ class WrenchProcessor:
         self.backbones = backbones
         self.rotation = np.eye(3)
         self.counts: Dict[str, int] = {'received': 0, 'rejected': 0, 'solved': 0,
-                                       'not_converged': 0, 'skipped': 0}
+                                       'flagged': 0, 'not_converged': 0, 'skipped': 0}
         self.extra_counts = extra_counts
+        self.diagnostics = StreamDiagnostics(messages.DIAGNOSTIC_NAME, 'wrenches')
 
     def apply_settings(self, settings: TranslatorSettings) -> None:
         """Take a new settings snapshot: its limits, frames and solve time limit."""
@@ -158,26 +163,36 @@ class WrenchProcessor:
         self.solver.time_limit_s = settings.solve_time_limit_s
 
     def report_counts(self) -> Dict[str, Any]:
-        """Return the counts every diagnostic reports: the processor's, then ``extra_counts``."""
+        """Return the counts the diagnostics report: the processor's, then ``extra_counts``."""
         counts: Dict[str, Any] = dict(self.counts)
         if self.extra_counts is not None:
             counts.update(self.extra_counts())
         return counts
+
+    def diagnostics_status(self, now_s: float) -> dict:
+        """Return the aggregated status of the period ending at ``now_s`` (s); start the next."""
+        return self.diagnostics.status(self.report_counts(), now_s)
 
     def receive(self) -> None:
         """Count a received wrench (``process`` does; the node counts one as it arrives)."""
         self.counts['received'] += 1
 
     def reject(self, stamp: Mapping[str, int], reason: str) -> List[Tuple[str, str, dict]]:
-        """Count a rejected wrench; return its ERROR diagnostic ``rejected: <reason>``."""
+        """Count a rejected wrench; return its ERROR status ``rejected: <reason>``."""
         self.counts['rejected'] += 1
-        return messages.rejection_messages(stamp, f'rejected: {reason}', self.report_counts())
+        return self._unanswered(stamp, f'rejected: {reason}')
 
     def internal_error(self, stamp: Mapping[str, int], reason: str
                        ) -> List[Tuple[str, str, dict]]:
-        """Count a wrench a bug left unanswered (not converged); return its ERROR diagnostic."""
+        """Count a wrench a bug left unanswered (not converged); return its ERROR status."""
         self.counts['not_converged'] += 1
-        return messages.rejection_messages(stamp, reason, self.report_counts())
+        return self._unanswered(stamp, reason)
+
+    def _unanswered(self, stamp: Mapping[str, int], reason: str
+                    ) -> List[Tuple[str, str, dict]]:
+        """Note an unanswered wrench in the period; return its ERROR status."""
+        self.diagnostics.note(messages.ERROR, reason)
+        return messages.rejection_messages(stamp, reason, topic=messages.SOLVE_STATUS_TOPIC)
 
     @property
     def batches(self) -> bool:
@@ -232,13 +247,22 @@ class WrenchProcessor:
         check_magnitude(force, moment, settings.max_force, settings.max_moment)
         return in_end_disk_frame(frame_id, settings.base_frame, settings.end_disk_frame)
 
-    def _tally(self, converged: bool, rotation: Callable[[], np.ndarray]) -> None:
-        """Count an answer; a converged one's end-disk orientation starts a follower load."""
-        if converged:
+    def _tally(self, result: Union[SolveResult, BatchRow],
+               rotation: Callable[[], np.ndarray]) -> None:
+        """
+        Count and note an answer; a converged one's end-disk orientation starts a follower load.
+
+        Flagged: converged to an answer not to act on (``messages.solve_level`` WARN).
+        """
+        level = messages.solve_level(result)
+        if result.converged:
             self.counts['solved'] += 1
+            self.counts['flagged'] += level == messages.WARN
             self.rotation = rotation()
         else:
             self.counts['not_converged'] += 1
+        self.diagnostics.note(level, result.message, float(result.residual_norm),
+                              float(result.solve_time_s))
 
     def _solve_run(self, run: Sequence[Wrench]) -> List[Outcome]:
         """Solve a run of accepted base-frame wrenches by one ``solve_many``."""
@@ -251,10 +275,9 @@ class WrenchProcessor:
         for index, wrench in enumerate(run):
             row = BatchRow(batch, index)
             self.counts['received'] += 1
-            self._tally(row.converged, lambda: row.end_disk_rotation_matrix)
+            self._tally(row, lambda: row.end_disk_rotation_matrix)
             outputs = messages.output_messages(
-                row, wrench[3], self.settings.base_frame, compliance=self.compliance,
-                extra_values=self.report_counts())
+                row, wrench[3], self.settings.base_frame, compliance=self.compliance)
             outcomes.append(Outcome(row, '' if row.converged else row.message, outputs, 1))
         return outcomes
 
@@ -273,8 +296,8 @@ class WrenchProcessor:
 
         ``compliance`` and ``backbones`` (default: the processor's) say whether the outputs
         hold the compliance and the backbone markers: the node asks for them only while
-        someone listens or they are logged. The counts the diagnostic reports are taken
-        when the solve ends.
+        someone listens or they are logged. The answer is counted and noted in the period's
+        diagnostics when the solve ends; its own status is the last output.
         """
         compliance = self.compliance if compliance is None else compliance
         backbones = self.backbones if backbones is None else backbones
@@ -286,14 +309,11 @@ class WrenchProcessor:
         result, solves = solve_wrench(self.solver, np.asarray(force, dtype=float),
                                       np.asarray(moment, dtype=float), end_disk,
                                       self.rotation, compliance)
-        self._tally(result.converged, lambda: result.frames['de'][:3, :3])
-        extra = self.report_counts()
-        if end_disk:
-            extra['follower_solves'] = solves
+        self._tally(result, lambda: result.frames['de'][:3, :3])
         outputs = messages.iter_output_messages(
             result, stamp, self.settings.base_frame, compliance=compliance,
             backbones_params=self.solver.params if backbones else None,
-            extra_values=extra)
+            extra_values={'follower_solves': solves} if end_disk else None)
         return Answer(result, '' if result.converged else result.message, outputs, solves)
 
 

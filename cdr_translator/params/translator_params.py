@@ -68,6 +68,7 @@ NODE_ONLY_KEYS: frozenset = frozenset((
     'base_frame', 'end_disk_frame', 'max_force', 'max_moment', 'solve_time_limit_s',
     'log_compliance', 'log_backbones', 'log_to_mcap', 'mcap_path', 'log_dir',
     'mcap_flush_messages', 'mcap_flush_s', 'wrench_queue_depth', 'pending_wrenches',
+    'diagnostics_period_s',
     'estimate_prior_force_sd', 'estimate_prior_moment_sd', 'estimate_prior_covariance',
     'estimate_target_force_sd', 'estimate_target_moment_sd', 'estimate_components',
     'estimate_held_force', 'estimate_held_moment', 'estimate_pose_position_sd',

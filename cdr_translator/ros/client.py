@@ -29,7 +29,7 @@ from ..interface import messages, pose_estimation
 
 #: What a client listens to unless told otherwise.
 DEFAULT_TOPICS = (messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC,
-                  messages.DIAGNOSTICS_TOPIC)
+                  messages.SOLVE_STATUS_TOPIC, messages.DIAGNOSTICS_TOPIC)
 
 
 #: The node run as a module of this interpreter, and as the installed console script.
@@ -113,7 +113,13 @@ class TranslatorClient:
 
     def __init__(self, topics: Sequence[str] = DEFAULT_TOPICS, name: str = 'translator_client',
                  depth: int = 1000) -> None:
-        """Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``."""
+        """
+        Subscribe ``topics`` (reliable, ``depth`` deep) and advertise ``wrench``.
+
+        ``solve_status`` is always subscribed too: ``handshake`` waits for it.
+        """
+        if messages.SOLVE_STATUS_TOPIC not in topics:
+            topics = (*topics, messages.SOLVE_STATUS_TOPIC)
         self.context = Context()
         rclpy.init(args=[], context=self.context)
         self.node = Node(name, context=self.context)
@@ -167,7 +173,7 @@ class TranslatorClient:
 
     def handshake(self, timeout_s: float, period_s: float = 0.25) -> bool:
         """
-        Send zero wrenches until one is answered on /diagnostics; False on timeout.
+        Send zero wrenches until one is answered on ``solve_status``; False on timeout.
 
         Matching is not symmetric: the publisher may see the node's subscription before the
         node's reader accepts its samples, so the first best-effort wrenches can be lost.
@@ -180,7 +186,8 @@ class TranslatorClient:
         sent = self.handshake_stamps
         while time.monotonic() < deadline:
             sent.append(self.publish((0.0, 0.0, 0.0)))
-            if self.wait_for(lambda: any(self.messages_stamped(messages.DIAGNOSTICS_TOPIC, stamp)
+            if self.wait_for(lambda: any(self.messages_stamped(messages.SOLVE_STATUS_TOPIC,
+                                                               stamp)
                                          for stamp in sent), period_s):
                 return True
         return False
@@ -220,6 +227,31 @@ class TranslatorClient:
             return [message for message, _ in self.received[topic]
                     if message.header.stamp.sec == stamp['sec']
                     and message.header.stamp.nanosec == stamp['nanosec']]
+
+    def diagnostics_after(self, stamp: Mapping[str, int], timeout_s: float,
+                          topic: str = messages.SOLVE_STATUS_TOPIC) -> Optional[Any]:
+        """
+        Wait for the first /diagnostics array stamped after the status of ``stamp`` arrived.
+
+        Its counts include that input (the node counts an input before it publishes its
+        status on ``topic``). Both /diagnostics and ``topic`` must be subscribed. None on
+        timeout.
+        """
+        deadline = time.monotonic() + timeout_s
+        wanted = messages.stamp_to_ns(stamp)
+        if not self.wait_for(lambda: bool(self.messages_stamped(topic, stamp)), timeout_s):
+            return None
+        with self._condition:
+            arrived = min(received for message, received in self.received[topic]
+                          if messages.stamp_to_ns(message.header.stamp) == wanted)
+
+        def later() -> List[Any]:
+            return [message for message, _ in self.received[messages.DIAGNOSTICS_TOPIC]
+                    if messages.stamp_to_ns(message.header.stamp) > arrived]
+        if not self.wait_for(lambda: bool(later()), max(deadline - time.monotonic(), 0.0)):
+            return None
+        with self._condition:
+            return later()[0]
 
     def close(self) -> None:
         """Stop spinning and shut the context down."""

@@ -1,9 +1,10 @@
 """
 A node's diagnostics, logged at their own level on their way out: one path, so they agree.
 
-Both nodes hand every (topic, type, dict) they publish through ``DiagnosticLog.logged``,
-which logs each DiagnosticStatus it sees at the status' level (ERROR as error, WARN and
-STALE as warning, OK as debug) with the status name's stage, e.g. ``inverse statics: target
+Both nodes hand the diagnostics they publish on /diagnostics (translator_node its aggregated
+array once a period, cdr_node every message's) through ``DiagnosticLog.logged``, which
+logs each DiagnosticStatus it sees at the status' level (ERROR as error, WARN and STALE as
+warning, OK as debug) with the status name's stage, e.g. ``inverse statics: target
 rejected: ...`` on cdr_node's logger. No other code logs a diagnostic's content, so a log
 line can never say WARN where the diagnostic says ERROR.
 """

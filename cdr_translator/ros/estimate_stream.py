@@ -9,7 +9,8 @@ it. As for wrenches, the callback only counts and logs the bytes as received; th
 decodes them (serialization.decoder), hands the message to the processor (the ROS-free
 check, estimate and messages of cdr_translator.interface) and publishes what it returns.
 Nothing is lost silently: a malformed message, a rejected pose, a failed estimate and an
-internal error each give an ERROR diagnostic, and the poses a newer one pushed out of the
+internal error each give an ERROR status (the processor's ``status_topic``) and count in the
+aggregated /diagnostics, and the poses a newer one pushed out of the
 mailbox are counted as ``skipped``.
 """
 
@@ -17,6 +18,7 @@ import threading
 import time
 from typing import Callable, Dict, List, Mapping, Optional, Tuple
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, WrenchStamped
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
@@ -26,7 +28,7 @@ from .latest_mailbox import LatestMailbox
 from .node_log import NodeLog
 from .spin import SHUTDOWN_JOIN_S
 from .topics import sensor_qos, type_name
-from ..interface import messages, pose_estimation
+from ..interface import pose_estimation
 from ..interface.pose_estimation import MeasuredPoseProcessor
 
 __all__ = ['count_line', 'SKIPPED_INPUT', 'EstimateStream', 'TRANSLATOR_ESTIMATE_INPUTS',
@@ -40,7 +42,8 @@ TRANSLATOR_ESTIMATE_INPUTS: Dict[str, type] = {
     pose_estimation.MEASURED_POSE_COV_TOPIC: PoseWithCovarianceStamped}
 TRANSLATOR_ESTIMATE_OUTPUTS: Dict[str, type] = {
     pose_estimation.ESTIMATED_WRENCH_TOPIC: WrenchStamped,
-    pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC: Float64MultiArray}
+    pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC: Float64MultiArray,
+    pose_estimation.ESTIMATE_STATUS_TOPIC: DiagnosticArray}
 
 
 class EstimateStream:
@@ -105,10 +108,8 @@ class EstimateStream:
                     continue
                 self._publish(self.processor.process(message, count_received=False).outputs)
             except Exception as error:  # noqa: B902 - a bug must not silence the node
-                counts['not_converged'] += 1
-                self._publish(messages.rejection_messages(
-                    {'sec': 0, 'nanosec': 0}, f'internal error: {error!r}', dict(counts),
-                    name=self.processor.diagnostic_name))
+                self._publish(self.processor.internal_error({'sec': 0, 'nanosec': 0},
+                                                            f'internal error: {error!r}'))
 
     def close(self, node: Node) -> Dict[str, int]:
         """

@@ -57,6 +57,20 @@ class LogWatch:
         self._reported_errors = 0
         self._failing = False
 
+    def report(self) -> Tuple[int, str, Dict[str, Any]]:
+        """
+        Return (level, message, values) of the log now: ``check``'s, or OK while it is fine.
+
+        For the aggregated /diagnostics, which holds the log's status every period.
+        """
+        found = self.check()
+        if found is not None:
+            return found
+        status = self.log.status()
+        return messages.OK, f'MCAP log: writing {status.path}', {
+            'mcap_file': status.path, 'records_written': status.written,
+            'records_lost': status.lost + self.log.errors, 'write_errors': status.errors}
+
     def check(self) -> Optional[Tuple[int, str, Dict[str, Any]]]:
         """Return the diagnostic to publish now, if any (an error between two checks too)."""
         status = self.log.status()
@@ -108,6 +122,13 @@ def log_health(watch: Optional[LogWatch], node_name: str, counts: Mapping[str, A
              messages.diagnostics_message(messages.stamp_from_ns(time.time_ns()), level, text,
                                           {**values, **counts},
                                           name=log_status_name(node_name)))]
+
+
+def log_status(watch: LogWatch, node_name: str) -> dict:
+    """Return the DiagnosticStatus dict of a node's MCAP log for the aggregated array."""
+    level, text, values = watch.report()
+    return messages.diagnostics_message({'sec': 0, 'nanosec': 0}, level, text, values,
+                                        name=log_status_name(node_name))['status'][0]
 
 
 def log_lost(log: Optional[NodeLog]) -> Dict[str, int]:

@@ -29,6 +29,7 @@ OUTPUTS = {
     messages.COMPLIANCE_TOPIC: Float64MultiArray,
     messages.BACKBONES_TOPIC: MarkerArray,
     messages.DIAGNOSTICS_TOPIC: DiagnosticArray,
+    messages.SOLVE_STATUS_TOPIC: DiagnosticArray,
 }
 
 #: How long a node trusts its count of an output topic's subscribers before counting again

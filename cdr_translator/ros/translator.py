@@ -3,31 +3,36 @@ translator_node: wrenches in, the translator's loaded shape out, every run logge
 
 Subscribes ``wrench`` (geometry_msgs/WrenchStamped, sensor-data QoS) and publishes, reliable
 with depth 10, ``end_disk_pose``, ``bending_angles``, ``compliance_eigenvalues``,
-``compliance``, ``backbones`` and ``/diagnostics`` (cdr_translator.interface.messages
-defines their content). The subscription callback only counts and logs a wrench and hands
-its bytes to a solver thread through a mailbox where ``pending_wrenches`` (2) may wait: when
-one more arrives, the oldest waiting one is skipped (counted), so two wrenches arriving within
-one solve are both answered and, when they keep arriving faster than the solver, the newest
-wins. The solver thread decodes (serialization.decoder) and checks the wrench it takes
-with the offline replay's code (a cdr_translator.interface.wrench_processing.WrenchProcessor:
-the same checks, frames, follower-load solve and counts). The subscription's queue is
-``wrench_queue_depth`` deep and an EventsExecutor (rclpy.experimental, spin.run) spins
-it. Outputs are built only for topics someone subscribes to (all of them while logging),
-one by one with the pose first (it is published before the others are built), encoded
-straight to CDR from their dicts (serialization.encode), published only where someone subscribes,
-and the same bytes logged: every received wrench and every output goes to an MCAP file
-written by a child process (node_log.NodeLog), so that the writing takes no time from the
-solve. Measured end-disk poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``)
-give ``estimated_wrench`` and ``estimated_wrench_covariance`` through a mailbox and thread
-of their own (estimate_stream.EstimateStream, interface.pose_estimation), logged alike.
-Only cdr_translator.ros imports rclpy or ROS message classes.
+``compliance``, ``backbones`` and every wrench's status, ``solve_status``
+(cdr_translator.interface.messages defines their content); and every
+``diagnostics_period_s`` (1 s) one aggregated DiagnosticArray on ``/diagnostics`` (REP 107:
+the wrenches', the estimates' and the MCAP log's status over the period, with counts, rates,
+worst residual and the last fault; interface.diagnostics_period). The subscription callback
+only counts and logs a wrench and hands its bytes to a solver thread through a mailbox where
+``pending_wrenches`` (2) may wait: when one more arrives, the oldest waiting one is skipped
+(counted), so two wrenches arriving within one solve are both answered and, when they keep
+arriving faster than the solver, the newest wins. The solver thread decodes
+(serialization.decoder) and checks the wrench it takes with the offline replay's code (a
+cdr_translator.interface.wrench_processing.WrenchProcessor: the same checks, frames,
+follower-load solve and counts). The subscription's queue is ``wrench_queue_depth`` deep and
+an EventsExecutor (rclpy.experimental, spin.run) spins it. Outputs are built only for topics
+someone subscribes to (all of them while logging), one by one with the pose first (it is
+published before the others are built), encoded straight to CDR from their dicts
+(serialization.encode), published only where someone subscribes, and the same bytes logged:
+every received wrench and every output goes to an MCAP file written by a child process
+(node_log.NodeLog), so that the writing takes no time from the solve. Measured end-disk
+poses (``measured_end_disk_pose``, ``measured_end_disk_pose_cov``) give ``estimated_wrench``
+and ``estimated_wrench_covariance``, each pose its status on ``estimate_status``, through
+a mailbox and thread of their own (estimate_stream.EstimateStream,
+interface.pose_estimation), logged alike. Only cdr_translator.ros imports rclpy or ROS
+message classes.
 """
 
 from pathlib import Path
 import sys
 import threading
 import time
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
+from typing import Any, Dict, FrozenSet, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
@@ -40,14 +45,14 @@ from . import node_help, serialization
 from .estimate_stream import count_line, EstimateStream, SKIPPED_INPUT
 from .estimate_stream import TRANSLATOR_ESTIMATE_INPUTS, TRANSLATOR_ESTIMATE_OUTPUTS
 from .latest_mailbox import LatestMailbox
-from .node_log import LOG_CHECK_PERIOD_S, log_health, log_lost, LogWatch, node_diagnostic_log
-from .node_log import NodeLog, open_log
+from .node_log import log_lost, log_status, LogWatch, node_diagnostic_log, NodeLog, open_log
 from .parameter_checks import check_parameters
 from .parameters import declare, ros_parameter_sources, SPECS
 from .spin import run, SHUTDOWN_JOIN_S
 from .topics import OUTPUTS, sensor_qos, SubscriberCounts, type_name
 from .._jit import timed_warm_up
 from ..interface import messages
+from ..interface.diagnostics_period import diagnostics_array
 from ..interface.pose_estimation import PoseProcessor
 from ..interface.settings import TranslatorSettings
 from ..interface.wrench_processing import WrenchProcessor
@@ -99,18 +104,25 @@ class TranslatorNode(Node):
         self._decode_wrench = serialization.decoder(WrenchStamped)
         self._type_names = {topic: type_name(message_class)
                             for topic, message_class in NODE_OUTPUTS.items()}
+        # resolved once: the log names every record, and a name costs a call into rcl
+        self._resolved = {topic: publisher.topic_name
+                          for topic, publisher in self._publishers_by_topic.items()}
         self._diagnostic_log = node_diagnostic_log(self.get_logger(), NODE_NAME)
         timed_warm_up(self._warm_up, self.get_logger().info)
         self._log, self.mcap_path = self._open_log()
         self._log_watch = LogWatch(self._log) if self._log is not None else None
-        self._log_timer = (self.create_timer(LOG_CHECK_PERIOD_S, self._check_log)
-                           if self._log is not None else None)
+        started_s = time.monotonic()
+        self.processor.diagnostics.begin(started_s)
+        self.estimator.diagnostics.begin(started_s)
+        self._diagnostics_timer = self.create_timer(self._settings.diagnostics_period_s,
+                                                    self._publish_diagnostics)
         self._worker = threading.Thread(target=self._work, name='solver', daemon=True)
         self._worker.start()
         self._estimates = EstimateStream(
             self, TRANSLATOR_ESTIMATE_INPUTS, self.estimator,
             lambda built: self._publish_all(self._serialized(built)), self._log,
             self._settings.wrench_queue_depth, self._settings.pending_wrenches)
+        self._wrench_topic = self.resolve_topic_name(messages.WRENCH_TOPIC)  # as logged
         self._subscription = self.create_subscription(
             WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
             sensor_qos(self._settings.wrench_queue_depth), raw=True)
@@ -148,7 +160,7 @@ class TranslatorNode(Node):
         result = solver.solve([WARM_UP_FORCES[-1], 0.0, 0.0], compliance=True)
         for topic, _, values in messages.output_messages(
                 result, {'sec': 0, 'nanosec': 0}, self._settings.base_frame,
-                backbones_params=solver.params, extra_values=self._counts()):
+                backbones_params=solver.params):
             self._encoders[topic](values)
         pose = messages.pose_message(result, {'sec': 0, 'nanosec': 0}, '')
         pose['pose'] = {'pose': pose['pose'], 'covariance': [0.0] * 36}
@@ -157,6 +169,7 @@ class TranslatorNode(Node):
         solver.reset()
         self.estimator.solver.reset()
         self.estimator.counts.update(dict.fromkeys(self.estimator.counts, 0))
+        self.estimator.diagnostics.discard_notes()
 
     def _open_log(self) -> Tuple[Optional[NodeLog], str]:
         """Open the MCAP log (unless disabled) and register the wrench and output topics."""
@@ -167,10 +180,24 @@ class TranslatorNode(Node):
                    for topic, publisher in self._publishers_by_topic.items()]
         return open_log(self._settings, 'translator', topics)
 
-    def _check_log(self) -> None:
-        """Timer: publish an ERROR diagnostic while the MCAP log fails (WARN once resumed)."""
-        self._publish_all(self._serialized(log_health(self._log_watch, NODE_NAME,
-                                                      self._counts())))
+    def _publish_diagnostics(self) -> None:
+        """
+        Timer: publish (and log) the period's aggregated DiagnosticArray on /diagnostics.
+
+        Its statuses: the wrenches', the measured poses' and, while logging, the MCAP log's
+        (an ERROR while writing fails, WARN once it resumed). Each is logged at its level.
+        """
+        # stamped before the counts are read: an input whose status went out before the
+        # stamp is in them
+        stamp = messages.stamp_from_ns(time.time_ns())
+        now_s = time.monotonic()
+        statuses = [self.processor.diagnostics_status(now_s),
+                    self.estimator.diagnostics_status(now_s)]
+        if self._log_watch is not None:
+            statuses.append(log_status(self._log_watch, NODE_NAME))
+        array = diagnostics_array(stamp, statuses)
+        built = [(messages.DIAGNOSTICS_TOPIC, messages.DIAGNOSTIC_ARRAY_TYPE, array)]
+        self._publish_all(self._serialized(self._diagnostic_log.logged(built)))
 
     # input -----------------------------------------------------------------------------------
     def _on_wrench(self, data: bytes) -> None:
@@ -185,8 +212,7 @@ class TranslatorNode(Node):
         received_ns = time.time_ns()
         self.processor.receive()
         if self._log is not None:
-            self._log.submit(self._subscription.topic_name, type_name(WrenchStamped), data,
-                             received_ns)
+            self._log.submit(self._wrench_topic, messages.WRENCH_TYPE, data, received_ns)
         self._mailbox.put(data)
 
     # solving ---------------------------------------------------------------------------------
@@ -210,7 +236,7 @@ class TranslatorNode(Node):
                     stamp, f'internal error: {error!r}')))
 
     def _reject(self, stamp: dict, reason: str) -> None:
-        """Count a rejected wrench and publish (and so log) the ERROR diagnostic."""
+        """Count a rejected wrench and publish (and so log) its ERROR status."""
         self._publish_all(self._serialized(self.processor.reject(stamp, reason)))
 
     def _process(self, stamp: dict, force: np.ndarray, moment: np.ndarray,
@@ -228,7 +254,7 @@ class TranslatorNode(Node):
                           or messages.BACKBONES_TOPIC in subscribed)
         answer = self.processor.answer(force, moment, frame_id, stamp,
                                        compliance=want_compliance, backbones=want_backbones)
-        self._publish_all(self._serialized(answer.outputs))
+        self._publish_all(self._serialized(answer.outputs, subscribed), subscribed)
 
     # output ----------------------------------------------------------------------------------
     @property
@@ -252,33 +278,35 @@ class TranslatorNode(Node):
         return self.processor.counts['not_converged']
 
     def _counts(self) -> Dict[str, Any]:
-        """Return the running message counts reported with every diagnostic."""
+        """Return the running message counts the aggregated diagnostics report."""
         return self.processor.report_counts()
 
-    def _serialized(self, built: Iterable[Tuple[str, str, dict]]) -> Iterator[Tuple[str, bytes]]:
+    def _serialized(self, built: Iterable[Tuple[str, str, dict]],
+                    subscribed: Optional[FrozenSet[str]] = None) -> Iterator[Tuple[str, bytes]]:
         """
         CDR-encode the wanted outputs among (topic, type, dict) triples, as (topic, bytes).
 
         Wanted: logged, or someone subscribes to the topic (serialization.encode writes the bytes
-        straight from the dict, no rclpy message in between). Every diagnostic, wanted or
-        not, is logged here at its level (DiagnosticLog), and nowhere else.
+        straight from the dict, no rclpy message in between). ``subscribed``: the topics
+        with subscribers, if the caller has just counted them.
         """
         logged = self._log is not None
-        subscribed = self._subscribers.subscribed()
-        return ((topic, self._encoders[topic](values))
-                for topic, _, values in self._diagnostic_log.logged(built)
+        if subscribed is None:
+            subscribed = self._subscribers.subscribed()
+        return ((topic, self._encoders[topic](values)) for topic, _, values in built
                 if logged or topic in subscribed)
 
-    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]]) -> None:
+    def _publish_all(self, topic_data: Iterable[Tuple[str, bytes]],
+                     subscribed: Optional[FrozenSet[str]] = None) -> None:
         """Publish each serialized output that someone subscribes to; log all of them."""
-        subscribed = self._subscribers.subscribed()
+        if subscribed is None:
+            subscribed = self._subscribers.subscribed()
         records = []
         for topic, data in topic_data:
-            publisher = self._publishers_by_topic[topic]
             if topic in subscribed:
-                publisher.publish(data)
+                self._publishers_by_topic[topic].publish(data)
             if self._log is not None:
-                records.append((publisher.topic_name, self._type_names[topic], data,
+                records.append((self._resolved[topic], self._type_names[topic], data,
                                 time.time_ns(), None))
         if records:
             assert self._log is not None
@@ -300,8 +328,8 @@ class TranslatorNode(Node):
         counts = self._counts()
         self.get_logger().info(count_line('wrenches', counts, 'solved', SKIPPED_INPUT))
         self.get_logger().info(count_line('measured poses', self._estimates.close(self)))
-        if self._log_timer is not None:
-            self.destroy_timer(self._log_timer)
+        self.destroy_timer(self._diagnostics_timer)
+        self._publish_diagnostics()  # the last period: the closing counts, in the log too
         if self._log is not None:
             log = self._log
             log.close()

@@ -55,22 +55,22 @@ def test_wrench_dict_round_trip():
 def test_diagnostics_and_output_messages(solved, params):
     """Converged: pose, angles, markers and an OK status; not converged: ERROR status only."""
     outputs = messages.output_messages(solved, STAMP, 'base', backbones_params=params,
-                                       extra_values={'skipped': 3})
+                                       extra_values={'follower_solves': 3})
     topics = [topic for topic, _, _ in outputs]
     assert topics[:2] == [messages.END_DISK_POSE_TOPIC, messages.BENDING_ANGLES_TOPIC]
-    assert topics[-2:] == [messages.BACKBONES_TOPIC, messages.DIAGNOSTICS_TOPIC]
+    assert topics[-2:] == [messages.BACKBONES_TOPIC, messages.SOLVE_STATUS_TOPIC]
     for topic, type_name, _ in outputs:
         assert messages.TOPIC_TYPES[topic] == type_name
     status = outputs[-1][2]['status'][0]
     values = {kv['key']: kv['value'] for kv in status['values']}
     assert status['level'] == messages.OK and values['converged'] == 'true'
     # the solver bounds the largest residual by 1e-10, so the norm of 90 by sqrt(90) times it
-    assert values['skipped'] == '3' and float(values['residual_norm']) <= 1e-9
+    assert values['follower_solves'] == '3' and float(values['residual_norm']) <= 1e-9
     failing = TranslatorSolver(params, time_limit_s=0.0).solve([20.0, 5.0, 0.0])
     assert not failing.converged
     outputs = messages.output_messages(failing, STAMP, 'base')
     assert [(topic, msg['status'][0]['level']) for topic, _, msg in outputs] == [
-        (messages.DIAGNOSTICS_TOPIC, messages.ERROR)]
+        (messages.SOLVE_STATUS_TOPIC, messages.ERROR)]
     assert outputs[0][2]['status'][0]['message'] == failing.message
     with pytest.raises(ValueError, match='level'):
         messages.diagnostics_message(STAMP, 7, 'x', {})

@@ -78,7 +78,7 @@ def test_round_trip_gives_the_wrench_and_its_covariance(settings, measured):
     found = _by_topic(outcome.outputs)
     assert set(found) == {pose_estimation.ESTIMATED_WRENCH_TOPIC,
                           pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC,
-                          messages.DIAGNOSTICS_TOPIC}
+                          pose_estimation.ESTIMATE_STATUS_TOPIC}
     type_name, wrench = found[pose_estimation.ESTIMATED_WRENCH_TOPIC][0]
     assert type_name == messages.WRENCH_TYPE
     assert wrench['header'] == messages.header(STAMP, settings.base_frame)
@@ -96,7 +96,7 @@ def test_round_trip_gives_the_wrench_and_its_covariance(settings, measured):
     matrix = np.reshape(covariance['data'], (6, 6))
     np.testing.assert_array_equal(matrix, outcome.estimate.covariance)
     np.testing.assert_allclose(np.sqrt(np.diag(matrix)), sd)
-    status = found[messages.DIAGNOSTICS_TOPIC][0][1]['status'][0]
+    status = found[pose_estimation.ESTIMATE_STATUS_TOPIC][0][1]['status'][0]
     assert status['name'] == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME
     assert status['level'] == messages.WARN, status['message']
     values = {pair['key']: pair['value'] for pair in status['values']}
@@ -190,7 +190,7 @@ def test_bad_poses_are_rejected_with_the_reason(settings, position, quaternion, 
     processor = PoseProcessor(settings.params, settings)
     outcome = processor.process(_pose(position, quaternion, frame_id, covariance))
     assert outcome.estimate is None
-    assert [topic for topic, _, _ in outcome.outputs] == [messages.DIAGNOSTICS_TOPIC]
+    assert [topic for topic, _, _ in outcome.outputs] == [pose_estimation.ESTIMATE_STATUS_TOPIC]
     status = outcome.outputs[0][2]['status'][0]
     assert status['level'] == messages.ERROR
     assert status['name'] == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME
@@ -202,7 +202,7 @@ def test_unreachable_pose_is_an_error_without_a_wrench(settings):
     """A pose beyond the translator's reach: ERROR naming it, no estimated wrench."""
     processor = PoseProcessor(settings.params, settings)
     outcome = processor.process(_pose((0.0, 0.0, 1.0), (0, 0, 0, 1)))
-    assert [topic for topic, _, _ in outcome.outputs] == [messages.DIAGNOSTICS_TOPIC]
+    assert [topic for topic, _, _ in outcome.outputs] == [pose_estimation.ESTIMATE_STATUS_TOPIC]
     status = outcome.outputs[0][2]['status'][0]
     assert status['level'] == messages.ERROR and 'unreachable' in status['message']
     assert processor.counts['not_converged'] == 1

@@ -7,7 +7,7 @@ from cdr_translator.solve import branch
 
 def _diagnostic(result) -> dict:
     (topic, _, message), = [entry for entry in messages.output_messages(
-        result, {'sec': 0, 'nanosec': 0}, 'base') if entry[0] == messages.DIAGNOSTICS_TOPIC]
+        result, {'sec': 0, 'nanosec': 0}, 'base') if entry[0] == messages.SOLVE_STATUS_TOPIC]
     status = message['status'][0]
     return {'level': status['level'],
             'values': {pair['key']: pair['value'] for pair in status['values']}}

@@ -94,13 +94,20 @@ def test_replay_estimates_the_wrench_of_each_measured_pose(tmp_path):
                                    moment, rtol=0, atol=1e-7)
     assert len(found[COVARIANCE_TOPIC]) == 2
     assert all(len(message.data) == 36 for _, message in found[COVARIANCE_TOPIC])
-    statuses = [message.status[0] for _, message in found['/diagnostics']
+    statuses = [message.status[0] for _, message in found['/estimate_status']
                 if message.status[0].name == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME]
     assert len(statuses) == 5
     assert statuses[-1].level == messages.ERROR
     assert "unknown frame_id 'camera'" in statuses[-1].message
     # both pose topics of one namespace share one warm-started stream, as in the node
     assert {pair.key: pair.value for pair in statuses[-1].values}['received'] == '5'
+    # the closing aggregated array: the wrenches' and the estimates' counts side by side
+    closing = {status.name: {pair.key: pair.value for pair in status.values}
+               for status in found['/diagnostics'][-1][1].status}
+    assert closing[messages.DIAGNOSTIC_NAME]['solved'] == '2'
+    estimates = closing[pose_estimation.ESTIMATE_DIAGNOSTIC_NAME]
+    assert (estimates['received'], estimates['estimated'], estimates['flagged'],
+            estimates['rejected']) == ('5', '2', '2', '1')
 
 
 def test_a_chosen_wrench_topic_leaves_the_poses_out(tmp_path):
@@ -198,7 +205,8 @@ def test_estimate_flags_override_the_params_file(tmp_path):
                                                      'estimate_held_moment': [0.01, 0.0,
                                                                               0.005]})
     assert summary.poses == 3 and summary.rejected_poses == 1
-    statuses = [message.status[0] for _, message in _read(tmp_path / 'out.mcap')['/diagnostics']
+    statuses = [message.status[0]
+                for _, message in _read(tmp_path / 'out.mcap')['/estimate_status']
                 if message.status[0].name == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME]
     values = {pair.key: pair.value for pair in statuses[0].values}
     assert values['components'] == 'fx fy' and values['accuracy_met'] == 'not assessed'

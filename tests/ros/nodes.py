@@ -17,6 +17,7 @@ ANSWER_TIMEOUT_S = 30.0
 POSE = messages.END_DISK_POSE_TOPIC
 ANGLES = messages.BENDING_ANGLES_TOPIC
 DIAGNOSTICS = messages.DIAGNOSTICS_TOPIC
+STATUS = messages.SOLVE_STATUS_TOPIC
 
 
 class Running:
@@ -27,8 +28,9 @@ class Running:
     ``tmp_path / '<name>.log'``.
     """
 
-    def __init__(self, tmp_path: Path, env, ros_args=(), topics=(POSE, ANGLES, DIAGNOSTICS),
-                 command=MODULE_COMMAND, mcap: Optional[Path] = None, name: str = 'node'):
+    def __init__(self, tmp_path: Path, env, ros_args=(),
+                 topics=(POSE, ANGLES, STATUS, DIAGNOSTICS), command=MODULE_COMMAND,
+                 mcap: Optional[Path] = None, name: str = 'node'):
         """Start the node and wait for its first answer."""
         self.mcap = tmp_path / 'run.mcap' if mcap is None else mcap
         # rcl applies --params-file and -p in command-line order: mcap_path comes last, so
@@ -64,8 +66,20 @@ class Running:
         return self.client.messages_stamped(topic, stamp)[0]
 
     def last_diagnostic(self):
-        """Return the key/values of the last diagnostic received."""
+        """Return the key/values of the wrenches' status in the last /diagnostics array."""
         return diagnostic_values(self.client.received[DIAGNOSTICS][-1][0])
+
+    def counts_after(self, stamp, topic=STATUS):
+        """
+        Return the wrenches' status values in the first /diagnostics array after ``stamp``'s.
+
+        That array was published after the status of ``stamp`` (on ``topic``) arrived: its
+        counts include that wrench.
+        """
+        self.answer(topic, stamp)
+        array = self.client.diagnostics_after(stamp, ANSWER_TIMEOUT_S, topic)
+        assert array is not None, self.node.text()
+        return diagnostic_values(array)
 
 
 def stamped_wrenches(count: int, axis: str, first: float) -> list:

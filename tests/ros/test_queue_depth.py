@@ -66,3 +66,12 @@ def test_pending_wrenches_sets_the_solver_mailbox_and_is_read_only(context):
             assert node.get_parameter('pending_wrenches').value == capacity
             assert node._mailbox.capacity == capacity
             assert refuses_at_run_time(node, 'pending_wrenches', 3)
+
+
+def test_diagnostics_period_sets_the_timer_and_is_read_only(context):
+    """-p diagnostics_period_s:=0.25 is the /diagnostics timer's period; start only."""
+    for arguments, period in (([], 1.0), (['-p', 'diagnostics_period_s:=0.25'], 0.25)):
+        with started(TranslatorNode, context, *arguments) as node:
+            assert node.get_parameter('diagnostics_period_s').value == period
+            assert node._diagnostics_timer.timer_period_ns == int(period * 1e9)
+            assert refuses_at_run_time(node, 'diagnostics_period_s', 2.0)

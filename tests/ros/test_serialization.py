@@ -9,6 +9,7 @@ in-process in its own context and domain.
 """
 
 from cdr_translator.interface import messages
+from cdr_translator.interface.diagnostics_period import diagnostics_array, StreamDiagnostics
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import node_solver
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH
@@ -50,10 +51,14 @@ def test_every_output_encodes_as_rclpy_does(result):
     solved, params = result
     outputs = messages.output_messages(solved, STAMP, 'translator_base',
                                        backbones_params=params,
-                                       extra_values={'received': 3, 'skipped': 1})
-    assert {topic for topic, _, _ in outputs} == set(OUTPUTS)
+                                       extra_values={'follower_solves': 3})
+    assert {topic for topic, _, _ in outputs} == set(OUTPUTS) - {messages.DIAGNOSTICS_TOPIC}
     for topic, _, values in outputs:
         _same_as_rclpy(topic, values)
+    period = StreamDiagnostics(messages.DIAGNOSTIC_NAME, 'wrenches')
+    period.note(messages.WARN, 'unstable é', 1e-12, 0.002)
+    status = period.status({'received': 3, 'solved': 1, 'skipped': 2}, 1.0)
+    _same_as_rclpy(messages.DIAGNOSTICS_TOPIC, diagnostics_array(STAMP, [status, status]))
     for topic, _, values in messages.rejection_messages(STAMP, 'rejected: |force| é', {}):
         _same_as_rclpy(topic, values)
 

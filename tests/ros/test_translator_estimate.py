@@ -14,7 +14,7 @@ from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.ros.client import diagnostic_values
 from geometry_msgs.msg import PoseStamped
 from mcap_ros2.reader import read_ros2_messages
-from nodes import ANSWER_TIMEOUT_S, DIAGNOSTICS, Running
+from nodes import ANSWER_TIMEOUT_S, Running
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
@@ -22,7 +22,8 @@ from rclpy.serialization import serialize_message
 
 ESTIMATE = pose_estimation.ESTIMATED_WRENCH_TOPIC
 COVARIANCE = pose_estimation.ESTIMATED_WRENCH_COVARIANCE_TOPIC
-TOPICS = (ESTIMATE, COVARIANCE, DIAGNOSTICS)
+ESTIMATE_STATUS = pose_estimation.ESTIMATE_STATUS_TOPIC
+TOPICS = (ESTIMATE, COVARIANCE, ESTIMATE_STATUS)
 #: Pose covariance: 10 um and 0.01 deg standard deviations (a good optical tracker).
 POSE_COVARIANCE = np.diag([1e-10] * 3 + [math.radians(0.01) ** 2] * 3)
 pytestmark = pytest.mark.usefixtures('ros_env')
@@ -32,9 +33,9 @@ def _estimate_status(run, stamp):
     """Wait for the estimate's DiagnosticStatus stamped ``stamp``; return it."""
     assert run.client.wait_for(lambda: any(
         message.status[0].name == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME
-        for message in run.client.messages_stamped(DIAGNOSTICS, stamp)), ANSWER_TIMEOUT_S), \
+        for message in run.client.messages_stamped(ESTIMATE_STATUS, stamp)), ANSWER_TIMEOUT_S), \
         (stamp, run.node.text())
-    return next(message for message in run.client.messages_stamped(DIAGNOSTICS, stamp)
+    return next(message for message in run.client.messages_stamped(ESTIMATE_STATUS, stamp)
                 if message.status[0].name == pose_estimation.ESTIMATE_DIAGNOSTIC_NAME)
 
 
@@ -138,6 +139,7 @@ def test_round_trip_bad_input_and_log(tmp_path, ros_env):
     assert logged['/' + pose_estimation.MEASURED_POSE_TOPIC] == messages.POSE_TYPE
     assert logged['/' + pose_estimation.MEASURED_POSE_COV_TOPIC] == messages.POSE_COV_TYPE
     assert logged['/' + ESTIMATE] == messages.WRENCH_TYPE
+    assert logged['/' + ESTIMATE_STATUS] == messages.DIAGNOSTIC_ARRAY_TYPE
     assert logged['/' + COVARIANCE] == messages.FLOAT64_MULTI_ARRAY_TYPE
 
 

@@ -20,11 +20,12 @@ from cdr_translator.interface import messages
 from cdr_translator.params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
 from cdr_translator.ros.client import diagnostic_values, NodeProcess, SCRIPT_COMMAND
 from cdr_translator.ros.translator import TranslatorNode
+from cdr_wire.cdr_codecs import ShippedDecoders
 from cdr_wire.reader import McapSource
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools.replay import replay
-from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running
+from nodes import ANGLES, ANSWER_TIMEOUT_S, DIAGNOSTICS, POSE, Running, STATUS
 from nodes import send_behind_a_slow_first_solve, stamped_wrenches, START_TIMEOUT_S
 import numpy as np
 import pytest
@@ -53,7 +54,7 @@ def test_round_trip_equals_library(tmp_path, ros_env):
     """Pose, angles and compliance eigenvalues equal the library's for the same wrench."""
     solver = TranslatorSolver(TranslatorParams.from_yaml())
     with Running(tmp_path, ros_env, ['--params-file', str(DEFAULT_PARAMS_PATH)],
-                 topics=(POSE, ANGLES, EIGENVALUES, DIAGNOSTICS)) as run:
+                 topics=(POSE, ANGLES, EIGENVALUES, STATUS)) as run:
         for force, moment, frame in (((12.0, 0.0, 0.0), (0.0, 0.0, 0.0), 'translator_base'),
                                      ((3.0, -2.0, 1.0), (0.05, 0.0, 0.02), '')):
             stamp = run.client.publish(force, moment, frame)
@@ -71,7 +72,7 @@ def test_round_trip_equals_library(tmp_path, ros_env):
             assert run.client.wait_for(lambda: any(
                 np.allclose(message.data, expected.compliance.eigenvalues, rtol=1e-6, atol=0)
                 for message, _ in run.client.received[EIGENVALUES]), ANSWER_TIMEOUT_S)
-            assert run.answer(DIAGNOSTICS, stamp).status[0].level == bytes([messages.OK])
+            assert run.answer(STATUS, stamp).status[0].level == bytes([messages.OK])
         # A follower load in the end-disk frame: the pose is the equilibrium under the
         # wrench rotated by that very pose.
         local = np.array([0.0, 6.0, 0.0])
@@ -81,7 +82,7 @@ def test_round_trip_equals_library(tmp_path, ros_env):
         assert not np.allclose(rotation, np.eye(3), atol=1e-4)
         expected = solver.solve(rotation @ local)
         np.testing.assert_allclose(position, expected.end_disk_position, rtol=0, atol=1e-9)
-        assert int(diagnostic_values(run.answer(DIAGNOSTICS, stamp))['follower_solves']) > 1
+        assert int(diagnostic_values(run.answer(STATUS, stamp))['follower_solves']) > 1
     assert run.mcap.stat().st_size > 0   # the log went to tmp_path, not to cdr_runs/
 
 
@@ -96,19 +97,19 @@ def test_bad_input_rejected_then_next_answered(tmp_path, ros_env):
         for force, moment, frame, reason in bad:
             stamp = run.client.publish(force, moment, frame)
             stamps.append(stamp)
-            status = run.answer(DIAGNOSTICS, stamp).status[0]
+            status = run.answer(STATUS, stamp).status[0]
             assert status.level == bytes([messages.ERROR])
             assert reason in status.message
         run.client.publisher.publish(b'\x00\x01\x00\x00\x07')  # malformed: answered at stamp 0
-        status = run.answer(DIAGNOSTICS, {'sec': 0, 'nanosec': 0}).status[0]
+        status = run.answer(STATUS, {'sec': 0, 'nanosec': 0}).status[0]
         assert status.level == bytes([messages.ERROR])
         assert 'rejected: malformed message' in status.message
         valid = run.client.publish((5.0, 1.0, 0.0))
         run.answer(POSE, valid)
-        assert run.answer(DIAGNOSTICS, valid).status[0].level == bytes([messages.OK])
+        assert run.answer(STATUS, valid).status[0].level == bytes([messages.OK])
         assert not any(run.client.messages_stamped(POSE, stamp) for stamp in stamps)
         assert run.node.process.poll() is None
-        values = diagnostic_values(run.answer(DIAGNOSTICS, valid))
+        values = run.counts_after(valid)
         assert int(values['rejected']) == len(bad) + 1
 
 
@@ -122,13 +123,13 @@ def test_burst_latest_wins(tmp_path, ros_env):
     """
     rng = np.random.default_rng(4)
     forces = rng.uniform(-15.0, 15.0, size=(2000, 3))
-    with Running(tmp_path, ros_env, topics=(POSE, DIAGNOSTICS)) as run:
+    with Running(tmp_path, ros_env, topics=(POSE, STATUS, DIAGNOSTICS)) as run:
         for force in forces[:-1]:
             run.client.publish(force)
         time.sleep(0.05)
         stamp = run.client.publish(forces[-1])
         run.answer(POSE, stamp)
-        values = diagnostic_values(run.answer(DIAGNOSTICS, stamp))
+        values = run.counts_after(stamp)
         assert int(values['skipped']) > 0
         # every received wrench is accounted for: solved, skipped or rejected
         assert (int(values['solved']) + int(values['skipped']) + int(values['rejected'])
@@ -136,6 +137,55 @@ def test_burst_latest_wins(tmp_path, ros_env):
         after = run.client.publish((2.0, 0.0, 0.0))
         run.answer(POSE, after)
         assert run.node.stop(signal.SIGINT) == 0
+
+
+def test_diagnostics_aggregated_at_its_period_and_statuses_logged_per_wrench(tmp_path, ros_env):
+    """
+    /diagnostics: one array a diagnostics_period_s whose counts add up; solve_status: one a wrench.
+
+    The MCAP log holds every array from the start to the closing one: the wrenches answered
+    in each period sum to those answered in all, and each answered wrench has its status
+    record, stamped like it. A NaN in a period makes that period's array an ERROR naming it.
+    """
+    with Running(tmp_path, ros_env, ['-p', 'diagnostics_period_s:=0.4'],
+                 topics=(POSE, STATUS, DIAGNOSTICS)) as run:
+        sent = []
+        for index in range(30):
+            sent.append(run.client.publish((0.2 * index, 0.0, 0.0)))
+            time.sleep(0.005)
+        sent.append(run.client.publish((math.nan, 0.0, 0.0)))
+        values = run.counts_after(sent[-1])
+        assert int(values['received']) == sum(
+            int(values[key]) for key in ('solved', 'not_converged', 'rejected', 'skipped'))
+        assert int(values['rejected']) == 1
+        arrays = [message for message, _ in run.client.received[DIAGNOSTICS]]
+        assert any(status.level == bytes([messages.ERROR]) and 'is nan' in status.message
+                   for array in arrays for status in array.status)
+        # a few periods more, so that the log holds enough arrays to show their spacing
+        assert run.client.wait_for(lambda: len(run.client.received[DIAGNOSTICS]) >= 5,
+                                   ANSWER_TIMEOUT_S), run.node.text()
+        assert run.node.stop(signal.SIGINT) == 0, run.node.text()
+    decoders = ShippedDecoders()
+    records = list(McapSource(run.mcap).messages())
+    logged = [decoders.decode(raw) for raw in records if raw.topic == '/diagnostics']
+    names = [status['name'] for status in logged[0]['status']]
+    assert names == ['translator_node: kinestatics', 'translator_node: wrench estimate',
+                     'translator_node: mcap_log']
+    stamps = np.array([messages.stamp_to_ns(array['header']['stamp']) for array in logged]) * 1e-9
+    assert len(stamps) >= 6   # five or more periods, then the closing one
+    assert 0.2 <= float(np.median(np.diff(stamps[:-1]))) <= 1.0   # the closing one aside
+    periods = [{pair['key']: pair['value'] for pair in array['status'][0]['values']}
+               for array in logged]
+    final = periods[-1]
+    answered = sum(int(final[key]) for key in ('solved', 'not_converged', 'rejected'))
+    assert answered + int(final['skipped']) == int(final['received'])
+    assert sum(int(period['answered_in_period']) for period in periods) == answered
+    statuses = [raw for raw in records if raw.topic == '/solve_status']
+    assert len(statuses) == answered
+    wrench_stamps = {messages.stamp_to_ns(decoders.decode(raw)['header']['stamp'])
+                     for raw in records if raw.topic == '/wrench'}
+    assert {messages.stamp_to_ns(decoders.decode(raw)['header']['stamp'])
+            for raw in statuses} <= wrench_stamps
 
 
 @pytest.mark.parametrize('number', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
@@ -148,7 +198,7 @@ def test_signal_exits_with_finalized_mcap(tmp_path, ros_env, number):
             sent.append(run.client.publish(force))
             time.sleep(0.005)
         run.answer(POSE, sent[-1])
-        received = int(diagnostic_values(run.answer(DIAGNOSTICS, sent[-1]))['received'])
+        received = int(run.counts_after(sent[-1])['received'])
         poses = [message for message, _ in run.client.received[POSE]]
         began = time.monotonic()
         assert run.node.stop(number, timeout_s=20.0) == 0, run.node.text()
@@ -178,7 +228,7 @@ def test_kill_9_leaves_every_received_wrench_in_the_log(tmp_path, ros_env):
         for index in range(20):
             stamp = run.client.publish((0.5 * index, 0.0, 0.0))
             time.sleep(0.005)
-        received = int(diagnostic_values(run.answer(DIAGNOSTICS, stamp))['received'])
+        received = int(run.counts_after(stamp)['received'])
         # wait (bounded) until the flushed chunks hold every wrench: only then is the
         # SIGKILL sure to lose nothing, whatever the machine's speed
         deadline = time.monotonic() + ANSWER_TIMEOUT_S
@@ -234,7 +284,7 @@ def test_parameters_through_the_parameter_service(tmp_path, ros_env):
         assert 'must differ' in reasons[3]
 
         stamp = run.client.publish((40.0, 0.0, 0.0))
-        assert 'exceeds max_force = 30' in run.answer(DIAGNOSTICS, stamp).status[0].message
+        assert 'exceeds max_force = 30' in run.answer(STATUS, stamp).status[0].message
         assert not run.client.messages_stamped(POSE, stamp)
 
         # a solve that cannot finish in time: an ERROR diagnostic, no pose, node goes on.
@@ -243,7 +293,7 @@ def test_parameters_through_the_parameter_service(tmp_path, ros_env):
         assert call(parameters.set_parameters(
             [Parameter('solve_time_limit_s', value=0.001)])).results[0].successful
         stamp = run.client.publish((25.0, 10.0, 0.0), (0.0, 0.0, 9.5))
-        diagnostic = run.answer(DIAGNOSTICS, stamp)
+        diagnostic = run.answer(STATUS, stamp)
         assert diagnostic.status[0].level == bytes([messages.ERROR])
         assert diagnostic_values(diagnostic)['converged'] == 'false'
         assert not run.client.messages_stamped(POSE, stamp)
@@ -330,6 +380,12 @@ def test_wrenches_waiting_at_shutdown_are_answered_and_counted(tmp_path):
     finally:
         rclpy.try_shutdown(context=context)
     assert (node.received, node.solved, node._mailbox.skipped) == (3, 3, 0)
-    topics = [raw.topic for raw in McapSource(path).messages()]
+    records = list(McapSource(path).messages())
+    topics = [raw.topic for raw in records]
     assert topics.count('/wrench') == 3 and topics.count('/end_disk_pose') == 3
-    assert topics.count('/diagnostics') == 3
+    assert topics.count('/solve_status') == 3
+    # no executor spun the timer: the one array is the closing one, its counts add up
+    (closing,) = [raw for raw in records if raw.topic == '/diagnostics']
+    status = ShippedDecoders().decode(closing)['status'][0]
+    counts = {pair['key']: pair['value'] for pair in status['values']}
+    assert (counts['received'], counts['solved'], counts['skipped']) == ('3', '3', '0')

@@ -1,0 +1,185 @@
+"""
+translator_node under load: its CPU per wrench at 1 kHz, and what it skips beside a pose stream.
+
+Usage: python -m bench.node_load [--seconds 5] [--markdown FILE]
+
+Two rows, printed against their targets:
+
+* **CPU per wrench at 1 kHz, log on**: the node (a child process, MCAP log on, its log
+  process counted) receives a smooth 1 kHz wrench sweep (``bench.node_latency.stream``);
+  the row is the node's user + system time over the stream divided by the wrenches it
+  received (target: at most 0.25 ms).
+* **1 kHz wrenches + 1 kHz poses, another process busy on one core**: a child process spins
+  on one core meanwhile; the client publishes a wrench and a measured end-disk pose (the
+  forward solve of a 2 N load, 10 um of seeded noise) every millisecond. The row is the
+  share of received wrenches skipped (target: below 1 %) and whether every pose the node
+  received was answered or counted (received = estimated + flagged + not converged +
+  rejected + skipped).
+
+The counts are the node's own, from its aggregated ``/diagnostics`` (the first array after
+the last input's status). The client shares the machine with the node: on a loaded machine
+both lose time, so compare rows of one run.
+"""
+
+import argparse
+import datetime
+import gc
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Dict, List, Tuple
+
+from bench.node_latency import cpu_seconds
+from cdr_translator import TranslatorSolver
+from cdr_translator.interface import messages, pose_estimation
+from cdr_translator.ros.client import isolated_ros_env, NodeProcess, TranslatorClient
+import numpy as np
+
+#: The targets: node CPU per wrench (s) and the share of wrenches skipped.
+CPU_PER_WRENCH_TARGET_S = 0.25e-3
+SKIPPED_SHARE_TARGET = 0.01
+RATE_HZ = 1000.0
+#: The busy neighbour: one core spinning until killed.
+BUSY_COMMAND = (sys.executable, '-c', 'while True: pass')
+#: Noise on the measured poses (m).
+POSE_NOISE_M = 1e-5
+
+
+def _statuses(array) -> Dict[str, Dict[str, str]]:
+    """Return each status' key/values of a DiagnosticArray, by status name."""
+    return {status.name: {pair.key: pair.value for pair in status.values}
+            for status in array.status}
+
+
+def _counts_after(client: TranslatorClient, stamp: dict, topic: str) -> Dict[str, Dict[str, str]]:
+    """Return the statuses of the first /diagnostics array after ``stamp``'s status."""
+    array = client.diagnostics_after(stamp, 30.0, topic)
+    if array is None:   # that status never came: the first array from now on
+        now = time.time_ns()
+        client.wait_for(lambda: any(messages.stamp_to_ns(message.header.stamp) > now for
+                                    message, _ in client.received[messages.DIAGNOSTICS_TOPIC]),
+                        30.0)
+        array = client.received[messages.DIAGNOSTICS_TOPIC][-1][0]
+    return _statuses(array)
+
+
+def stream(client: TranslatorClient, seconds: float, poses: bool) -> Tuple[dict, dict]:
+    """Publish 1 kHz wrenches (and poses) for ``seconds``; return the last stamps of each."""
+    count = int(RATE_HZ * seconds)
+    pose = TranslatorSolver().solve((2.0, 0.0, 0.0))
+    noise = np.random.default_rng(7).normal(scale=POSE_NOISE_M, size=(count, 3))
+    started = time.monotonic()
+    last_wrench, last_pose = {}, {}
+    for index in range(count):
+        delay = started + index / RATE_HZ - time.monotonic()
+        if delay > 0.0:
+            time.sleep(delay)
+        force = 6.0 - 6.0 * math.cos(math.pi * index / RATE_HZ)
+        last_wrench = client.publish((force, 0.5 * force, 0.0))
+        if poses:
+            last_pose = client.publish_pose(
+                (pose.end_disk_position + noise[index]).tolist(),
+                pose.end_disk_quaternion_xyzw.tolist())
+    return last_wrench, last_pose
+
+
+def measure(seconds: float, poses: bool, busy: bool) -> dict:
+    """Run the node, stream, and return its counts and CPU time over the stream."""
+    env = isolated_ros_env()
+    os.environ.update(env)
+    with tempfile.TemporaryDirectory() as folder:
+        ros_args = ['-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
+        with NodeProcess(ros_args, env, Path(folder) / 'node.log') as node:
+            topics = [messages.END_DISK_POSE_TOPIC, messages.SOLVE_STATUS_TOPIC,
+                      messages.DIAGNOSTICS_TOPIC, pose_estimation.ESTIMATE_STATUS_TOPIC]
+            client = TranslatorClient(topics, depth=20000)
+            gc.disable()   # see bench.node_latency: a collection stalls the client
+            neighbour = None
+            try:
+                if not client.handshake(120.0):
+                    raise SystemExit(f'node did not answer:\n{node.text()}')
+                if busy:
+                    neighbour = subprocess.Popen(BUSY_COMMAND)
+                answered = next(stamp for stamp in reversed(client.handshake_stamps)
+                                if client.messages_stamped(messages.SOLVE_STATUS_TOPIC, stamp))
+                before = _counts_after(client, answered, messages.SOLVE_STATUS_TOPIC)
+                cpu_before = cpu_seconds(node.process.pid)
+                last_wrench, last_pose = stream(client, seconds, poses)
+                client.wait_for(lambda: bool(client.messages_stamped(
+                    messages.SOLVE_STATUS_TOPIC, last_wrench)), 10.0)
+                time.sleep(0.2)
+                cpu = cpu_seconds(node.process.pid) - cpu_before
+                if poses:
+                    client.wait_for(lambda: bool(client.messages_stamped(
+                        pose_estimation.ESTIMATE_STATUS_TOPIC, last_pose)), 10.0)
+                    time.sleep(0.5)   # the pose waiting behind the last one
+                after = _counts_after(client, last_wrench, messages.SOLVE_STATUS_TOPIC)
+                node.stop(signal.SIGINT)
+            finally:
+                if neighbour is not None:
+                    neighbour.kill()
+                    neighbour.wait(10.0)
+                client.close()
+                gc.enable()
+    wrenches = {key: int(after[messages.DIAGNOSTIC_NAME][key])
+                - int(before[messages.DIAGNOSTIC_NAME][key])
+                for key in ('received', 'solved', 'not_converged', 'rejected', 'skipped')}
+    estimates = {key: int(after[pose_estimation.ESTIMATE_DIAGNOSTIC_NAME][key])
+                 for key in ('received', 'estimated', 'flagged', 'not_converged', 'rejected',
+                             'skipped')}
+    return {'wrenches': wrenches, 'poses': estimates, 'cpu_s': cpu, 'seconds': seconds}
+
+
+def rows(seconds: float) -> List[str]:
+    """Measure both rows; return them as markdown table lines (printed as they come)."""
+    lines = []
+    alone = measure(seconds, poses=False, busy=False)
+    received = max(alone['wrenches']['received'], 1)
+    cpu_ms = 1e3 * alone['cpu_s'] / received
+    met = 'met' if alone['cpu_s'] / received <= CPU_PER_WRENCH_TARGET_S else 'missed'
+    lines.append(f'| node CPU per wrench at 1 kHz, log on | {cpu_ms:.3f} ms '
+                 f'({received} received, {alone["wrenches"]["skipped"]} skipped) | '
+                 f'<= {1e3 * CPU_PER_WRENCH_TARGET_S:.2f} ms | {met} |')
+    print(lines[-1], flush=True)
+    loaded = measure(seconds, poses=True, busy=True)
+    wrenches, poses = loaded['wrenches'], loaded['poses']
+    share = wrenches['skipped'] / max(wrenches['received'], 1)
+    accounted = sum(poses[key] for key in ('estimated', 'flagged', 'not_converged', 'rejected',
+                                           'skipped'))
+    met = 'met' if share < SKIPPED_SHARE_TARGET and accounted == poses['received'] else 'missed'
+    lines.append(f'| 1 kHz wrenches + 1 kHz poses, a busy neighbour | {100 * share:.1f} % '
+                 f'of {wrenches["received"]} wrenches skipped; poses: {poses["received"]} '
+                 f'received, {poses["estimated"] + poses["flagged"]} answered, '
+                 f'{poses["skipped"]} skipped, {poses["received"] - accounted} unaccounted | '
+                 f'< {100 * SKIPPED_SHARE_TARGET:.0f} % skipped, all poses answered or counted '
+                 f'| {met} |')
+    print(lines[-1], flush=True)
+    return lines
+
+
+def main() -> None:
+    """Print both rows against their targets (and write them to --markdown)."""
+    parser = argparse.ArgumentParser(description='translator_node under load.')
+    parser.add_argument('--seconds', type=float, default=5.0)
+    parser.add_argument('--markdown', type=Path, default=None)
+    args = parser.parse_args()
+    print('| measure | measured | target | |\n|---|---|---|---|', flush=True)
+    lines = rows(args.seconds)
+    if args.markdown is not None:
+        load = ', '.join(f'{value:.1f}' for value in os.getloadavg())
+        when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+        args.markdown.write_text(
+            '# translator_node under load\n\nGenerated by `python -m bench.node_load '
+            f'--markdown FILE` ({when}, {args.seconds:g} s per row, load average {load}). '
+            'The node as a child process with its MCAP log on; counts are its own, from '
+            'its aggregated /diagnostics; CPU includes its log process.\n\n'
+            '| measure | measured | target | |\n|---|---|---|---|\n' + '\n'.join(lines) + '\n')
+
+
+if __name__ == '__main__':
+    main()
