@@ -141,7 +141,8 @@ class CdrNode(Node):
                                      sensor, raw=True)]
         self._estimates = EstimateStream(self, CDR_ESTIMATE_INPUTS, self.estimator,
                                          self._publish, self._log,
-                                         self._settings.input_queue_depth)
+                                         self._settings.input_queue_depth,
+                                         turn=self._mailbox.idle_turn)
         self.get_logger().info(
             f'ready: {", ".join(s.topic_name for s in self._subscriptions)}, '
             f'{", ".join(s.topic_name for s in self._estimates.subscriptions)} -> '
@@ -276,25 +277,32 @@ class CdrNode(Node):
             item = self._mailbox.take()
             if item is None:
                 return
-            kind, stamp, inputs, force, moment = item
             try:
-                if kind == INVERSE:
-                    self._answer_target(stamp, inputs, force, moment)
-                    continue
-                result = self.robot.solve(inputs, force, moment)
-            except Exception as error:  # noqa: B902 - a bug must not silence the node
-                self.failed += 1
-                self._publish(robot_messages.rejection_messages(
-                    stamp, f'internal error: {error!r}', self._counts(),
-                    name=(robot_messages.INVERSE_DIAGNOSTIC_NAME if kind == INVERSE
-                          else robot_messages.DIAGNOSTIC_NAME)))
-                continue
-            if result.converged:
-                self.solved += 1
-            else:
-                self.failed += 1
-            self._publish(robot_messages.output_messages(
-                result, stamp, self._settings.world_frame, self._counts()))
+                self._answer(*item)
+            finally:
+                self._mailbox.done()   # a payload estimate may take its turn
+
+    def _answer(self, kind: str, stamp: dict, inputs: np.ndarray, force: np.ndarray,
+                moment: np.ndarray) -> None:
+        """Solve one input (forward sliders or an inverse target); publish what it gives."""
+        try:
+            if kind == INVERSE:
+                self._answer_target(stamp, inputs, force, moment)
+                return
+            result = self.robot.solve(inputs, force, moment)
+        except Exception as error:  # noqa: B902 - a bug must not silence the node
+            self.failed += 1
+            self._publish(robot_messages.rejection_messages(
+                stamp, f'internal error: {error!r}', self._counts(),
+                name=(robot_messages.INVERSE_DIAGNOSTIC_NAME if kind == INVERSE
+                      else robot_messages.DIAGNOSTIC_NAME)))
+            return
+        if result.converged:
+            self.solved += 1
+        else:
+            self.failed += 1
+        self._publish(robot_messages.output_messages(
+            result, stamp, self._settings.world_frame, self._counts()))
 
     def _answer_target(self, stamp: dict, target: np.ndarray, force: np.ndarray,
                        moment: np.ndarray) -> None:

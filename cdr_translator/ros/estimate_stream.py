@@ -14,9 +14,11 @@ aggregated /diagnostics, and the poses a newer one pushed out of the
 mailbox are counted as ``skipped``.
 """
 
+from contextlib import contextmanager
 import threading
 import time
-from typing import Callable, Dict, List, Mapping, Optional, Tuple
+from typing import (Callable, ContextManager, Dict, Iterator, List, Mapping, Optional,
+                    Tuple)
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, WrenchStamped
@@ -52,14 +54,20 @@ class EstimateStream:
     def __init__(self, node: Node, inputs: Mapping[str, type],
                  processor: MeasuredPoseProcessor,
                  publish: Callable[[Built], None], log: Optional[NodeLog], queue_depth: int,
-                 capacity: int = 1) -> None:
+                 capacity: int = 1,
+                 turn: Optional[Callable[[], ContextManager[None]]] = None) -> None:
         """
         Subscribe (sensor-data QoS, ``queue_depth`` deep) and start the worker.
 
         ``publish`` publishes (and logs) the built messages; ``log`` (None: off) receives
-        every input as received; ``capacity`` poses may wait for the worker.
+        every input as received; ``capacity`` poses may wait for the worker. ``turn`` (the
+        node's own inputs' LatestMailbox.idle_turn; None: estimate at once) gives each
+        estimate its turn between the node's own inputs, which come first: the two never
+        share the interpreter, and the poses that arrive meanwhile wait, the newest
+        winning, and are counted as skipped when pushed out.
         """
         self.processor = processor
+        self._turn = turn if turn is not None else _at_once
         self._publish = publish
         self._log = log
         self._decoders = {topic: serialization.decoder(message_class)
@@ -91,25 +99,28 @@ class EstimateStream:
         return receive
 
     def _work(self) -> None:
-        """Worker: decode and process the oldest waiting pose, publish what it gives."""
-        while True:
-            item = self._mailbox.take()
-            if item is None:
-                return
-            topic, data = item
-            counts = self.processor.counts
-            counts['skipped'] = self._mailbox.skipped
+        """Worker: at each turn, estimate the newest pose (older ones count as skipped)."""
+        while self._mailbox.wait_for_item():
+            with self._turn():
+                item = self._mailbox.take_newest()
+                if item is not None:
+                    self._estimate(*item)
+
+    def _estimate(self, topic: str, data: bytes) -> None:
+        """Decode and process one pose, publish what it gives."""
+        counts = self.processor.counts
+        counts['skipped'] = self._mailbox.skipped
+        try:
             try:
-                try:
-                    message = self._decoders[topic](data)
-                except ValueError as error:  # cdr's readers raise nothing else on bad bytes
-                    self._publish(self.processor.reject({'sec': 0, 'nanosec': 0},
-                                                        f'malformed message: {error}').outputs)
-                    continue
-                self._publish(self.processor.process(message, count_received=False).outputs)
-            except Exception as error:  # noqa: B902 - a bug must not silence the node
-                self._publish(self.processor.internal_error({'sec': 0, 'nanosec': 0},
-                                                            f'internal error: {error!r}'))
+                message = self._decoders[topic](data)
+            except ValueError as error:  # cdr's readers raise nothing else on bad bytes
+                self._publish(self.processor.reject({'sec': 0, 'nanosec': 0},
+                                                    f'malformed message: {error}').outputs)
+                return
+            self._publish(self.processor.process(message, count_received=False).outputs)
+        except Exception as error:  # noqa: B902 - a bug must not silence the node
+            self._publish(self.processor.internal_error({'sec': 0, 'nanosec': 0},
+                                                        f'internal error: {error!r}'))
 
     def close(self, node: Node) -> Dict[str, int]:
         """
@@ -124,6 +135,12 @@ class EstimateStream:
         self._mailbox.discard()
         self.processor.counts['skipped'] = self._mailbox.skipped
         return dict(self.processor.counts)
+
+
+@contextmanager
+def _at_once() -> Iterator[None]:
+    """A turn that is always there (no other input to give way to)."""
+    yield
 
 
 def count_line(what: str, counts: Mapping[str, int], solved: str = 'estimated',

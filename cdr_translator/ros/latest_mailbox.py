@@ -2,12 +2,16 @@
 The latest-wins mailbox between a node's subscription callback and its worker thread.
 
 Testable without DDS: the callback leaves an input, the worker takes the oldest waiting;
-beyond the capacity the oldest goes, counted as skipped.
+beyond the capacity the oldest goes, counted as skipped. Another thread may take its turn
+between the worker's inputs (``idle_turn``): only while nothing waits and the worker rests,
+and the worker waits for it to end. The node's pose estimates take turns so, behind its
+wrenches, instead of sharing the interpreter with them.
 """
 
 from collections import deque
+from contextlib import contextmanager
 import threading
-from typing import Any, Deque, Optional
+from typing import Any, Deque, Iterator, Optional
 
 
 class LatestMailbox:
@@ -29,6 +33,8 @@ class LatestMailbox:
         self._items: Deque[Any] = deque()
         self.capacity = capacity
         self._closed = False
+        self._working = False   # the worker took an item and has not said it is done
+        self._turn_taken = False   # another thread's turn (idle_turn) is running
         self.skipped = 0
 
     def put(self, item: Any) -> bool:
@@ -49,10 +55,53 @@ class LatestMailbox:
         Closed with ``drain``, the items waiting then are still handed out first.
         """
         with self._condition:
-            self._condition.wait_for(lambda: bool(self._items) or self._closed, timeout)
+            self._condition.wait_for(
+                lambda: (bool(self._items) and not self._turn_taken) or self._closed, timeout)
             if not self._items:
                 return None
+            self._working = True
             return self._items.popleft()
+
+    def wait_for_item(self, timeout: Optional[float] = None) -> bool:
+        """Wait until an item waits (True) or the mailbox is closed and empty (False)."""
+        with self._condition:
+            self._condition.wait_for(lambda: bool(self._items) or self._closed, timeout)
+            return bool(self._items)
+
+    def take_newest(self) -> Any:
+        """Return the newest item at once (None: none); the older ones count as skipped."""
+        with self._condition:
+            if not self._items:
+                return None
+            newest = self._items.pop()
+            self.skipped += len(self._items)
+            self._items.clear()
+            return newest
+
+    def done(self) -> None:
+        """Say the item taken last is handled: another thread may take its turn now."""
+        with self._condition:
+            self._working = False
+            self._condition.notify_all()
+
+    @contextmanager
+    def idle_turn(self) -> Iterator[None]:
+        """
+        Wait until nothing waits and the worker rests, then hold the worker off meanwhile.
+
+        The worker's items come first: a turn starts only between them (also once the
+        mailbox is closed and drained), and the worker waits for at most one turn.
+        """
+        with self._condition:
+            self._condition.wait_for(
+                lambda: not (self._items or self._working or self._turn_taken))
+            self._turn_taken = True
+        try:
+            yield
+        finally:
+            with self._condition:
+                self._turn_taken = False
+                self._condition.notify_all()
 
     def close(self, drain: bool = False) -> None:
         """Wake the consumer for good; untaken items are dropped unless ``drain``."""

@@ -121,7 +121,8 @@ class TranslatorNode(Node):
         self._estimates = EstimateStream(
             self, TRANSLATOR_ESTIMATE_INPUTS, self.estimator,
             lambda built: self._publish_all(self._serialized(built)), self._log,
-            self._settings.wrench_queue_depth, self._settings.pending_wrenches)
+            self._settings.wrench_queue_depth, self._settings.pending_wrenches,
+            turn=self._mailbox.idle_turn)
         self._wrench_topic = self.resolve_topic_name(messages.WRENCH_TOPIC)  # as logged
         self._subscription = self.create_subscription(
             WrenchStamped, messages.WRENCH_TOPIC, self._on_wrench,
@@ -234,6 +235,8 @@ class TranslatorNode(Node):
             except Exception as error:  # noqa: B902 - a bug must not silence the node
                 self._publish_all(self._serialized(self.processor.internal_error(
                     stamp, f'internal error: {error!r}')))
+            finally:
+                self._mailbox.done()   # a pose estimate may take its turn
 
     def _reject(self, stamp: dict, reason: str) -> None:
         """Count a rejected wrench and publish (and so log) its ERROR status."""

@@ -263,3 +263,49 @@ def test_an_isolated_environment_picks_a_domain_ros_recommends():
         assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     assert min(domains) >= 1 and max(domains) <= 101 and len(domains) > 50
     assert isolated_ros_env(7)['ROS_DOMAIN_ID'] == '7'
+
+
+def test_an_idle_turn_waits_for_the_workers_items_and_holds_the_worker_off():
+    """A turn starts only when nothing waits and the worker rests; the worker waits for it."""
+    mailbox = LatestMailbox(capacity=2)
+    mailbox.put('wrench 1')
+    events = []
+
+    def other() -> None:
+        with mailbox.idle_turn():
+            events.append('turn begins')
+            time.sleep(0.05)
+            events.append('turn ends')
+
+    assert mailbox.take() == 'wrench 1'   # the worker is busy with it
+    thread = threading.Thread(target=other)
+    thread.start()
+    time.sleep(0.05)
+    assert events == []   # not while the worker works
+    mailbox.done()
+    time.sleep(0.01)
+    mailbox.put('wrench 2')   # arrives during the turn: waits for its end
+    assert mailbox.take(timeout=1.0) == 'wrench 2' and events == ['turn begins', 'turn ends']
+    thread.join(1.0)
+    mailbox.done()
+    mailbox.put('wrench 3')   # a waiting item comes before a turn
+    begun = []
+    late = threading.Thread(target=lambda: begun.append(mailbox.idle_turn().__enter__()))
+    late.start()
+    time.sleep(0.05)
+    assert begun == []
+    assert mailbox.take() == 'wrench 3'
+    mailbox.done()
+    late.join(1.0)
+    assert begun == [None]
+
+
+def test_take_newest_counts_the_older_items_as_skipped():
+    """Taking the newest drops the older waiting items, counted as skipped."""
+    mailbox = LatestMailbox(capacity=3)
+    for item in ('pose 1', 'pose 2', 'pose 3'):
+        mailbox.put(item)
+    assert mailbox.wait_for_item(0.1) and mailbox.take_newest() == 'pose 3'
+    assert mailbox.skipped == 2 and mailbox.take_newest() is None
+    mailbox.close()
+    assert not mailbox.wait_for_item(0.1)
