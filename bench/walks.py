@@ -13,7 +13,10 @@ settings:
   same run: a ratio that the machine's load cancels from);
 * ``solve_many`` per answer over the whole walk, from a fresh solver warm at its start;
 * the compliance on top of a warm solve: its own time (``ComplianceAnalysis.time_s``) and
-  what ``compliance=True`` adds to the whole solve, on the sigma = 0.02 N walk.
+  what ``compliance=True`` adds to the whole solve, on the sigma = 0.02 N walk, exact (the
+  default) and from the stored factorization (``compliance_tolerance``);
+* the corrector iterations a prediction from the exact tangent would leave
+  (``predictor_iterations``), against those of the solver's own prediction.
 
 Each target row is printed with the measured figure, the target, their ratio and the ratio
 to one shot. The machine is shared (2 cores, several agents at once): the loop and the
@@ -27,10 +30,12 @@ from pathlib import Path
 import platform
 import statistics
 import time
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from cdr_translator import TranslatorParams, TranslatorSolver
+from cdr_translator.bvp.problem import Problem
 import numpy as np
+from scipy.linalg import lu_factor, lu_solve
 
 #: Where the tables go.
 RESULT = Path(__file__).resolve().parent / 'results' / 'walks.md'
@@ -160,6 +165,53 @@ def compliance_times(params: TranslatorParams, wrenches: np.ndarray,
     return best
 
 
+def _chord_iterations(problem: Problem, xs: np.ndarray, wrench: np.ndarray,
+                      step: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                      tolerance: float) -> int:
+    """Return the steps x -= step(x, r(x)) from ``xs`` until max |r| <= tolerance (<= 12)."""
+    for done in range(12):
+        residual = problem.residual(xs, wrench)
+        if np.abs(residual).max() <= tolerance:
+            return done
+        xs = xs - step(xs, residual)
+    return 12
+
+
+def predictor_iterations(params: TranslatorParams, wrenches: np.ndarray,
+                         every: int = 8) -> Dict[str, float]:
+    """
+    Mean corrector iterations per answer along ``wrenches`` (every ``every``-th), three ways.
+
+    'stored': the solver's own (first-order prediction and chord steps on its stored
+    factorization, as ``solve()`` makes them); 'tangent': the prediction from the exact
+    tangent at the previous solution (dx/dw from its exact Jacobian) and chord steps on that
+    Jacobian; 'newton': the same prediction, then Newton with an exact Jacobian at every
+    iterate. No line search in the last two (none was needed).
+    """
+    solver = TranslatorSolver(params)
+    problem = solver.problem
+    tolerance = solver.tolerance
+    counts: Dict[str, List[int]] = {'stored': [], 'tangent': [], 'newton': []}
+    for row, wrench in enumerate(wrenches):
+        previous = solver.engine.previous_solution
+        measured = row > 20 and row % every == 0 and previous is not None
+        if measured and previous is not None:
+            xs, at = previous
+            _, jacobian, _ = problem.exact_jacobian(xs, at)
+            lu = lu_factor(jacobian)
+            predicted = xs - lu_solve(lu, problem.wrench_sensitivity @ (wrench - at))
+            counts['tangent'].append(_chord_iterations(
+                problem, predicted, wrench, lambda _, residual: lu_solve(lu, residual),
+                tolerance))
+            counts['newton'].append(_chord_iterations(
+                problem, predicted, wrench, lambda x, residual: np.linalg.solve(
+                    problem.exact_jacobian(x, wrench)[1], residual), tolerance))
+        result = solver.solve(wrench[:3], wrench[3:])
+        if measured:
+            counts['stored'].append(result.iterations)
+    return {name: statistics.fmean(values) for name, values in counts.items()}
+
+
 def _us(seconds: float) -> str:
     return f'{1e6 * seconds:.1f}'
 
@@ -175,6 +227,8 @@ def main() -> None:
     walks = {sigma: random_walk(sigma, args.count) for sigma in SIGMAS}
     shot = shot_time(params, walks[SIGMAS[0]][0])
     measured = {sigma: loop_and_batch(params, wrenches) for sigma, wrenches in walks.items()}
+    predictors = {sigma: predictor_iterations(params, wrenches[:400])
+                  for sigma, wrenches in walks.items()}
     compliance = {name: compliance_times(params, walks[SIGMAS[0]][:min(args.count, 500)],
                                          **options)
                   for name, options in COMPLIANCE_OPTIONS.items()}
@@ -225,6 +279,17 @@ def main() -> None:
         f'solvers in step): {added}.',
         '',
         *lines,
+        '',
+        'Corrector iterations per answer after the prediction (every 8th of the first 400 '
+        'answers of each walk; one shot each): as solved (first-order prediction and chord '
+        'steps on the stored factorization), with the prediction from the exact tangent at '
+        'the previous solution and chord steps on its Jacobian (an exact Jacobian and its LU '
+        'per answer), and with Newton on an exact Jacobian at every iterate.',
+        '',
+        '| walk (N per sample) | as solved | exact tangent at the previous solution | Newton |',
+        '|---|---|---|---|',
+        *(f"| {sigma:g} | {counts['stored']:.2f} | {counts['tangent']:.2f} | "
+          f"{counts['newton']:.2f} |" for sigma, counts in predictors.items()),
         '',
         f'Run time {time.perf_counter() - started:.0f} s.',
         ''])
