@@ -179,30 +179,33 @@ def stored_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: 
     displacement they cause at H. ArithmeticError when C~ or the probe is not finite.
     """
     response = _linalg.solve_lu(lu, problem.wrench_sensitivity)  # J~^-1 dr/dw = -X~
-    scale = np.repeat([1.0, problem.params.stack_height], 3)
+    length = problem.params.stack_height
+    scale = np.array((1.0, 1.0, 1.0, length, length, length))
     probe = scale * PROBE_DIRECTION
-    direction = -(response @ probe)
+    direction = response @ probe  # -X~ v
     largest = float(np.abs(direction).max())
     if not (math.isfinite(largest) and largest > 0.0):
         raise ArithmeticError('the stored factorization gives no finite compliance')
     step = PROBE_STEP / largest
-    moved_rs, moved = problem.residual_and_end_frame(xs + step * direction,
+    moved_rs, moved = problem.residual_and_end_frame(xs - step * direction,
                                                      wrench + step * probe)
-    # pose changes, twisted at once (linear for a fixed rotation): -dT/dx~ J~^-1 dr/dw,
-    # then what C~ v misses of C v: -dT/dx~ X~ v... as (dT/dx~ - dT/dx) X~ v + dT/dx J^-1 defect
+    # pose changes, twisted at once (the twist is linear in them for a fixed rotation):
+    # columns 0-5 those of C~, column 6 what C~ v misses of C v
     changes = np.empty((12, 7))
     np.matmul(pose_jacobian, response, out=changes[:, :6])
     changes[:, :6] *= -1.0
+    moved_pose = np.concatenate((moved[:3, 3] - end_frame[:3, 3],
+                                 (moved[:3, :3] - end_frame[:3, :3]).ravel()))
     defect = (moved_rs - rs) / step
-    changes[:3, 6] = moved[:3, 3] - end_frame[:3, 3]
-    changes[3:, 6] = (moved[:3, :3] - end_frame[:3, :3]).ravel()
-    changes[:, 6] = (changes[:, :6] @ probe - changes[:, 6] / step
+    changes[:, 6] = (changes[:, :6] @ probe - moved_pose / step
                      + pose_jacobian @ _linalg.solve_lu(lu, defect))
     twists = stability.pose_twist(changes, end_frame[:3, :3])
     compliance = np.ascontiguousarray(twists[:, :6])
-    size = float(np.linalg.norm(scale[:, None] * compliance * scale[None, :]))
-    error = PROBE_SAFETY * float(np.linalg.norm(scale * twists[:, 6])) / size
-    if not (math.isfinite(error) and np.all(np.isfinite(compliance))):
+    scaled = (scale[:, None] * compliance * scale[None, :]).ravel()
+    size = math.sqrt(float(scaled @ scaled))
+    miss = scale * twists[:, 6]
+    error = PROBE_SAFETY * math.sqrt(float(miss @ miss)) / size
+    if not (math.isfinite(error) and math.isfinite(size)):
         raise ArithmeticError('the stored factorization gives no finite compliance')
     return compliance, error
 
