@@ -27,7 +27,7 @@ within the caller's ``compliance_tolerance`` (default 0: always the exact one).
 from dataclasses import dataclass
 import math
 import time
-from typing import Any, Optional, Tuple
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 from scipy.linalg.lapack import dgeev, dgesv, dsyevd
@@ -158,6 +158,18 @@ EXACT = 0.0
 def check_tolerance(tolerance: float) -> float:
     """Return ``compliance_tolerance`` as a float; ValueError unless finite and >= 0."""
     return check_number('compliance_tolerance', tolerance, low=0.0)
+
+
+def analysis_options(options: Mapping[str, Any]) -> Dict[str, Any]:
+    """
+    Return ``options`` as ``analyse`` takes them: ``compliance_tolerance`` checked, left out.
+
+    For a compliance made without a stored factorization to accept or refuse (a reduced
+    level's, the linear level's): the tolerance has nothing to choose there.
+    """
+    kept = dict(options)
+    check_tolerance(kept.pop('compliance_tolerance', EXACT))
+    return kept
 
 
 def stored_compliance(problem: Problem, xs: np.ndarray, wrench: np.ndarray, rs: np.ndarray,

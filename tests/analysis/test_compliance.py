@@ -10,6 +10,7 @@ from bench.walks import random_walk
 from cdr_translator import cli, TranslatorSolver
 from cdr_translator.analysis.compliance import analyse, AXIS_LABELS, compliance_analysis
 from cdr_translator.analysis.compliance import frame_twist, STORED_METHOD
+from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.params.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
@@ -104,6 +105,18 @@ def test_stored_compliance_only_when_asked_and_the_tolerance_is_checked(params):
     for bad in (-0.1, float('nan'), 'big'):
         with pytest.raises(ValueError, match='compliance_tolerance'):
             solver.solve((5.0, 0.0, 0.0), compliance=True, compliance_tolerance=bad)
+
+
+@pytest.mark.parametrize('level', ['full', 'cc', 'rod', 'linear'])
+def test_every_level_takes_the_compliance_tolerance(params, level):
+    """Each level answers with compliance_tolerance; only the full model's may use it."""
+    solver = FidelitySolver(params, fidelity=level)
+    for fx in (5.0, 5.1):
+        result = solver.solve((fx, 1.0, 0.0), compliance=True, compliance_tolerance=0.05)
+    assert result.compliance is not None
+    assert (result.compliance.method == STORED_METHOD) == (level == 'full')
+    with pytest.raises(ValueError, match='compliance_tolerance'):
+        solver.solve((5.2, 1.0, 0.0), compliance=True, compliance_tolerance=-1.0)
 
 
 @pytest.mark.parametrize('force', [(0.0, 0.0, 0.0), (0.0, 0.0, -8.0), (0.0, 0.0, 15.0)])
