@@ -32,6 +32,7 @@ import statistics
 import time
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
+from bench.solve_many import timed_kernel
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.bvp.problem import Problem
 import numpy as np
@@ -212,6 +213,28 @@ def predictor_iterations(params: TranslatorParams, wrenches: np.ndarray,
     return {name: statistics.fmean(values) for name, values in counts.items()}
 
 
+def kernel_split(params: TranslatorParams, wrenches: np.ndarray) -> Dict[str, float]:
+    """
+    Median solve, time inside the compiled warm kernels and the rest (Python), along ``wrenches``.
+
+    The kernels are bench.solve_many's for the full model (``timed_kernel``): the usual
+    warm row's compiled call and the warm step's.
+    """
+    solver = TranslatorSolver(params)
+    solver.solve(wrenches[0, :3], wrenches[0, 3:])
+    spent = [0.0]
+    totals, kernels = [], []
+    with timed_kernel('full', spent):
+        for wrench in wrenches[1:]:
+            spent[0] = 0.0
+            started = time.perf_counter()
+            solver.solve(wrench[:3], wrench[3:])
+            totals.append(time.perf_counter() - started)
+            kernels.append(spent[0])
+    return {'solve': statistics.median(totals), 'kernel': statistics.median(kernels),
+            'python': statistics.median(np.subtract(totals, kernels))}
+
+
 def _us(seconds: float) -> str:
     return f'{1e6 * seconds:.1f}'
 
@@ -227,6 +250,7 @@ def main() -> None:
     walks = {sigma: random_walk(sigma, args.count) for sigma in SIGMAS}
     shot = shot_time(params, walks[SIGMAS[0]][0])
     measured = {sigma: loop_and_batch(params, wrenches) for sigma, wrenches in walks.items()}
+    split = kernel_split(params, walks[SIGMAS[0]])
     predictors = {sigma: predictor_iterations(params, wrenches[:400])
                   for sigma, wrenches in walks.items()}
     compliance = {name: compliance_times(params, walks[SIGMAS[0]][:min(args.count, 500)],
@@ -279,6 +303,11 @@ def main() -> None:
         f'solvers in step): {added}.',
         '',
         *lines,
+        '',
+        f'Where a `solve()` on the σ = {SIGMAS[0]:g} N walk goes (wall medians): '
+        f"{_us(split['solve'])} µs per answer, {_us(split['kernel'])} µs inside the compiled "
+        f"warm kernels (the shots, chord steps and error estimate), {_us(split['python'])} µs "
+        'around them (Python).',
         '',
         'Corrector iterations per answer after the prediction (every 8th of the first 400 '
         'answers of each walk; one shot each): as solved (first-order prediction and chord '
