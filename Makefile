@@ -57,7 +57,7 @@ hard-cases: setup
 # kernel and the Python around a single solve against a batch: bench/results/level_kernels.md,
 # solve_many.md; then force sensing at a tracker's noise (about 3 min):
 # bench/results/estimate_noise.{md,png}; then the full model on three seeded random walks
-# of the force (0.02, 0.1, 0.4 N per sample; about 1 min): bench/results/walks.md.
+# of the force (0.02, 0.1, 0.4 N per sample; about 30 s): bench/results/walks.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
