@@ -57,7 +57,8 @@ hard-cases: setup
 # kernel and the Python around a single solve against a batch: bench/results/level_kernels.md,
 # solve_many.md; then force sensing at a tracker's noise (about 3 min):
 # bench/results/estimate_noise.{md,png}; then translator_node under load (about 1 min):
-# bench/results/node_load.md.
+# bench/results/node_load.md; then the full model on three seeded random walks of the force
+# (0.02, 0.1, 0.4 N per sample; about 30 s): bench/results/walks.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
@@ -68,6 +69,7 @@ bench: setup
 	$(VPY) -m bench.solve_many --count 300
 	$(VPY) -m bench.estimate_noise
 	$(VPY) -m bench.node_load --markdown bench/results/node_load.md
+	$(VPY) -m bench.walks
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):

@@ -19,7 +19,7 @@ from .linear_kernels import linear_frames, linear_poses
 from .._blas import one_blas_thread
 from .._linalg import solve_lu
 from ..analysis.compliance import analyse, ComplianceAnalysis, DIRECTIONAL_STEP, frame_twist
-from ..analysis.compliance import implicit_compliance
+from ..analysis.compliance import analysis_options, implicit_compliance
 from ..bvp.problem import Problem
 
 
@@ -133,4 +133,4 @@ class TangentModel:
     def compliance(self, **options: float) -> ComplianceAnalysis:
         """Return the compliance of the linear level: the cached solution's, analysed."""
         return analyse(self._compliance, self.problem.params.stack_height,
-                       method='implicit (cached)', time_s=0.0, **options)
+                       method='implicit (cached)', time_s=0.0, **analysis_options(options))

@@ -19,7 +19,7 @@ import numpy as np
 from .level import Asked, run_rows, tail
 from .reduced import ReducedModel, ReducedOutcome
 from .validation import box_scale, box_scales
-from ..analysis.compliance import analyse, ComplianceAnalysis, frame_twist
+from ..analysis.compliance import analyse, analysis_options, ComplianceAnalysis, frame_twist
 from ..solve.batch import BatchResult, SolveDetails
 from ..solve.result import FRAME_NAMES, SolveResult
 
@@ -222,4 +222,4 @@ def finite_difference_compliance(model: ReducedModel, x: np.ndarray, wrench: np.
             ends.append(model.frames(outcome.x, wrench + sign * offset)[3])
         matrix[:, column] = frame_twist(ends[1], ends[0]) / (2.0 * offset[column])
     return analyse(matrix, characteristic_length, method=f'{model.name} finite differences',
-                   time_s=time.perf_counter() - started, **options)
+                   time_s=time.perf_counter() - started, **analysis_options(options))

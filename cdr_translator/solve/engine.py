@@ -37,7 +37,8 @@ from .._blas import one_blas_thread
 from .._jit import interpreted_kernels
 from .._linalg import residual_norm
 from ..analysis.accuracy import ErrorEstimate, kept_steps, meets
-from ..analysis.compliance import compliance_analysis, ComplianceAnalysis
+from ..analysis.compliance import analysis_from_stored, check_tolerance, compliance_analysis
+from ..analysis.compliance import ComplianceAnalysis, EXACT
 from ..analysis.stability import CLOSE_BRANCH_MARGIN, load_scale, Reference, Stability
 from ..bvp.problem import Problem
 from ..params.translator_params import Accuracy, TranslatorParams
@@ -112,6 +113,8 @@ class Engine:
         self._state = PathState(self.problem.size)
         self._verdicts = branch.Verdicts()
         self._refinements = Refinements()
+        #: (unknowns, residual) of the last usual warm row ``usual_solve`` answered
+        self._usual_solution: Tuple[np.ndarray, np.ndarray] = (np.empty(0), np.empty(0))
         if method == 'fast':
             continuation.unloaded(self.problem, self._state)  # compiles the kernels now
 
@@ -193,14 +196,15 @@ class Engine:
         """
         options = {} if compliance_options is None else compliance_options
         path = self.options.path if path is None else path
-        if (warm_start and not (compliance or verify) and self._refinements.kept is None
-                and path == 'default'):
+        if warm_start and not verify and self._refinements.kept is None and path == 'default':
             usual, undo = self.usual_solve(wrench, started)
             if usual is not None:
+                if compliance:
+                    self._usual_compliance(usual, wrench, options)
                 return usual
             try:
-                return self._solve(wrench, started, time_limit_s, True, False, False, options,
-                                   path)
+                return self._solve(wrench, started, time_limit_s, True, compliance, False,
+                                   options, path)
             finally:
                 if undo is not None and self._state.handed_over is not None:
                     undo()  # the solve did not go on from the step: as if never taken
@@ -275,7 +279,7 @@ class Engine:
         message = ''
         if compliance:
             try:
-                analysis = self.compliance(outcome, wrench, frames[3][:3, :3])
+                analysis = self.compliance(outcome, wrench, frames[3])
             except ArithmeticError as error:
                 message = f'{outcome.message}; no compliance: {error}'
         details = SolveDetails(outcome.iterations, residual_norm(outcome.rs), verdict.stable,
@@ -302,6 +306,7 @@ class Engine:
             return None, None if run is None else run.undo
         problem = self.problem
         iterations, slot, residual, report = run.last_step
+        self._usual_solution = (run.previous[0], residual)
         points, frames = problem.recorded_shape(slot)
         verdict, estimate = self._verdicts.verdict, self._refinements.last_estimate
         assert verdict is not None and estimate is not None  # _usual_run's conditions
@@ -313,6 +318,18 @@ class Engine:
             stable=verdict.stable, stability_margin=verdict.margin,
             error_estimate_m=estimate.position_m, error_estimate_deg=estimate.angle_deg,
             accuracy_met=True, steps_per_segment=self.params.steps_per_segment), None
+
+    @one_blas_thread
+    def _usual_compliance(self, result: SolveResult, wrench: np.ndarray,
+                          options: dict) -> None:
+        """Add the compliance to ``result``, the usual warm row just solved (``usual_solve``)."""
+        xs, residual = self._usual_solution
+        outcome = Outcome(xs, residual, result.iterations, True, result.message)
+        try:
+            result.compliance = self.compliance(outcome, wrench, result.frames['de'],
+                                                **options)
+        except ArithmeticError as error:
+            result.message += f'; no compliance: {error}'
 
     def _usual_rows(self, batch: BatchResult, wrenches: np.ndarray,
                     rows: range) -> Tuple[int, Optional[Callable[[], None]]]:
@@ -486,8 +503,8 @@ class Engine:
         result.solve_time_s = time.perf_counter() - started
         if compliance and outcome.converged:
             try:
-                result.compliance = self.compliance(outcome, wrench,
-                                                    result.frames['de'][:3, :3], **extra)
+                result.compliance = self.compliance(outcome, wrench, result.frames['de'],
+                                                    **extra)
             except ArithmeticError as error:
                 result.message += f'; no compliance: {error}'
         if verify:
@@ -508,15 +525,33 @@ class Engine:
         """Estimate the error of a converged outcome (refinement.estimate_at)."""
         return refinement.estimate_at(self.problem, outcome, result, wrench)
 
-    def compliance(self, outcome: Outcome, wrench: np.ndarray, rotation: np.ndarray,
+    def compliance(self, outcome: Outcome, wrench: np.ndarray, end_frame: np.ndarray,
                    **options: float) -> ComplianceAnalysis:
-        """Compliance at a converged outcome; its exact factorization becomes the stored one."""
+        """
+        Compliance at a converged outcome (end-disk frame ``end_frame``, 4x4).
+
+        With ``compliance_tolerance`` (relative; default 0) a stored factorization made
+        elsewhere serves when the error it states is within it (compliance.stored_compliance:
+        one probe shot, no new Jacobian); else the exact compliance, whose factorization
+        becomes the stored one.
+        """
+        started = time.perf_counter()
         state = self._state
         stored = state.pose[0] if state.pose is not None else None
-        factorization = ((state.lu, stored) if state.exact_at is outcome.xs
-                         and state.lu is not None and stored is not None else None)
+        tolerance = check_tolerance(options.pop('compliance_tolerance', EXACT))
+        factorization = None
+        if state.lu is not None and stored is not None:
+            if state.exact_at is outcome.xs:
+                factorization = (state.lu, stored)
+            elif tolerance > 0.0:
+                analysis = analysis_from_stored(self.problem, outcome.xs, wrench, outcome.rs,
+                                                end_frame, state.lu, stored, tolerance,
+                                                started, **options)
+                if analysis is not None:
+                    return analysis
         analysis, state.lu, pose = compliance_analysis(self.problem, outcome.xs, wrench,
-                                                       factorization, rotation, **options)
+                                                       factorization, end_frame[:3, :3],
+                                                       started, **options)
         state.pose = (pose, wrench.copy())
         state.exact_at = outcome.xs
         return analysis

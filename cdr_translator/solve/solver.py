@@ -33,6 +33,7 @@ from .engine import Engine, Factorization, Options
 from .result import SolveResult
 from .. import estimation
 from .._blas import one_blas_thread
+from ..analysis.compliance import check_tolerance
 from ..analysis.stability import Reference
 from ..bvp.problem import JACOBIANS, Problem
 from ..checks import check_integer, check_number, check_vector
@@ -268,6 +269,9 @@ class TranslatorSolver:
         primary-mobility analysis (``cdr_translator.analysis.compliance``; options
         ``sparsity_threshold`` and ``mobility_ratio`` go to ``compliance.analyse``), computed
         by implicit differentiation at the converged solution, timed apart from the solve.
+        Option ``compliance_tolerance`` (relative, default 0): a warm solve's stored
+        factorization serves instead of a new Jacobian when the error it states
+        (``compliance_estimated_error``, measured by one probe shot) is within it.
         With ``verify`` the result is re-checked independently (``cdr_translator.solve.verify``:
         ``result.verification``, ``result.verified``), also timed apart (10-100 ms).
         ``time_limit_s`` caps this solve (default: the attribute ``time_limit_s``).
@@ -278,6 +282,8 @@ class TranslatorSolver:
         started = time.perf_counter()
         limit = (self.time_limit_s if time_limit_s is None
                  else check_number('time_limit_s', time_limit_s, low=0.0))
+        if 'compliance_tolerance' in compliance_options:
+            check_tolerance(compliance_options['compliance_tolerance'])
         return self.engine.solve(wrench, started, limit, warm_start, compliance, verify,
                                  compliance_options)
 

@@ -6,8 +6,11 @@ Tolerances are relative to max |C| unless stated; C is in SI units (m/N, rad/(N 
 
 import json
 
+from bench.walks import random_walk
 from cdr_translator import cli, TranslatorSolver
-from cdr_translator.analysis.compliance import analyse, AXIS_LABELS, frame_twist
+from cdr_translator.analysis.compliance import analyse, AXIS_LABELS, compliance_analysis
+from cdr_translator.analysis.compliance import frame_twist, STORED_METHOD
+from cdr_translator.fidelity import FidelitySolver
 from cdr_translator.params.paper import PAPER_PRIMARY_MOBILITY, TABLE_III
 from cdr_translator.studies.finite_difference import finite_difference_compliance
 import numpy as np
@@ -53,6 +56,67 @@ def test_compliance_after_a_warm_sequence_is_exact(params, compliance_solver):
     implicit = compliance_solver.solve((8.5, 1.0, 0.0), compliance=True).compliance.matrix
     reference = finite_difference_compliance(params, (8.5, 1.0, 0.0))
     assert relative_difference(implicit, reference) <= 1e-6
+
+
+def scaled_error(approximate: np.ndarray, exact: np.ndarray, length: float) -> float:
+    """Return |S (approximate - exact) S| / |S exact S| (Frobenius), S = diag(1, 1, 1, L, L, L)."""
+    scale = np.repeat([1.0, length], 3)
+    return float(np.linalg.norm(scale[:, None] * (approximate - exact) * scale[None, :])
+                 / np.linalg.norm(scale[:, None] * exact * scale[None, :]))
+
+
+@pytest.mark.parametrize('sigma', [0.02, 0.1, 0.4])
+def test_stored_compliance_is_within_its_stated_error_of_the_exact_one(params, sigma):
+    """
+    A compliance from the stored factorization is within its stated error of the exact one.
+
+    Along the bench's random walks, at the same solution; a tolerance sends the solves whose
+    stated error exceeds it to the exact compliance.
+    """
+    solver = TranslatorSolver(params)
+    problem = solver.problem
+    tolerance = 0.02
+    stored = exact = 0
+    for wrench in random_walk(sigma, 160)[::4]:
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True,
+                              compliance_tolerance=tolerance)
+        analysis = result.compliance
+        assert result.converged and analysis is not None
+        reference = compliance_analysis(problem, result.unknowns / problem.x_scale, wrench,
+                                        rotation=result.frames['de'][:3, :3])[0].matrix
+        error = scaled_error(analysis.matrix, reference, params.stack_height)
+        assert error <= analysis.estimated_error
+        if analysis.method == STORED_METHOD:
+            stored += 1
+            assert 0.0 < analysis.estimated_error <= tolerance
+        else:
+            exact += 1
+            assert error <= 1e-8
+    assert stored >= 10  # the stored factorization served (the comparison is not vacuous)
+
+
+def test_stored_compliance_only_when_asked_and_the_tolerance_is_checked(params):
+    """Without compliance_tolerance C is exact; a bad tolerance raises ValueError naming it."""
+    solver = TranslatorSolver(params)
+    for wrench in random_walk(0.1, 20):
+        result = solver.solve(wrench[:3], wrench[3:], compliance=True)
+        assert result.compliance.method == 'implicit'
+        assert result.compliance.estimated_error < 1e-10
+    for bad in (-0.1, float('nan'), 'big'):
+        with pytest.raises(ValueError, match='compliance_tolerance'):
+            solver.solve((5.0, 0.0, 0.0), compliance=True, compliance_tolerance=bad)
+
+
+@pytest.mark.parametrize('level', ['full', 'cc', 'rod', 'linear'])
+def test_every_level_takes_the_compliance_tolerance(params, level):
+    """Each level answers with compliance_tolerance; only the full model's may use it."""
+    solver = FidelitySolver(params, fidelity=level)
+    for fx in (5.0, 5.1):
+        result = solver.solve((fx, 1.0, 0.0), compliance=True, compliance_tolerance=0.05)
+    assert result.compliance is not None
+    assert (result.compliance.method == STORED_METHOD) == (level == 'full')
+    with pytest.raises(ValueError, match='compliance_tolerance'):
+        solver.solve((5.2, 1.0, 0.0), compliance=True, compliance_tolerance=-1.0)
 
 
 @pytest.mark.parametrize('force', [(0.0, 0.0, 0.0), (0.0, 0.0, -8.0), (0.0, 0.0, 15.0)])
