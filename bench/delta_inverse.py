@@ -3,6 +3,10 @@ Continuum Delta Robot inverse statics: warm per 1 mm path step and cold, against
 
 Usage: python -m bench.delta_inverse  (prints, and writes bench/results/delta_inverse.md)
 
+The first line is the target row: the settled warm steps' median and mean against TARGET_S,
+as ratios with the absolute times beside them, and the forward solve at the same sliders,
+which a warm step makes once, against the same target.
+
 Paths: PATHS straight target paths of STEPS steps of 1 mm under a 1 kg payload, each from
 where random sliders (within START_STROKE of the stroke) put the platform, in a random
 direction; a path ends early where it leaves the reachable set. Warm: every step's
@@ -34,6 +38,10 @@ PATHS = 6
 STEPS = 15
 STEP_M = 0.001
 START_STROKE = 0.4
+
+#: The target of a warm inverse per 1 mm path step (s): the bench prints the settled steps'
+#: median and mean against it as ratios (1 or less: met), absolute figures beside them.
+TARGET_S = 0.5e-3
 
 #: The warm steps counted: after the first few of a path, whose extrapolation has not yet
 #: the points it needs (they are reported apart).
@@ -136,6 +144,11 @@ def _counts(results: List[InverseResult]) -> str:
     return ', '.join(f'{value:.2f} {name}' for name, value in mean.items())
 
 
+def _verdict(seconds: float) -> str:
+    """Say whether a time meets TARGET_S."""
+    return 'met' if seconds <= TARGET_S else 'not met'
+
+
 def report(data: Dict[str, list]) -> List[str]:
     """Return the measurements as lines: times in ms and as ratios to a forward solve."""
     forward = statistics.median(data['forward'])
@@ -146,7 +159,13 @@ def report(data: Dict[str, list]) -> List[str]:
     read = statistics.median(data['read'])
     cold_forward = statistics.median(data['cold_forward'])
     ms = 1e3
+    median, mean = statistics.median(warm), statistics.mean(warm)
     return [
+        f'target row, robot inverse statics warm per {ms * STEP_M:g} mm step (target '
+        f'<= {ms * TARGET_S:g} ms): median {ms * median:.3f} ms = {median / TARGET_S:.2f} x '
+        f'target ({_verdict(median)}), mean {ms * mean:.3f} ms = {mean / TARGET_S:.2f} x '
+        f'target ({_verdict(mean)}); the forward solve it makes alone (same run): '
+        f'{ms * forward:.3f} ms = {forward / TARGET_S:.2f} x target',
         f'forward solve along the same sliders (warm, no compliance): median '
         f'{ms * forward:.3f} ms, {statistics.mean(data["forward_jacobians"]):.2f} leg_jacobians '
         'a solve',
