@@ -55,7 +55,7 @@ class BorderedState:
 
     def __init__(self, position: np.ndarray, rotation: np.ndarray, wrenches: np.ndarray,
                  leg_x: np.ndarray) -> None:
-        """Copies of the platform pose, the leg wrenches (3, 6) and leg unknowns (3, n)."""
+        """Copy the platform pose, the leg wrenches (3, 6) and the leg unknowns (3, n)."""
         self.position = np.array(position, dtype=float)
         self.rotation = np.array(rotation, dtype=float)
         self.wrenches = np.array(wrenches, dtype=float)
@@ -63,8 +63,8 @@ class BorderedState:
 
 
 def bordered_system(model: int, data: np.ndarray, state: BorderedState, inputs: np.ndarray,
-              platform: tuple, jacobian: bool
-              ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                    platform: tuple, jacobian: bool
+                    ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """
     Return the scaled residual [r_p / r_scale; r_x] and, with ``jacobian``, its Jacobian.
 
@@ -159,7 +159,7 @@ def bordered_newton(model: int, data: np.ndarray, leg_tolerance: float, state: B
             return NO_DESCENT, iteration + 1, residual, frames
         state.position, state.rotation = trial.position, trial.rotation
         state.wrenches, state.leg_x = trial.wrenches, trial.leg_x
-        scaled, matrix, residual, frames = bordered_system(model, data, state, inputs, platform,
-                                                     True)
+        scaled, matrix, residual, frames = bordered_system(model, data, state, inputs,
+                                                           platform, True)
         norm = float(np.linalg.norm(scaled))
     return NOT_SOLVED, max_iterations, residual, frames

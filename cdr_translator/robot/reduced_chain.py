@@ -23,9 +23,9 @@ from .chain import Chain, ChainState, SIZE
 from .chain_path import DEGREE, point_width, push
 from .held_leg import held_reference, held_verdict, HeldReference
 from .linearization import chain_verdict
-from .reduced_coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
 from .reduced_bordered import bordered_newton, BorderedState, NO_DESCENT as BORDERED_NO_DESCENT
 from .reduced_bordered import SINGULAR, SOLVED as BORDERED_SOLVED
+from .reduced_coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
 from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT
 from .reduced_kernels import platform_jacobian, SOLVED
 from .result import DeltaResult, LegResults
@@ -42,7 +42,7 @@ _FAILURES = {LEG_FAILED: "a leg's reduced model did not converge under its wrenc
 #: Why a Newton correction with the legs held in the system failed, by its outcome code.
 _BORDERED_FAILURES = {BORDERED_NO_DESCENT: 'damping found no decrease of the residual with '
                                            'the legs held in the Newton system',
-                      SINGULAR: 'the chain\'s Newton Jacobian (legs held in it) is singular'}
+                      SINGULAR: "the chain's Newton Jacobian (legs held in it) is singular"}
 
 
 @dataclass
@@ -263,8 +263,8 @@ class ReducedChain:
             # chain_newton makes them (a leg past its free-end buckling load has a
             # regular H_k again, its determinant's sign negative: its held verdict's)
             for k in range(3):
-                _, compliances[k], _ = self.leg_linearization(state.leg_x[k],
-                                                               state.wrenches[k])
+                made = self.leg_linearization(state.leg_x[k], state.wrenches[k])
+                compliances[k] = made[1]
             platform_jacobian(state.rotation, state.wrenches, residual, inputs,
                               self.chain.platform[0], self.chain.platform[1], compliances,
                               jacobian)

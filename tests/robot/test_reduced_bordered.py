@@ -14,7 +14,7 @@ UPWARD = (0.0, 0.0, 75.0)  # compresses the legs past a 'cc' leg's free-end buck
 
 @pytest.fixture(scope='module')
 def solved():
-    """A converged 'cc' chain under an upward payload, and its inputs."""
+    """Return a converged 'cc' chain under an upward payload, its state and inputs."""
     robot = DeltaRobot(fidelity='cc', time_limit_s=5.0)
     result = robot.solve(SLIDERS, UPWARD, warm_start=False)
     assert result.converged, result.message
