@@ -162,16 +162,19 @@ class ChainContinuation:
         if outcome is None:  # cannot happen: the loop runs at least once
             raise RuntimeError('continuation made no step')
         if coupled and outcome.converged:  # this solve's step, for the next ones' predictor
-            self.path = self._recorded(outcome.state, inputs - start)
+            self.path = self._recorded(outcome.state, inputs - start, first)
             self.grid.reached(outcome.state)
         else:
             self.path = []
         outcome.iterations = iterations
         return outcome
 
-    def _recorded(self, end: ChainState, inputs_change: np.ndarray) -> List[PathStep]:
+    def _recorded(self, end: ChainState, inputs_change: np.ndarray,
+                  sensitivity: np.ndarray) -> List[PathStep]:
         """
         Return the path with the solve from ``self.previous`` to ``end`` added, latest last.
+
+        ``sensitivity``: the residual's input sensitivity at ``self.previous``.
 
         A refinement (an input change within REFINEMENT of the last step's, in the residual
         change it makes: the inverse statics' corrections after its predicted sliders) joins
@@ -185,7 +188,6 @@ class ChainContinuation:
         path = self.path
         if path and path[-1].end is start:
             last = path[-1]
-            sensitivity = chain.input_sensitivity(start, self.previous[1])
             size = np.linalg.norm(sensitivity @ inputs_change / chain.r_scale)
             if size <= REFINEMENT * np.linalg.norm(sensitivity @ last.inputs_change
                                                    / chain.r_scale):

@@ -293,7 +293,9 @@ class InverseSolver:
         if guess is None:
             path = SliderPath()
             guess = straight_leg_sliders(robot.legs, robot.params.stack_height, goal)
-        sliders = np.clip(np.nan_to_num(guess), -stroke, stroke)
+        if not np.all(np.isfinite(guess)):  # (a straight-leg inverse out of reach)
+            guess = np.nan_to_num(guess)
+        sliders = np.clip(guess, -stroke, stroke)
         forward = ForwardSolves(robot, path, load, fresh=not warm_start)
         result = forward(sliders, cold)
         exact = False  # whether the iterates take the exact slope, not the secants'

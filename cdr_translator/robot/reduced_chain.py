@@ -23,8 +23,11 @@ from .chain import Chain, ChainState, SIZE
 from .chain_path import DEGREE, point_width, push
 from .held_leg import held_reference, held_verdict, HeldReference
 from .linearization import chain_verdict
+from .reduced_bordered import bordered_newton, BorderedState, NO_DESCENT as BORDERED_NO_DESCENT
+from .reduced_bordered import SINGULAR, SOLVED as BORDERED_SOLVED
 from .reduced_coupled_kernels import follow, linearize_solution, SOLVED as COUPLED_SOLVED
-from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT, SOLVED
+from .reduced_kernels import chain_newton, leg_compliance, LEG_FAILED, NO_DESCENT
+from .reduced_kernels import platform_jacobian, SOLVED
 from .result import DeltaResult, LegResults
 from ..fidelity import cc, equivalent_rod
 from ..fidelity.reduced import ReducedModel, ROD_STEPS
@@ -35,6 +38,11 @@ from ..solve.result import FRAME_NAMES, SolveResult
 #: Why a compiled Newton correction failed, by its outcome code.
 _FAILURES = {LEG_FAILED: "a leg's reduced model did not converge under its wrench",
              NO_DESCENT: 'damping found no decrease of the residual'}
+
+#: Why a Newton correction with the legs held in the system failed, by its outcome code.
+_BORDERED_FAILURES = {BORDERED_NO_DESCENT: 'damping found no decrease of the residual with '
+                                           'the legs held in the Newton system',
+                      SINGULAR: "the chain's Newton Jacobian (legs held in it) is singular"}
 
 
 @dataclass
@@ -206,11 +214,26 @@ class ReducedChain:
         signs = np.zeros(3, dtype=np.int64)
         residual = np.full(SIZE, np.inf)
         jacobian = np.full((SIZE, SIZE), np.nan)
+        bordered = False  # the legs held in the Newton system (reduced_bordered.py)
         while done < 1.0:
             target = min(1.0, done + step)
             goal = inputs if target == 1.0 else origin + target * (inputs - origin)
             trial = state.copy()
             trial_origin = leg_origin.copy()
+            if bordered:
+                code, count = self._bordered_step(trial, goal, tolerances, frames, residual)
+                iterations += count
+                if code == BORDERED_SOLVED:
+                    done, state = target, trial
+                    step *= 2.0
+                    continue
+                step = 0.5 * (target - done)
+                if step < MIN_CONTINUATION_STEP or out_of_time():
+                    return self._stalled(state, inputs, done, iterations,
+                                         _BORDERED_FAILURES.get(code, 'no convergence in '
+                                                                f'{self.max_iterations} '
+                                                                'iterations'))
+                continue
             code, count = chain_newton(
                 self.model.code, self.data, self.model.tolerance, self.model.max_iterations,
                 trial.leg_x, trial_origin, self.lu, self.pivots, trial.position,
@@ -224,17 +247,55 @@ class ReducedChain:
                 continue
             self.pivots[:, -1] = 0
             self.factor_pivots[-1] = 0
+            if self.couples and not out_of_time():
+                # the same step with the legs held in the system, and so the rest of the
+                # walk: past a leg's free-end buckling load its wrench alone does not fix
+                # its shape (H_k singular there), the chain held at both ends does
+                bordered = True
+                continue
             step = 0.5 * (target - done)
             if step < MIN_CONTINUATION_STEP or out_of_time():
-                message = _FAILURES.get(code, f'no convergence in {self.max_iterations} '
-                                              'iterations')
-                last = self.evaluate(state, inputs)
-                return ReducedOutcome(state, False, f'continuation stalled at {done:.1%} of '
-                                      f'the way to the sliders and payload: {message}',
-                                      iterations, last.residual, last.jacobian, last.frames,
-                                      last.compliances)
+                return self._stalled(state, inputs, done, iterations,
+                                     _FAILURES.get(code, f'no convergence in '
+                                                         f'{self.max_iterations} iterations'))
+        if bordered and linearized:
+            # the legs' compliances and the platform Jacobian at the solution, as
+            # chain_newton makes them (a leg past its free-end buckling load has a
+            # regular H_k again, its determinant's sign negative: its held verdict's)
+            for k in range(3):
+                made = self.leg_linearization(state.leg_x[k], state.wrenches[k])
+                compliances[k] = made[1]
+            platform_jacobian(state.rotation, state.wrenches, residual, inputs,
+                              self.chain.platform[0], self.chain.platform[1], compliances,
+                              jacobian)
         return ReducedOutcome(state, True, 'converged', iterations, residual, jacobian, frames,
                               compliances)
+
+    def _bordered_step(self, trial: ReducedState, goal: np.ndarray, tolerances: np.ndarray,
+                       frames: np.ndarray, residual: np.ndarray) -> Tuple[int, int]:
+        """
+        Solve ``goal`` from ``trial`` (moved in place) by reduced_bordered's Newton.
+
+        ``frames`` and ``residual`` receive the end disks and the SI residual reached.
+        """
+        held = BorderedState(trial.position, trial.rotation, trial.wrenches, trial.leg_x)
+        code, count, reached, disks = bordered_newton(
+            self.model.code, self.data, self.model.tolerance, held, goal, self.chain.platform,
+            tolerances, self.max_iterations)
+        trial.position[:], trial.rotation[:], trial.wrenches[:] = (held.position, held.rotation,
+                                                                   held.wrenches)
+        trial.leg_x[:] = held.leg_x
+        frames[:] = disks
+        residual[:] = reached
+        return code, count
+
+    def _stalled(self, state: ReducedState, inputs: np.ndarray, done: float, iterations: int,
+                 message: str) -> 'ReducedOutcome':
+        """Return a walk's outcome stalled at ``state``, ``done`` of the way, with why."""
+        last = self.evaluate(state, inputs)
+        return ReducedOutcome(state, False, f'continuation stalled at {done:.1%} of the way '
+                              f'to the sliders and payload: {message}', iterations,
+                              last.residual, last.jacobian, last.frames, last.compliances)
 
     def evaluate(self, state: ReducedState, inputs: np.ndarray) -> ReducedOutcome:
         """Return the residual and legs of ``state`` as it is (no iteration, no Jacobian)."""

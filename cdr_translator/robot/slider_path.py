@@ -27,6 +27,11 @@ WEIGHTS = {degree: np.array([(-1) ** j * math.comb(degree, j + 1) for j in range
                             dtype=float)
            for degree in range(2, PREDICTOR_DEGREE + 1)}
 
+#: WEIGHTS as rows, degree 2 first, padded with zeros to PREDICTOR_DEGREE columns: every
+#: degree's extrapolation in one product.
+WEIGHT_ROWS = np.array([np.pad(WEIGHTS[degree], (0, PREDICTOR_DEGREE - degree))
+                        for degree in range(2, PREDICTOR_DEGREE + 1)])
+
 #: A slider step shorter than this (m) updates no secant: the forward solves' positions
 #: are good to about 1e-11 m, which would be a relative error above 1e-4 in the slope.
 SECANT_MIN_STEP = 1e-7
@@ -43,6 +48,10 @@ class SliderPath:
         #: (target, sliders) of the last solves, latest last, under ``load``
         self.points: List[Tuple[np.ndarray, np.ndarray]] = []
         self.load: Optional[np.ndarray] = None
+        #: the points' target and slider steps, latest first (row j: point k - j minus
+        #: point k - j - 1), made when a point is recorded
+        self._target_steps = np.zeros((0, 3))
+        self._slider_steps = np.zeros((0, 3))
 
     def observe(self, sliders: np.ndarray, position: np.ndarray) -> None:
         """Take a forward solve's (q, p): the secant from the one observed before updates B."""
@@ -82,6 +91,10 @@ class SliderPath:
             self.points = []
         self.load = load.copy()
         self.points = [*self.points[-PREDICTOR_DEGREE:], (target.copy(), corrected)]
+        targets = np.array([point[0] for point in self.points])
+        sliders = np.array([point[1] for point in self.points])
+        self._target_steps = (targets[1:] - targets[:-1])[::-1]
+        self._slider_steps = (sliders[1:] - sliders[:-1])[::-1]
 
     def predict(self, target: np.ndarray, load: np.ndarray) -> Optional[np.ndarray]:
         """
@@ -97,25 +110,25 @@ class SliderPath:
         """
         if not self.points or self.slope is None:
             return None
-        targets = np.array([point[0] for point in self.points])
-        sliders = np.array([point[1] for point in self.points])
-        change = target - targets[-1]
-        # the steps, latest first: row j is point k - j minus point k - j - 1
-        target_steps = (targets[1:] - targets[:-1])[::-1]
-        slider_steps = (sliders[1:] - sliders[:-1])[::-1]
+        last_target, last_sliders = self.points[-1]
+        change = target - last_target
         rest, extrapolated = change, np.zeros(3)
-        if self.load is not None and np.array_equal(load, self.load):
-            smallest, whole = math.inf, float(np.linalg.norm(change))
-            for degree in range(2, min(len(target_steps), PREDICTOR_DEGREE) + 1):
-                weights = WEIGHTS[degree]
-                left = change - weights @ target_steps[:degree]
-                size = float(np.linalg.norm(left))
+        steps = len(self._target_steps)
+        if steps >= 2 and self.load is not None and np.array_equal(load, self.load):
+            # every degree's rest at once: row m - 2 is degree m's (rows past the steps
+            # known are not looked at)
+            weights = WEIGHT_ROWS[:steps - 1, :steps]
+            lefts = change - weights @ self._target_steps[:PREDICTOR_DEGREE]
+            sizes = np.sqrt(np.einsum('ij,ij->i', lefts, lefts)).tolist()
+            smallest, whole, chosen = math.inf, math.sqrt(float(change @ change)), -1
+            for row, size in enumerate(sizes):
                 if size <= smallest + 1e-9 * whole:  # equal within rounding: the higher
-                    rest, extrapolated = left, weights @ slider_steps[:degree]
+                    chosen = row
                 smallest = min(smallest, size)
-            if smallest > EXTRAPOLATE_WITHIN * whole:
-                rest, extrapolated = change, np.zeros(3)
+            if smallest <= EXTRAPOLATE_WITHIN * whole:
+                rest = lefts[chosen]
+                extrapolated = weights[chosen] @ self._slider_steps[:PREDICTOR_DEGREE]
         try:
-            return sliders[-1] + extrapolated + self.step(-rest)
+            return last_sliders + extrapolated + self.step(-rest)
         except np.linalg.LinAlgError:
-            return sliders[-1] + extrapolated
+            return last_sliders + extrapolated
