@@ -26,6 +26,7 @@ from .admission import NO_BUDGET, NO_DATA, OUTSIDE
 from .auto import AutoFidelity, NO_CHEAPER, TRUSTED
 from .reduced_level import compiled_runs
 from .validation import box_scale, box_scales
+from .verdicts import Judge
 from ..solve.batch import BatchResult
 
 #: Rows a batch looks ahead at first for a run it can tell in advance.
@@ -75,10 +76,14 @@ def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray]) 
     """
     How many leading rows of ``wrenches`` ``taken(part, first)`` takes.
 
-    Looked at in windows that double from WINDOW rows, so that a batch whose runs are short
-    does not measure every later row at every run; ``first`` is the part's first row.
+    The first row is looked at alone: most rows that end a run (a check, an expansion) are
+    not taken by the next kind of run either, and a whole window there is wasted. Then
+    windows that double from WINDOW rows, so that a batch whose runs are short does not
+    measure every later row at every run; ``first`` is the part's first row.
     """
-    count, window = 0, WINDOW
+    if not len(wrenches) or not taken(wrenches[:1], 0)[0]:
+        return 0
+    count, window = 1, WINDOW
     while count < len(wrenches):
         part = wrenches[count:count + window]
         accepted = taken(part, count)
@@ -97,10 +102,23 @@ def trusted_rows(auto: AutoFidelity, wrenches: np.ndarray) -> int:
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part - origin)
-        return ((box_scales(part) <= 1.0) & (scales <= auto.trusted)
-                & auto.within_linear_target(scales) & judge.covered(part))
+        return _covered_prefix(judge, part, (box_scales(part) <= 1.0) & (scales <= auto.trusted)
+                               & auto.within_linear_target(scales))
 
     return _runs(wrenches, taken)
+
+
+def _covered_prefix(judge: Judge, part: np.ndarray, taken: np.ndarray) -> np.ndarray:
+    """
+    ``taken`` and the verdict coverage (``judge.covered``) of the rows of ``part``.
+
+    Coverage is looked up only for the rows before the first one not ``taken``: ``_runs``
+    reads no row after that, and the lookup is the costliest of the conditions.
+    """
+    ahead = len(taken) if taken.all() else int(np.argmin(taken))
+    if ahead:
+        taken[:ahead] = judge.covered(part[:ahead])
+    return taken
 
 
 def _stepped(auto: AutoFidelity, wrenches: np.ndarray, first: int, part: np.ndarray,
@@ -148,8 +166,8 @@ def reduced_rows(auto: AutoFidelity, wrenches: np.ndarray, compliance: bool
         admitted = (scales <= 1.0) & (scales <= reaches[chosen])
         for level in cheaper:
             admitted &= scales > reaches[level]
-        return (admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
-                & judge.covered(part))
+        return _covered_prefix(judge, part, admitted & ~_stepped(auto, wrenches, first, part,
+                                                                 auto.costs[chosen]))
 
     return _runs(wrenches, taken), chosen
 
