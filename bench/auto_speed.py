@@ -90,9 +90,9 @@ def _batch(solver: FidelitySolver, wrenches: np.ndarray) -> Tuple[BatchResult, f
 def deviations(batch: BatchResult, full: BatchResult) -> Tuple[float, float]:
     """Largest end-disk position (m) and angle (deg) distance of ``batch``'s rows from ``full``'s."""
     position = np.linalg.norm(batch.end_disk_position - full.end_disk_position, axis=1)
-    relative = np.einsum('nji,njk->nik', full.end_disk_rotation, batch.end_disk_rotation)
-    cosine = np.clip((np.trace(relative, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
-    angle = np.maximum.reduce([np.arccos(cosine),
+    # rows from compiled poses keep quaternions, not rotation matrices
+    dots = np.abs((batch.end_disk_quaternion_xyzw * full.end_disk_quaternion_xyzw).sum(axis=1))
+    angle = np.maximum.reduce([2.0 * np.arccos(np.minimum(dots, 1.0)),
                                np.abs(batch.pj_bending[:, 0] - full.pj_bending[:, 0]),
                                np.abs(batch.dj_bending[:, 0] - full.dj_bending[:, 0])])
     return float(position.max()), math.degrees(float(angle.max()))

@@ -72,16 +72,18 @@ def solve_many(auto: AutoFidelity, wrenches: np.ndarray, batch: BatchResult,
         row += 1
 
 
-def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray]) -> int:
+def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray],
+          first_taken: Callable[[np.ndarray], bool]) -> int:
     """
     How many leading rows of ``wrenches`` ``taken(part, first)`` takes.
 
-    The first row is looked at alone: most rows that end a run (a check, an expansion) are
-    not taken by the next kind of run either, and a whole window there is wasted. Then
-    windows that double from WINDOW rows, so that a batch whose runs are short does not
-    measure every later row at every run; ``first`` is the part's first row.
+    The first row is looked at alone, by ``first_taken(wrench)`` (what ``taken`` says of
+    it, in floats as ``AutoFidelity.solve`` decides: a tenth of the array calls' time): most
+    rows that end a run (a check, an expansion) are not taken by the next kind of run
+    either. Then windows that double from WINDOW rows, so that a batch whose runs are short
+    does not measure every later row at every run; ``first`` is the part's first row.
     """
-    if not len(wrenches) or not taken(wrenches[:1], 0)[0]:
+    if not len(wrenches) or not first_taken(wrenches[0]):
         return 0
     count, window = 1, WINDOW
     while count < len(wrenches):
@@ -105,7 +107,10 @@ def trusted_rows(auto: AutoFidelity, wrenches: np.ndarray) -> int:
         return _covered_prefix(judge, part, (box_scales(part) <= 1.0) & (scales <= auto.trusted)
                                & auto.within_linear_target(scales))
 
-    return _runs(wrenches, taken)
+    def first_taken(wrench: np.ndarray) -> bool:
+        return auto.linear_verdict(wrench) == 'take' and judge.carried(wrench) is not None
+
+    return _runs(wrenches, taken, first_taken)
 
 
 def _covered_prefix(judge: Judge, part: np.ndarray, taken: np.ndarray) -> np.ndarray:
@@ -169,7 +174,7 @@ def reduced_rows(auto: AutoFidelity, wrenches: np.ndarray, compliance: bool
         return _covered_prefix(judge, part, admitted & ~_stepped(auto, wrenches, first, part,
                                                                  auto.costs[chosen]))
 
-    return _runs(wrenches, taken), chosen
+    return _runs(wrenches, taken, lambda wrench: bool(taken(wrench[None, :], 0)[0])), chosen
 
 
 def full_rows(auto: AutoFidelity, wrenches: np.ndarray) -> Tuple[int, str]:
@@ -199,4 +204,18 @@ def full_rows(auto: AutoFidelity, wrenches: np.ndarray) -> Tuple[int, str]:
         expands = _stepped(auto, wrenches, first, part, None)
         return ~answered & ~(expands & inside) & (~inside if outside else inside)
 
-    return _runs(wrenches, taken), OUTSIDE if outside else NO_CHEAPER
+    reach = max(reaches.get('cc', -math.inf), reaches.get('rod', -math.inf))
+    expansion = origin if origin is not None and box_scale(origin) <= 1.0 else None
+
+    def first_taken(wrench: np.ndarray) -> bool:
+        scale = box_scale(wrench)
+        inside = scale <= 1.0
+        if inside and (scale <= reach or (expansion is not None and bool(
+                auto.within_linear_target(np.array([box_scale(wrench - expansion)]))[0]))):
+            return False
+        if inside and auto.last_wrench is not None and bool(auto.expansion_pays_at(
+                np.array([box_scale(wrench - auto.last_wrench)]), None)[0]):
+            return False
+        return not inside if outside else inside
+
+    return _runs(wrenches, taken, first_taken), OUTSIDE if outside else NO_CHEAPER
