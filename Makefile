@@ -56,7 +56,8 @@ hard-cases: setup
 # then the figure again, its robot panel from this run's robot_levels.json; then each level's
 # kernel and the Python around a single solve against a batch: bench/results/level_kernels.md,
 # solve_many.md; then force sensing at a tracker's noise (about 3 min):
-# bench/results/estimate_noise.{md,png}.
+# bench/results/estimate_noise.{md,png}; then 'auto' at 1 mm / 0.5 deg against full, batch,
+# on the sequence and three noisy random walks (about 1 min): bench/results/auto_speed.{md,json}.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
@@ -66,6 +67,7 @@ bench: setup
 	$(VPY) -m bench.level_kernels
 	$(VPY) -m bench.solve_many --count 300
 	$(VPY) -m bench.estimate_noise
+	$(VPY) -m bench.auto_speed
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):
