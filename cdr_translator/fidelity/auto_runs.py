@@ -104,7 +104,8 @@ def trusted_rows(auto: AutoFidelity, wrenches: np.ndarray) -> int:
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part - origin)
-        return _covered_prefix(judge, part, (box_scales(part) <= 1.0) & (scales <= auto.trusted)
+        return _covered_prefix(judge, part, (box_scales(part) <= 1.0)
+                               & auto.within_trust(part, scales)
                                & auto.within_linear_target(scales))
 
     def first_taken(wrench: np.ndarray) -> bool:

@@ -214,3 +214,48 @@ def test_look_ahead_reads_one_row_where_no_run_starts(params, monkeypatch):
     inside = origin + np.linspace(0.0, 0.9, 40)[:, None] * solver.auto.trusted * direction
     assert auto_runs.trusted_rows(solver.auto, inside) == len(inside)
     assert judged and sum(judged) == len(inside) - 1  # the first row in floats, then windows
+
+
+def test_a_check_trusts_the_offsets_near_it_not_its_scale_everywhere(params):
+    """
+    Past a check, an unchecked answer lies near a check that passed, not merely as far out.
+
+    The curvature is measured along the offsets checked: at the same scale in another
+    direction the linear error may be larger, so that offset is checked first.
+    """
+    solver = learned_solver(params)
+    auto = solver.auto
+    assert auto.passed_checks and auto.trusted > auto.trusted_everywhere
+    checked, reach = auto.passed_checks[-1]
+    origin = solver.tangent.origin
+    half = box_half_widths()
+    offset = (checked - origin) / half
+    scale = np.abs(offset).max()
+    assert scale > auto.trusted_everywhere
+    assert auto.linear_verdict(checked) == 'take'
+    turned = offset.copy()
+    turned[1] = -np.sign(offset[0]) * scale  # as far out, another way
+    turned[0] = offset[1]
+    elsewhere = origin + turned * half
+    assert np.abs(turned).max() == pytest.approx(scale)
+    assert auto.linear_verdict(elsewhere) == 'check'
+
+
+def test_reduced_answers_on_a_rough_walk_lie_within_the_budget(params):
+    """
+    A random walk of 0.4 N per sample: every reduced answer is within the budget of full.
+
+    Its offsets from an expansion point every way; trusting a check's scale in every
+    direction gave 'linear' answers past the budget with accuracy_met True.
+    """
+    walk = random_walk(0.4)[:420]
+    auto = budget_solver(params).solve_many(walk[:, :3], walk[:, 3:])
+    full = FidelitySolver(params, fidelity='full').solve_many(walk[:, :3], walk[:, 3:])
+    reduced = auto.fidelity != 'full'
+    assert reduced.sum() > 20 and 'linear' in set(auto.fidelity.tolist())
+    position = np.linalg.norm(auto.end_disk_position - full.end_disk_position, axis=1)
+    dots = np.abs((auto.end_disk_quaternion_xyzw * full.end_disk_quaternion_xyzw).sum(axis=1))
+    angle = np.degrees(2.0 * np.arccos(np.minimum(dots, 1.0)))
+    assert all(auto.accuracy_met[reduced])
+    assert position[reduced].max() <= BUDGET[0], np.argmax(np.where(reduced, position, 0.0))
+    assert angle[reduced].max() <= BUDGET[1]
