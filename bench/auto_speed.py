@@ -88,7 +88,7 @@ def _batch(solver: FidelitySolver, wrenches: np.ndarray) -> Tuple[BatchResult, f
 
 
 def deviations(batch: BatchResult, full: BatchResult) -> Tuple[float, float]:
-    """Largest end-disk position (m) and angle (deg) distance of ``batch``'s rows from ``full``'s."""
+    """Largest end-disk position (m) and angle (deg) of ``batch``'s rows from ``full``'s."""
     position = np.linalg.norm(batch.end_disk_position - full.end_disk_position, axis=1)
     # rows from compiled poses keep quaternions, not rotation matrices
     dots = np.abs((batch.end_disk_quaternion_xyzw * full.end_disk_quaternion_xyzw).sum(axis=1))
@@ -110,7 +110,7 @@ def _kind(fidelity: str, message: str) -> str:
 
 
 def measure(wrenches: np.ndarray, params: TranslatorParams, passes: int) -> Dict[str, Any]:
-    """Time full and 'auto' batches over ``wrenches`` (interleaved passes) and judge auto's rows."""
+    """Time full and 'auto' batches of ``wrenches`` (interleaved passes); judge auto's rows."""
     best = {'full': math.inf, 'auto': math.inf}
     batches: Dict[str, BatchResult] = {}
     auto_solver = None

@@ -23,7 +23,9 @@ The candidates, tried in this order:
   expansion by tens of per cent (more between expansions), so GAIN_MARGIN times it is used.
   A check passes if its error, grown as the square of the offset to the edge of the trust
   region it opens (CHECK_GROWTH times the offset), stays inside LINEAR_TARGET of the
-  budget; else the wrench escalates.
+  budget; else the wrench escalates. Where 'cc' or 'rod' is admitted and costs less than a
+  check (its shot), it answers instead of a check (a noisy stream near the unloaded state:
+  most offsets need one).
 * 'cc', 'rod': where their validated errors meet the budget, cheapest first by the cost
   measured as the solver runs. With an expansion at hand the reduced answer is compared with
   its prediction: a distance beyond the budget plus the prediction's estimated error proves
@@ -360,6 +362,8 @@ class AutoFidelity:
         # where none is near, the answer is a full solve, which judges itself
         covered = self.judge().carried(wrench) is not None
         verdict, scale = self._verdict(wrench) if covered else (None, math.nan)
+        if verdict == 'check' and self._cheaper_than_a_check(wrench):
+            verdict = None
         if verdict == 'take':
             self.served(scale)
             return self.answer('linear', TRUSTED, wrench, compliance, options,
@@ -400,6 +404,11 @@ class AutoFidelity:
         reason = OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER
         return self.answer_in_full(wrench, self._expansion_pays(wrench, None), compliance,
                                    options, reason)
+
+    def _cheaper_than_a_check(self, wrench: np.ndarray) -> bool:
+        """Whether a reduced level admitted at ``wrench`` costs less than checking 'linear'."""
+        check = self.costs.get('check', math.inf)
+        return any(self.costs[level] < check for level in self.admission.reduced(wrench))
 
     def _verdict_solve(self, wrench: np.ndarray, compliance: bool,
                        options: Mapping[str, float]) -> SolveResult:
