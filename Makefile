@@ -58,7 +58,10 @@ hard-cases: setup
 # solve_many.md; then force sensing at a tracker's noise (about 3 min):
 # bench/results/estimate_noise.{md,png}; then translator_node under load (about 1 min):
 # bench/results/node_load.md; then the full model on three seeded random walks of the force
-# (0.02, 0.1, 0.4 N per sample; about 30 s): bench/results/walks.md.
+# (0.02, 0.1, 0.4 N per sample; about 30 s): bench/results/walks.md; then 'auto' at 1 mm /
+# 0.5 deg against full, batch, on the sequence and three noisy random walks (about 1 min):
+# bench/results/auto_speed.{md,json}; then the robot's inverse statics, warm per 1 mm step
+# and cold: bench/results/delta_inverse.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
@@ -70,6 +73,8 @@ bench: setup
 	$(VPY) -m bench.estimate_noise
 	$(VPY) -m bench.node_load --markdown bench/results/node_load.md
 	$(VPY) -m bench.walks
+	$(VPY) -m bench.auto_speed
+	$(VPY) -m bench.delta_inverse
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
 # `dask worker`, inverse-statics timing, atlas pictures and workspace volume (about 6 min):

@@ -8,8 +8,12 @@ The candidates, tried in this order:
   offset s = box_scale(w - w0) from that solution; it is estimated as kappa s^2, with a
   curvature kappa (position and angle) learned from checks and started, before any, from
   the validated errors of the level (config/fidelity_validation.yaml). An answer inside the
-  trust region -- offsets up to CHECK_GROWTH times the farthest one checked on this
-  expansion -- whose estimate uses at most LINEAR_TARGET of the budget is taken as it is.
+  trust region whose estimate uses at most LINEAR_TARGET of the budget is taken as it is.
+  The trust region: offsets up to FIRST_CHECK times the radius the curvature gives, in any
+  direction, and the neighbourhood of each check that passed -- wrenches no farther from it
+  than CHECK_GROWTH - 1 times its offset, out to CHECK_GROWTH times the farthest offset
+  checked. The curvature is measured along the offsets checked; a noisy stream wanders to
+  others, where it may be larger, so a check's trust reaches only the offsets near it.
   Farther out, the answer is checked before it is taken: one shot of the full model at the
   predicted unknowns gives their residual, the equations' own measure of how far the
   prediction is from a solution, and its norm times a gain is the linear answer's error
@@ -19,7 +23,9 @@ The candidates, tried in this order:
   expansion by tens of per cent (more between expansions), so GAIN_MARGIN times it is used.
   A check passes if its error, grown as the square of the offset to the edge of the trust
   region it opens (CHECK_GROWTH times the offset), stays inside LINEAR_TARGET of the
-  budget; else the wrench escalates.
+  budget; else the wrench escalates. Where 'cc' or 'rod' is admitted and costs less than a
+  check (its shot), it answers instead of a check (a noisy stream near the unloaded state:
+  most offsets need one).
 * 'cc', 'rod': where their validated errors meet the budget, cheapest first by the cost
   measured as the solver runs. With an expansion at hand the reduced answer is compared with
   its prediction: a distance beyond the budget plus the prediction's estimated error proves
@@ -58,7 +64,7 @@ from .admission import Admission, OUTSIDE
 from .auto_costs import measure_costs
 from .level import Asked, Level
 from .linear_level import LinearLevel
-from .validation import box_scale, frame_errors, Validation
+from .validation import box_scale, box_scales, frame_errors, Validation
 from .verdicts import FullVerdict, Judge, unloaded_verdict
 from .._linalg import norm
 from ..solve.batch import BatchResult
@@ -68,8 +74,12 @@ from ..solve.solver import TranslatorSolver
 #: Share of the budget a linear answer's estimated (or checked) error may use.
 LINEAR_TARGET = 0.7
 
-#: Unchecked linear answers may lie this many times farther out than the farthest check.
+#: Unchecked linear answers may lie this many times farther out than the farthest check,
+#: and no farther from a check that passed than CHECK_GROWTH - 1 times its offset.
 CHECK_GROWTH = 1.15
+
+#: Checks that passed on an expansion whose neighbourhoods are trusted (the latest ones).
+REMEMBERED_CHECKS = 16
 
 #: A new expansion trusts, unchecked, this fraction of the radius its curvature predicts.
 FIRST_CHECK = 0.5
@@ -174,7 +184,11 @@ class AutoFidelity:
     def reset(self) -> None:
         """Forget the trust region, the last answer and the last full verdict."""
         self.curvature = validated_curvature(self.validation)
+        #: the trust region: its largest offset scale (0: none), the offset trusted in every
+        #: direction, and the checks that passed with the distance each is trusted to
         self.trusted = 0.0
+        self.trusted_everywhere = 0.0
+        self.passed_checks: List[Tuple[np.ndarray, float]] = []
         self._measured: Optional[np.ndarray] = None  # largest kappa checked on the expansion
         self._served = 0.0  # farthest offset a linear answer took on the expansion
         self._gain: Optional[np.ndarray] = None  # the check's gain on this expansion
@@ -264,7 +278,27 @@ class AutoFidelity:
         square, curvature, target = scale * scale, self.curvature, self._target
         if curvature[0] * square > target[0] or curvature[1] * square > target[1]:
             return None, scale
-        return ('take' if scale <= self.trusted else 'check'), scale
+        return ('take' if self._trusted_at(wrench, scale) else 'check'), scale
+
+    def _trusted_at(self, wrench: np.ndarray, scale: float) -> bool:
+        """Whether ``wrench``, offset ``scale`` from the expansion, lies in the trust region."""
+        if scale > self.trusted:
+            return False
+        return scale <= self.trusted_everywhere or any(
+            box_scale(wrench - checked) <= reach for checked, reach in self.passed_checks)
+
+    def within_trust(self, wrenches: np.ndarray, scales: np.ndarray) -> np.ndarray:
+        """``_trusted_at`` of each row of ``wrenches`` at offset ``scales``, in the same floats."""
+        trusted = scales <= self.trusted_everywhere
+        for checked, reach in self.passed_checks:
+            trusted |= box_scales(wrenches - checked) <= reach
+        return trusted & (scales <= self.trusted)
+
+    def _passed(self, wrench: np.ndarray, scale: float) -> None:
+        """Trust the neighbourhood of a check that passed at ``wrench``, offset ``scale``."""
+        self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+        self.passed_checks = (self.passed_checks + [(wrench.copy(), (CHECK_GROWTH - 1.0) * scale)]
+                              )[-REMEMBERED_CHECKS:]
 
     def within_linear_target(self, scales: np.ndarray) -> np.ndarray:
         """Per offset scale: whether the curvature puts its linear error inside the target."""
@@ -312,7 +346,8 @@ class AutoFidelity:
             self._reaches_served = (self._reaches_served + [self._served])[-REACH_MEMORY:]
         self._served = 0.0
         self._gain = None
-        self.trusted = FIRST_CHECK * self.radius(self.curvature)
+        self.trusted = self.trusted_everywhere = FIRST_CHECK * self.radius(self.curvature)
+        self.passed_checks = []
         self.counts['expansions'] += 1
 
     # solving ----------------------------------------------------------------------------------
@@ -327,6 +362,8 @@ class AutoFidelity:
         # where none is near, the answer is a full solve, which judges itself
         covered = self.judge().carried(wrench) is not None
         verdict, scale = self._verdict(wrench) if covered else (None, math.nan)
+        if verdict == 'check' and self._cheaper_than_a_check(wrench):
+            verdict = None
         if verdict == 'take':
             self.served(scale)
             return self.answer('linear', TRUSTED, wrench, compliance, options,
@@ -338,7 +375,7 @@ class AutoFidelity:
             self.counts['checks'] += 1
             self._learn(scale, errors)
             if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
-                self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+                self._passed(wrench, scale)
                 self.served(scale)
                 return self.answer(
                     'linear', "checked by the full model's residual: error about "
@@ -367,6 +404,11 @@ class AutoFidelity:
         reason = OUTSIDE if box_scale(wrench) > 1.0 else NO_CHEAPER
         return self.answer_in_full(wrench, self._expansion_pays(wrench, None), compliance,
                                    options, reason)
+
+    def _cheaper_than_a_check(self, wrench: np.ndarray) -> bool:
+        """Whether a reduced level admitted at ``wrench`` costs less than checking 'linear'."""
+        check = self.costs.get('check', math.inf)
+        return any(self.costs[level] < check for level in self.admission.reduced(wrench))
 
     def _verdict_solve(self, wrench: np.ndarray, compliance: bool,
                        options: Mapping[str, float]) -> SolveResult:
@@ -397,7 +439,7 @@ class AutoFidelity:
         self._gain = errors / residual
         self._learn(scale, errors)
         if (errors * CHECK_GROWTH ** 2 <= LINEAR_TARGET * self.budget).all():
-            self.trusted = max(self.trusted, CHECK_GROWTH * scale)
+            self._passed(wrench, scale)
         else:
             self.counts['failed_checks'] += 1
         return result

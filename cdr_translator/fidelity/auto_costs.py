@@ -4,11 +4,13 @@ The costs 'auto' weighs its levels by (fidelity.auto), measured once per process
 Each level answers a step of CALIBRATION_STEP box scales from a solution at
 CALIBRATION_SCALE; 'full step' a further step of CALIBRATION_SMALL_STEP (a warm solve along
 a slow sequence); 'expansion' expands about the full solution, and 'linear' answers one
-more such step from it. The fastest of CALIBRATION_REPEATS timings counts, robust to a busy
-machine; kept per parameter set so that the choices depend on the wrenches alone and a
-batch takes the levels its single solves take.
+more such step from it; 'check' checks that answer (the full model's residual at its
+predicted unknowns, fidelity.auto). The fastest of CALIBRATION_REPEATS timings counts,
+robust to a busy machine; kept per parameter set so that the choices depend on the wrenches
+alone and a batch takes the levels its single solves take.
 """
 
+import time
 from typing import Callable, Dict, List, Mapping
 
 import numpy as np
@@ -45,7 +47,7 @@ def measure_costs(levels: Mapping[str, Level], linear: LinearLevel,
         start = CALIBRATION_SCALE * direction
         end = start + CALIBRATION_STEP * direction
         times: Dict[str, List[float]] = {level: [] for level in (
-            'full', 'full step', 'expansion', 'linear', 'cc', 'rod')}
+            'full', 'full step', 'expansion', 'linear', 'check', 'cc', 'rod')}
         for _ in range(CALIBRATION_REPEATS):
             reset()
             for level in ('full', 'cc', 'rod'):
@@ -58,6 +60,10 @@ def measure_costs(levels: Mapping[str, Level], linear: LinearLevel,
             times['expansion'].append(linear.tangent.build_time_s)
             nearby = further + CALIBRATION_SMALL_STEP * direction
             times['linear'].append(linear.solve(nearby, False, {}, asked()).solve_time_s)
+            problem = linear.full.problem
+            started = time.perf_counter()
+            problem.residual(linear.tangent.unknowns(nearby) / problem.x_scale, nearby)
+            times['check'].append(time.perf_counter() - started)
         _MEASURED_COSTS[key] = {level: min(values) for level, values in times.items()}
         reset()
     return dict(_MEASURED_COSTS[key])

@@ -26,6 +26,7 @@ from .admission import NO_BUDGET, NO_DATA, OUTSIDE
 from .auto import AutoFidelity, NO_CHEAPER, TRUSTED
 from .reduced_level import compiled_runs
 from .validation import box_scale, box_scales
+from .verdicts import Judge
 from ..solve.batch import BatchResult
 
 #: Rows a batch looks ahead at first for a run it can tell in advance.
@@ -71,14 +72,20 @@ def solve_many(auto: AutoFidelity, wrenches: np.ndarray, batch: BatchResult,
         row += 1
 
 
-def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray]) -> int:
+def _runs(wrenches: np.ndarray, taken: Callable[[np.ndarray, int], np.ndarray],
+          first_taken: Callable[[np.ndarray], bool]) -> int:
     """
     How many leading rows of ``wrenches`` ``taken(part, first)`` takes.
 
-    Looked at in windows that double from WINDOW rows, so that a batch whose runs are short
+    The first row is looked at alone, by ``first_taken(wrench)`` (what ``taken`` says of
+    it, in floats as ``AutoFidelity.solve`` decides: a tenth of the array calls' time): most
+    rows that end a run (a check, an expansion) are not taken by the next kind of run
+    either. Then windows that double from WINDOW rows, so that a batch whose runs are short
     does not measure every later row at every run; ``first`` is the part's first row.
     """
-    count, window = 0, WINDOW
+    if not len(wrenches) or not first_taken(wrenches[0]):
+        return 0
+    count, window = 1, WINDOW
     while count < len(wrenches):
         part = wrenches[count:count + window]
         accepted = taken(part, count)
@@ -97,10 +104,27 @@ def trusted_rows(auto: AutoFidelity, wrenches: np.ndarray) -> int:
 
     def taken(part: np.ndarray, first: int) -> np.ndarray:
         scales = box_scales(part - origin)
-        return ((box_scales(part) <= 1.0) & (scales <= auto.trusted)
-                & auto.within_linear_target(scales) & judge.covered(part))
+        return _covered_prefix(judge, part, (box_scales(part) <= 1.0)
+                               & auto.within_trust(part, scales)
+                               & auto.within_linear_target(scales))
 
-    return _runs(wrenches, taken)
+    def first_taken(wrench: np.ndarray) -> bool:
+        return auto.linear_verdict(wrench) == 'take' and judge.carried(wrench) is not None
+
+    return _runs(wrenches, taken, first_taken)
+
+
+def _covered_prefix(judge: Judge, part: np.ndarray, taken: np.ndarray) -> np.ndarray:
+    """
+    ``taken`` and the verdict coverage (``judge.covered``) of the rows of ``part``.
+
+    Coverage is looked up only for the rows before the first one not ``taken``: ``_runs``
+    reads no row after that, and the lookup is the costliest of the conditions.
+    """
+    ahead = len(taken) if taken.all() else int(np.argmin(taken))
+    if ahead:
+        taken[:ahead] = judge.covered(part[:ahead])
+    return taken
 
 
 def _stepped(auto: AutoFidelity, wrenches: np.ndarray, first: int, part: np.ndarray,
@@ -148,10 +172,10 @@ def reduced_rows(auto: AutoFidelity, wrenches: np.ndarray, compliance: bool
         admitted = (scales <= 1.0) & (scales <= reaches[chosen])
         for level in cheaper:
             admitted &= scales > reaches[level]
-        return (admitted & ~_stepped(auto, wrenches, first, part, auto.costs[chosen])
-                & judge.covered(part))
+        return _covered_prefix(judge, part, admitted & ~_stepped(auto, wrenches, first, part,
+                                                                 auto.costs[chosen]))
 
-    return _runs(wrenches, taken), chosen
+    return _runs(wrenches, taken, lambda wrench: bool(taken(wrench[None, :], 0)[0])), chosen
 
 
 def full_rows(auto: AutoFidelity, wrenches: np.ndarray) -> Tuple[int, str]:
@@ -181,4 +205,18 @@ def full_rows(auto: AutoFidelity, wrenches: np.ndarray) -> Tuple[int, str]:
         expands = _stepped(auto, wrenches, first, part, None)
         return ~answered & ~(expands & inside) & (~inside if outside else inside)
 
-    return _runs(wrenches, taken), OUTSIDE if outside else NO_CHEAPER
+    reach = max(reaches.get('cc', -math.inf), reaches.get('rod', -math.inf))
+    expansion = origin if origin is not None and box_scale(origin) <= 1.0 else None
+
+    def first_taken(wrench: np.ndarray) -> bool:
+        scale = box_scale(wrench)
+        inside = scale <= 1.0
+        if inside and (scale <= reach or (expansion is not None and bool(
+                auto.within_linear_target(np.array([box_scale(wrench - expansion)]))[0]))):
+            return False
+        if inside and auto.last_wrench is not None and bool(auto.expansion_pays_at(
+                np.array([box_scale(wrench - auto.last_wrench)]), None)[0]):
+            return False
+        return not inside if outside else inside
+
+    return _runs(wrenches, taken, first_taken), OUTSIDE if outside else NO_CHEAPER

@@ -65,9 +65,9 @@ def load_scale_at(problem: Problem, unloaded: np.ndarray) -> float:
 
 
 def _sizes(wrenches: np.ndarray, length: float) -> np.ndarray:
-    """stability.wrench_size of each row of ``wrenches`` (n, 6)."""
-    return np.sqrt((wrenches[:, :3] ** 2).sum(axis=1)
-                   + (wrenches[:, 3:] ** 2).sum(axis=1) / length ** 2)
+    """stability.wrench_size of each row of ``wrenches`` (..., 6), in the same float steps."""
+    return np.sqrt((wrenches[..., :3] ** 2).sum(axis=-1)
+                   + (wrenches[..., 3:] ** 2).sum(axis=-1) / length ** 2)
 
 
 def carried(wrench: np.ndarray, references: Sequence[FullVerdict], load_scale: float,
@@ -87,15 +87,23 @@ def carried(wrench: np.ndarray, references: Sequence[FullVerdict], load_scale: f
 
 def carried_rows(wrenches: np.ndarray, references: Sequence[FullVerdict], load_scale: float,
                  length: float) -> np.ndarray:
-    """Apply ``carried`` to each row of ``wrenches`` (n, 6): reference indices, -1: none."""
-    sizes = np.maximum(_sizes(wrenches, length), LOAD_FLOOR * load_scale)
+    """
+    Apply ``carried`` to each row of ``wrenches`` (n, 6): reference indices, -1: none.
+
+    The drifts from every reference that may carry a verdict are one array operation (a
+    batch asks this of short windows many times: the calls, not the rows, cost).
+    """
     chosen = np.full(len(wrenches), -1)
+    usable = [index for index, reference in enumerate(references)
+              if reference.stable and reference.margin >= stability.CLOSE_BRANCH_MARGIN]
+    if not usable or not len(wrenches):
+        return chosen
+    sizes = np.maximum(_sizes(wrenches, length), LOAD_FLOOR * load_scale)
+    origins = np.array([references[index].wrench for index in usable])
+    drifts = _sizes(wrenches[None, :, :] - origins[:, None, :], length) / sizes
     least = np.full(len(wrenches), math.inf)
-    for index, reference in enumerate(references):
-        if not (reference.stable and reference.margin >= stability.CLOSE_BRANCH_MARGIN):
-            continue
-        drift = _sizes(wrenches - reference.wrench, length) / sizes
-        better = (drift <= min(STALE_WRENCH, 0.5 * reference.margin)) & (drift < least)
+    for index, drift in zip(usable, drifts):
+        better = (drift <= min(STALE_WRENCH, 0.5 * references[index].margin)) & (drift < least)
         chosen[better], least[better] = index, drift[better]
     return chosen
 

@@ -3,8 +3,9 @@
 import math
 
 from batch_checks import assert_rows_equal, sequence
+from bench.auto_speed import random_walk
 from cdr_translator import TranslatorSolver
-from cdr_translator.fidelity import FidelitySolver, pose_errors
+from cdr_translator.fidelity import auto_runs, FidelitySolver, pose_errors, verdicts
 from cdr_translator.fidelity.auto import CHECK_GROWTH
 from cdr_translator.fidelity.validation import box_half_widths
 import numpy as np
@@ -161,3 +162,100 @@ def test_batch_equals_single_solves_in_runs(params, budget, level):
     assert batched.auto.last_level == single.auto.last_level
     assert np.array_equal(batched.auto.last_wrench, single.auto.last_wrench)
     assert batched.auto.counts == single.auto.counts
+
+
+@pytest.mark.parametrize('sigma', [0.1, 0.4])
+def test_batch_equals_single_solves_on_noisy_walks(params, full, sigma):
+    """
+    A noisy random walk (bench.auto_speed's): rows equal single solves, each inside the budget.
+
+    Its steps mix every kind of row a batch tells in advance (trusted 'linear', 'cc', full
+    runs) with single answers between them, where the look-ahead starts from one row.
+    """
+    walk = random_walk(sigma, count=120, seed=7)
+    single = budget_solver(params)
+    results = [single.solve(wrench[:3], wrench[3:]) for wrench in walk]
+    batched = budget_solver(params)
+    batch = batched.solve_many(walk[:, :3], walk[:, 3:])
+    assert batch.fidelity.tolist() == [result.fidelity for result in results]
+    assert_rows_equal(batch, results)
+    assert batched.auto.counts == single.auto.counts
+    for wrench, result in zip(walk[::10], results[::10]):
+        position, angle = errors(result, full, wrench)
+        assert position <= BUDGET[0] and angle <= BUDGET[1], result.message
+        assert result.stable is not None, result.message
+        if result.fidelity != 'full':
+            assert result.accuracy_met is True, result.message
+
+
+def test_look_ahead_reads_one_row_where_no_run_starts(params, monkeypatch):
+    """
+    Where the next row is a check (outside the trust region), no window of rows is judged.
+
+    The batch asks at every single answer whether a run starts there; the answer comes
+    from that row alone, in floats, not from the verdict coverage of a window of rows.
+    """
+    solver = learned_solver(params)
+    origin = solver.tangent.origin
+    direction = box_half_widths() * np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    rows = origin + np.linspace(1.1, 1.5, 32)[:, None] * solver.auto.trusted * direction
+    assert solver.auto.linear_verdict(rows[0]) == 'check'
+    judged = []
+    covered = verdicts.Judge.covered
+
+    def counting(judge, wrenches):
+        judged.append(len(wrenches))
+        return covered(judge, wrenches)
+
+    monkeypatch.setattr(verdicts.Judge, 'covered', counting)
+    assert auto_runs.trusted_rows(solver.auto, rows) == 0
+    assert auto_runs.full_rows(solver.auto, rows)[0] == 0
+    assert judged == []
+    inside = origin + np.linspace(0.0, 0.9, 40)[:, None] * solver.auto.trusted * direction
+    assert auto_runs.trusted_rows(solver.auto, inside) == len(inside)
+    assert judged and sum(judged) == len(inside) - 1  # the first row in floats, then windows
+
+
+def test_a_check_trusts_the_offsets_near_it_not_its_scale_everywhere(params):
+    """
+    Past a check, an unchecked answer lies near a check that passed, not merely as far out.
+
+    The curvature is measured along the offsets checked: at the same scale in another
+    direction the linear error may be larger, so that offset is checked first.
+    """
+    solver = learned_solver(params)
+    auto = solver.auto
+    assert auto.passed_checks and auto.trusted > auto.trusted_everywhere
+    checked, reach = auto.passed_checks[-1]
+    origin = solver.tangent.origin
+    half = box_half_widths()
+    offset = (checked - origin) / half
+    scale = np.abs(offset).max()
+    assert scale > auto.trusted_everywhere
+    assert auto.linear_verdict(checked) == 'take'
+    turned = offset.copy()
+    turned[1] = -np.sign(offset[0]) * scale  # as far out, another way
+    turned[0] = offset[1]
+    elsewhere = origin + turned * half
+    assert np.abs(turned).max() == pytest.approx(scale)
+    assert auto.linear_verdict(elsewhere) == 'check'
+
+
+def test_reduced_answers_on_a_rough_walk_lie_within_the_budget(params):
+    """
+    A random walk of 0.4 N per sample: every reduced answer is within the budget of full.
+
+    Its offsets from an expansion point every way; trusting a check's scale in every
+    direction gave 'linear' answers past the budget with accuracy_met True.
+    """
+    walk = random_walk(0.4)[:420]
+    auto = budget_solver(params).solve_many(walk[:, :3], walk[:, 3:])
+    full = FidelitySolver(params, fidelity='full').solve_many(walk[:, :3], walk[:, 3:])
+    reduced = auto.fidelity != 'full'
+    assert reduced.sum() > 20 and 'linear' in set(auto.fidelity.tolist())
+    position = np.linalg.norm(auto.end_disk_position - full.end_disk_position, axis=1)
+    dots = np.abs((auto.end_disk_quaternion_xyzw * full.end_disk_quaternion_xyzw).sum(axis=1))
+    angle = np.degrees(2.0 * np.arccos(np.minimum(dots, 1.0)))
+    assert all(auto.accuracy_met[reduced])
+    assert position[reduced].max() <= BUDGET[0], np.argmax(np.where(reduced, position, 0.0))
+    assert angle[reduced].max() <= BUDGET[1]
