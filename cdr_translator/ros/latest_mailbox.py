@@ -25,13 +25,21 @@ class LatestMailbox:
     being worked on, so two items arriving within one piece of work are both taken.
     """
 
-    def __init__(self, capacity: int = 1) -> None:
-        """Start empty and open; ``capacity`` >= 1 items may wait."""
+    def __init__(self, capacity: int = 1, turn_room: int = 0) -> None:
+        """
+        Start empty and open; ``capacity`` >= 1 items may wait.
+
+        ``turn_room`` more may wait from the start of another thread's turn (idle_turn)
+        until the worker has caught up with them (fewer than ``capacity`` left): a turn is
+        a pause of the worker, not its pace, so what arrives during it is kept.
+        """
         if capacity < 1:
             raise ValueError(f'a mailbox holds at least 1 item, got capacity {capacity}')
         self._condition = threading.Condition()
         self._items: Deque[Any] = deque()
         self.capacity = capacity
+        self.turn_room = turn_room
+        self._room_open = False   # a turn began and the worker has not caught up since
         self._closed = False
         self._working = False   # the worker took an item and has not said it is done
         self._turn_taken = False   # another thread's turn (idle_turn) is running
@@ -41,7 +49,8 @@ class LatestMailbox:
         """Leave ``item``; return True if it pushed out an older one nobody had taken yet."""
         with self._condition:
             self._items.append(item)
-            dropped = len(self._items) > self.capacity
+            dropped = len(self._items) > self.capacity + (
+                self.turn_room if self._room_open else 0)
             if dropped:
                 self._items.popleft()
                 self.skipped += 1
@@ -60,6 +69,8 @@ class LatestMailbox:
             if not self._items:
                 return None
             self._working = True
+            if len(self._items) <= self.capacity:   # caught up with what a turn kept
+                self._room_open = False
             return self._items.popleft()
 
     def wait_for_item(self, timeout: Optional[float] = None) -> bool:
@@ -95,7 +106,7 @@ class LatestMailbox:
         with self._condition:
             self._condition.wait_for(
                 lambda: not (self._items or self._working or self._turn_taken))
-            self._turn_taken = True
+            self._turn_taken = self._room_open = True
         try:
             yield
         finally:

@@ -62,6 +62,10 @@ from ..params.translator_params import DEFAULT_PARAMS_PATH, NODE_NAME
 #: Forces (N, along x) of the warm-up solves: a path long enough for the usual warm solve.
 WARM_UP_FORCES = (1.0, 1.5, 2.0, 2.5)
 
+#: Wrenches kept beyond ``pending_wrenches`` while a pose estimate has its turn (and until
+#: the solver has caught up with them): at 1 kHz, an estimate of up to 50 ms loses none.
+ESTIMATE_TURN_ROOM = 50
+
 #: Every topic the node publishes, and its message class.
 NODE_OUTPUTS = {**OUTPUTS, **TRANSLATOR_ESTIMATE_OUTPUTS}
 
@@ -86,7 +90,7 @@ class TranslatorNode(Node):
         values = {name: declare(self, SPECS[name], value)
                   for name, value in settings.values().items()}
         self._settings = TranslatorSettings.from_values(values)
-        self._mailbox = LatestMailbox(self._settings.pending_wrenches)
+        self._mailbox = LatestMailbox(self._settings.pending_wrenches, ESTIMATE_TURN_ROOM)
         self.processor = WrenchProcessor(
             self._settings.params, self._settings,
             extra_counts=lambda: {'skipped': self._mailbox.skipped,

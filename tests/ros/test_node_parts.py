@@ -309,3 +309,27 @@ def test_take_newest_counts_the_older_items_as_skipped():
     assert mailbox.skipped == 2 and mailbox.take_newest() is None
     mailbox.close()
     assert not mailbox.wait_for_item(0.1)
+
+
+def test_what_arrives_during_a_turn_is_kept_until_the_worker_catches_up():
+    """Turn room: items arriving in a turn wait beyond the capacity, then the usual limit."""
+    mailbox = LatestMailbox(capacity=2, turn_room=5)
+    with mailbox.idle_turn():
+        for item in range(6):
+            mailbox.put(item)
+    assert mailbox.skipped == 0
+    mailbox.put(6)   # still catching up: kept
+    assert mailbox.skipped == 0
+    taken = []
+    while len(taken) < 6:
+        taken.append(mailbox.take())
+        mailbox.done()
+    assert taken == [0, 1, 2, 3, 4, 5]   # caught up: the usual capacity again
+    mailbox.put(7)
+    mailbox.put(8)
+    assert mailbox.skipped == 1 and [mailbox.take(), mailbox.take()] == [7, 8]
+    mailbox.done()
+    with mailbox.idle_turn():   # beyond the room, the oldest goes
+        for item in range(9, 17):
+            mailbox.put(item)
+    assert mailbox.skipped == 2
