@@ -23,7 +23,7 @@ import time
 from typing import Any, Callable, Dict, List
 
 from bench.node_latency import child_pids
-from cdr_translator.interface import messages
+from cdr_translator.interface import messages, wrench_processing
 from cdr_translator.ros import node_log, serialization, topics, translator
 from rclpy.publisher import Publisher
 
@@ -137,7 +137,8 @@ def install(out: Path) -> None:
     wrap(topics.SubscriberCounts, 'subscribed', 'subscription counts')
     wrap(translator, 'deserialize_message', 'decode')
     wrap(serialization, 'decode', 'decode')
-    wrap(translator, 'solve_wrench', 'solve')
+    wrap(wrench_processing, 'solve_wrench', 'solve')   # the processor's, looked up per call
+    wrap(translator, 'solve_wrench', 'solve')   # where an older checkout kept it
     wrap(translator, 'fill_message', 'fill rclpy message')
     wrap(translator, 'serialize_message', 'serialize')
     if hasattr(translator, 'serialization'):

@@ -167,10 +167,11 @@ def _compliance(result: Solved) -> Any:
 
 def compliance_eigenvalues_message(result: Solved) -> dict:
     """
-    Return the Float64MultiArray of the six compliance eigenvalues (ascending, SI).
+    Return the Float64MultiArray of the six compliance eigenvalues (SI), ordered by axis.
 
-    One dimension labelled 'eigenvalue'. The eigenvalues mix units (m/N, rad/(N m) and
-    their couplings), as the 6x6 compliance matrix does.
+    One dimension labelled 'eigenvalue'. They come in the order of the analysis' labels
+    (the axis each eigenvector mostly moves along, ComplianceAnalysis), not by size, and mix
+    units (m/N, rad/(N m) and their couplings), as the 6x6 compliance matrix does.
     """
     values = [float(value) for value in np.asarray(_compliance(result).eigenvalues).ravel()]
     return {'layout': {'dim': [{'label': 'eigenvalue', 'size': len(values),
