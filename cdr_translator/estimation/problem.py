@@ -9,7 +9,7 @@ iteration ended: the types the search and the verdicts share.
 """
 
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 import math
 from typing import Any, Callable, Optional, Sequence, Tuple, Union
@@ -21,7 +21,7 @@ from .wrench_estimate import COMPONENT_CHOICES, COMPONENT_NAMES, TRANSLATOR_WREN
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
-from ..geometry import rotation_of_quaternion
+from ..geometry import rotation_of_quaternion, rotation_of_vector
 
 __all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
            'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
@@ -62,6 +62,20 @@ class Evaluation:
     message: str
     analysis: Optional[ComplianceAnalysis]
     solution: Any  # the forward solve's result
+
+    def moved(self, change: np.ndarray) -> 'Evaluation':
+        """
+        Return this evaluation moved to the wrench ``change`` (6, SI) away, to first order.
+
+        The pose moves by the compliance times the change (a twist: the origin's
+        displacement and a spatial rotation increment, analysis.compliance.frame_twist's
+        convention); the compliance, the stability verdict and the forward solve stay these.
+        """
+        twist = self.compliance @ change
+        frame = self.frame.copy()
+        frame[:3, 3] += twist[:3]
+        frame[:3, :3] = rotation_of_vector(twist[3:]) @ self.frame[:3, :3]
+        return replace(self, wrench=self.wrench + change, frame=frame)
 
 
 @dataclass(frozen=True)

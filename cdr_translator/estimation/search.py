@@ -43,6 +43,10 @@ FINISH_CHI2 = 1.0
 #: linearization right over the step.
 FINISH_GAIN = 0.05
 
+#: Held values (scaled norm, N) that moved at most this since the last estimate move its
+#: solution to them to first order, instead of a forward solve there.
+HELD_SHIFT_N = 1.0
+
 #: A rejected step from a point whose Gauss-Newton decrease is below this has hit the
 #: forward solve's rounding (1e-12 m against EXACT_POSE_SD_M): converged.
 ROUNDING_CHI2 = 1.0
@@ -99,6 +103,16 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     free = list(target.free)
     fixed = [index for index in range(6) if index not in target.free]
     warm = start is not None
+    scale = np.repeat([1.0, target.length], 3)
+    shifted = False  # the start is a solved one moved to the held values to first order
+    if start is not None and np.any(start.wrench[fixed] != target.given[fixed]):
+        change = np.zeros(6)
+        change[fixed] = target.given[fixed] - start.wrench[fixed]
+        if start.stable is True and float(np.linalg.norm(change / scale)) <= HELD_SHIFT_N:
+            # held values that moved a little along a stream: the step is taken from the
+            # start moved to them, so that its first forward solve is already the answer's
+            start, shifted = start.moved(change), True
+            start.wrench[fixed] = target.given[fixed]  # exactly, not to rounding
     if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
         wrench = target.given.copy()
         wrench[free] = weights.mean
@@ -111,18 +125,19 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
     current, radius, verified = start, None, False
-    found.best = current
-    scale = np.repeat([1.0, target.length], 3)
+    found.best = None if shifted else current
     residual, jacobian = _whitened(target, weights, current, scale)
     while True:
         cost = float(residual @ residual)
         left, values, right = np.linalg.svd(jacobian, full_matrices=False)
         projected = left.T @ residual
         decrease = float(projected @ projected)
-        if decrease <= CONVERGED_CHI2:
+        if shifted:
+            pass  # a start moved to first order is no answer: step from it and solve
+        elif decrease <= CONVERGED_CHI2:
             found.converged, found.message = True, 'converged'
             return found
-        if verified and decrease <= FINISH_CHI2 and current.stable is True:
+        elif verified and decrease <= FINISH_CHI2 and current.stable is True:
             found.finish = np.zeros(6)
             found.finish[free] = scale[free] * _trust_region_step(values, right, projected,
                                                                   math.inf)
@@ -152,12 +167,19 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         trial = None if beyond else evaluate(wrench)
         found.solves += 0 if beyond else 1
         predicted = cost - float(np.sum((residual + jacobian @ step) ** 2))
+        if shifted and (trial is None or trial.stable is not True):
+            # the step from the moved start failed: search from its wrench as from afar
+            restart = search(evaluate, None, target, deadline, begin=current.wrench,
+                             solves=solves - found.solves)
+            restart.iterations += found.iterations
+            restart.solves += found.solves
+            return restart
         if trial is not None and not (trial.stable is False and current.stable is not False):
             # a stable iterate never steps past buckling: the structure rests on a stable
             # equilibrium, and the unstable side only leads the iteration to kilonewtons
             trial_residual, trial_jacobian = _whitened(target, weights, trial, scale)
             trial_cost = float(trial_residual @ trial_residual)
-            if trial_cost < cost:
+            if trial_cost < cost or shifted:   # the first solved point after a shift
                 gain = (cost - trial_cost) / predicted if predicted > 0.0 else 0.0
                 if gain > 0.75 and float(np.linalg.norm(step)) >= 0.99 * radius:
                     radius = min(2.0 * radius, MAX_TRUST_RADIUS_N)
@@ -165,7 +187,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     radius = 0.5 * float(np.linalg.norm(step))
                 verified = abs(gain - 1.0) <= FINISH_GAIN
                 current, residual, jacobian = trial, trial_residual, trial_jacobian
-                found.best = current
+                found.best, shifted = current, False
                 continue
         if float(projected @ projected) <= ROUNDING_CHI2:
             found.converged = True

@@ -7,7 +7,6 @@ when a pose covariance was given and no flag was raised, None (not assessed) for
 pose, False otherwise (WrenchEstimate's docstring).
 """
 
-from dataclasses import replace
 import math
 import time
 from typing import List, Optional, Sequence
@@ -20,7 +19,7 @@ from .problem import estimated_name, Evaluation, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
 from ..analysis.compliance import frame_twist
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
-from ..geometry import quaternion_xyzw, rotation_of_vector
+from ..geometry import quaternion_xyzw
 
 __all__ = ['CHI2_TAIL', 'estimate_from']
 
@@ -29,26 +28,11 @@ __all__ = ['CHI2_TAIL', 'estimate_from']
 CHI2_TAIL = 1e-3
 
 
-def _finished(best: Evaluation, finish: np.ndarray) -> Evaluation:
-    """
-    Return ``best`` moved by the last Gauss-Newton step ``finish`` (search.FINISH_CHI2).
-
-    The pose moves by the compliance times the step (a twist: the origin's displacement and
-    a spatial rotation increment, analysis.compliance.frame_twist's convention); the
-    compliance, the stability verdict and the forward solve stay those of ``best``.
-    """
-    twist = best.compliance @ finish
-    frame = best.frame.copy()
-    frame[:3, 3] += twist[:3]
-    frame[:3, :3] = rotation_of_vector(twist[3:]) @ best.frame[:3, :3]
-    return replace(best, wrench=best.wrench + finish, frame=frame)
-
-
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
     """Build the WrenchEstimate of a search: posterior, conditioning, verdicts, message."""
     best = found.best
     if best is not None and found.finish is not None:
-        best = _finished(best, found.finish)
+        best = best.moved(found.finish)   # the last Gauss-Newton step (search.FINISH_CHI2)
     components = tuple(COMPONENT_NAMES[index] for index in target.free)
     if best is None:
         return WrenchEstimate(np.full(3, np.nan), np.full(3, np.nan), None, False, None,

@@ -214,6 +214,36 @@ def test_a_warm_estimate_takes_one_forward_solve_and_agrees_with_a_cold_one(solv
     assert finished >= 20 and np.mean(solves[1:]) <= 1.3, solves
 
 
+def test_held_values_that_move_along_a_stream_cost_no_extra_forward_solve(solver, params):
+    """
+    The lateral force with the axial force held at a value that walks: one solve each.
+
+    The last estimate's solution moved to the new held values to first order is the start
+    (search.HELD_SHIFT_N); the estimate is that of a cold search to a tenth of a posterior
+    standard deviation.
+    """
+    warm = TranslatorSolver(params)
+    rng = np.random.default_rng(8)
+    load = np.array([3.0, -2.0, 1.0, 0.0, 0.0, 0.0])
+    covariance = pose_covariance(2e-4, 0.1)
+    solves = []
+    for _ in range(30):
+        load[:3] += rng.normal(size=3) * np.array([0.3, 0.3, 0.1])
+        solved = solver.solve(load[:3])
+        position, quaternion = noisy_pose(solved, covariance, rng)
+        estimate = warm.estimate_wrench(position, quaternion, pose_covariance=covariance,
+                                        estimate='lateral', force=load[:3])
+        assert estimate.converged and estimate.force[2] == load[2], estimate.message
+        solves.append(estimate.solves)
+        cold = TranslatorSolver(params).estimate_wrench(
+            position, quaternion, pose_covariance=covariance, estimate='lateral',
+            force=load[:3])
+        difference = (estimate.wrench - cold.wrench)[:2]
+        spread = estimate.covariance[:2, :2]
+        assert difference @ np.linalg.solve(spread, difference) <= 0.1 ** 2
+    assert np.mean(solves[1:]) <= 1.2, solves
+
+
 def test_the_worked_example_of_the_docs_prints_what_they_show():
     """The force-sensing example runs and prints the output the docs give."""
     pages = [path for path in sorted(DOCS.rglob('*.md')) if EXAMPLE_MARKER in path.read_text()]
