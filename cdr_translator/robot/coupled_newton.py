@@ -143,17 +143,12 @@ class CoupledNewton:
                                 'its wrench alone does not fix its shape', factorization)
         fresh, chord_steps, chord_log = False, 0, 0.0
         step: Optional[np.ndarray] = None  # the next correction, once an iteration made it
-        # the factorization a rebuild verdict set aside: a solve that converges before the
-        # rebuild is made hands it on, the next solve's predictor (a converged solve
-        # without one predicts nothing: along a path 7 iterations and three leg Jacobians
-        # instead of 4 chord steps), and that solve's chord steps judge it again
-        stale: Optional[Factorization] = None
         far = False  # the compiled iterations left the current one to this loop
         iteration = 1
         while iteration <= max_iterations:
             if self.converged(residual, state):
                 return Outcome(state, residual, iteration - 1, True, 'converged',
-                               factorization if factorization is not None else stale)
+                               factorization)
             if self.legs.out_of_time():
                 return Outcome(state, residual, iteration - 1, False,
                                f'time limit of {self.legs.time_limit_s} s reached',
@@ -174,7 +169,7 @@ class CoupledNewton:
                                        'damping found no contracting Newton step',
                                        factorization)
                     if run.status == REBUILD:
-                        stale, factorization, step = factorization, None, None
+                        factorization, step = None, None
                     far = run.status == FAR
                     continue
                 far = False
@@ -197,7 +192,7 @@ class CoupledNewton:
                 fresh, contraction, step_size, chord_steps, chord_log, SLOW_CHORD, CHORD_RATE,
                 CHORD_FLOOR, CHORD_LIMIT)
             if rebuild:
-                stale, factorization, step = factorization, None, None  # too slow
+                factorization, step = None, None  # chord steps converge too slowly
             fresh = False
             if not coupled and step_size * contraction < COUPLE_WITHIN \
                     and not self.converged(residual, state):

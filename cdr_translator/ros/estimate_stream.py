@@ -139,7 +139,7 @@ class EstimateStream:
 
 @contextmanager
 def _at_once() -> Iterator[None]:
-    """A turn that is always there (no other input to give way to)."""
+    """Give the turn at once: there is no other input to give way to."""
     yield
 
 
