@@ -8,12 +8,19 @@ What every command line of the project prints and how it ends at the console's e
   a warning (an implausible parameter) is one line, ``warning: ...``, on stderr.
 * ``quiet_sigint``: the same for a Ctrl-C while an entry point still imports (numpy,
   numba, scipy, rclpy take seconds), until ``run_command`` takes over.
+* ``deferred_sigint``: Ctrl-C at a safe point. Python raises KeyboardInterrupt wherever the
+  interpreter is when SIGINT arrives: inside an MCAP writer halfway through a chunk (the
+  file finished after it then holds a record that does not parse), or inside a Zarr write
+  whose asynchronous tasks are then abandoned. In the block the first SIGINT only sets
+  ``requested``, which the caller checks between records; a second one raises at once,
+  for a user who wants out whatever it costs.
 * ``unwritable_reason``: whether an output path can be written, asked before any work.
 * ``CommandParser`` and ``add_command``: the argument parsing of every command line with
   subcommands: a subcommand's own usage on an option error, a description line of its own.
 """
 
 import argparse
+from contextlib import contextmanager
 import json
 import math
 import os
@@ -23,7 +30,7 @@ import sys
 import tempfile
 import threading
 from types import FrameType
-from typing import Any, Callable, List, Optional, TextIO, Tuple, Type, Union
+from typing import Any, Callable, Iterator, List, Optional, TextIO, Tuple, Type, Union
 import warnings
 
 #: Ctrl-C (128 + SIGINT), as a shell reports a process SIGINT ended.
@@ -34,8 +41,9 @@ EXIT_BROKEN_PIPE = 141
 #: What a command prints on stderr when Ctrl-C ends it.
 INTERRUPTED_LINE = 'interrupted (Ctrl-C)'
 
-__all__ = ['add_command', 'CommandParser', 'EXIT_BROKEN_PIPE', 'EXIT_INTERRUPTED',
-           'finite_or_none', 'INTERRUPTED_LINE', 'json_text', 'one_line_warning',
+__all__ = ['add_command', 'CommandParser', 'deferred_sigint', 'EXIT_BROKEN_PIPE',
+           'EXIT_INTERRUPTED', 'finite_or_none', 'InterruptRequest', 'INTERRUPTED_LINE',
+           'json_text', 'one_line_warning',
            'quiet_sigint', 'run_command', 'SubcommandParser', 'unwritable_reason']
 
 
@@ -183,3 +191,37 @@ def add_command(commands: Any, name: str, summary: str, details: str = '',
     if details:
         description += '\n\n' + details
     return commands.add_parser(name, help=summary, description=description, **options)
+
+
+class InterruptRequest:
+    """Whether Ctrl-C was pressed inside a ``deferred_sigint`` block."""
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def handle(self, number: int, frame: Optional[FrameType]) -> None:
+        """Signal handler: the first SIGINT is a request, a second one interrupts at once."""
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+@contextmanager
+def deferred_sigint() -> Iterator[InterruptRequest]:
+    """
+    Take SIGINT as a request for the block (main thread, default Python handler only).
+
+    Elsewhere (a worker thread, where handlers cannot be set, or a SIGINT that is ignored or
+    handled by someone else) the disposition is left alone and ``requested`` stays False:
+    a KeyboardInterrupt, if any, arrives as it always did.
+    """
+    request = InterruptRequest()
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield request
+        return
+    signal.signal(signal.SIGINT, request.handle)
+    try:
+        yield request
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)

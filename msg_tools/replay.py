@@ -26,6 +26,7 @@ from pathlib import Path
 import time
 from typing import Any, Collection, Dict, IO, List, Mapping, Optional, Sequence, Tuple, Union
 
+from cdr_translator.console import deferred_sigint
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.interface.wrench_processing import Outcome, Wrench, WrenchProcessor
@@ -33,7 +34,6 @@ from cdr_wire.cdr_codecs import ShippedDecoders
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource, RawMessage
 from msg_tools.errors import OutputError, ReplayError
-from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow, warm_up, window_messages
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.replay_csv import CSV_COLUMNS, csv_row, wrench_row

@@ -29,13 +29,13 @@ import tempfile
 import time
 from typing import Any, Collection, IO, List, Mapping, Optional, Sequence, Tuple, Union
 
+from cdr_translator.console import deferred_sigint
 from cdr_translator.interface import messages
 from cdr_translator.interface.settings import TranslatorSettings
 from cdr_translator.robot.atlas import dask_client
 from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
 from msg_tools.errors import OutputError, ReplayError
-from msg_tools.interrupts import deferred_sigint
 from msg_tools.log_time_window import LogTimeWindow
 from msg_tools.output_paths import check_distinct, check_output
 from msg_tools.part_merge import PartMerger

@@ -39,7 +39,7 @@ import numpy as np
 
 from .samples import (AtlasSpec, chunk_bounds, LEG_LEVELS, RESULT_VARIABLES, solve_chunk,
                       workspace_volumes)
-from ..console import json_text, unwritable_reason
+from ..console import deferred_sigint, json_text, unwritable_reason
 from ..params.translator_params import DEFAULT_PARAMS_PATH, ParameterError
 
 #: Exit codes of the atlas command (as the other commands').
@@ -252,7 +252,12 @@ def run_atlas(spec: AtlasSpec, out: Path, chunk_size: Optional[int] = None,
             results = future.result()
             future.release()
             start, stop = bounds[index]
-            write_chunk(out, index, start, stop, results)
+            # a Ctrl-C inside the write would abandon Zarr's asynchronous tasks halfway
+            # (their complaints printed at exit): the chunk is written, then it is honoured
+            with deferred_sigint() as interrupt:
+                write_chunk(out, index, start, stop, results)
+            if interrupt.requested:
+                raise KeyboardInterrupt
             summary['computed_chunks'] += 1
             summary['computed_samples'] += stop - start
             bar.update(stop - start)

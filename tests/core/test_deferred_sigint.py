@@ -1,10 +1,10 @@
-"""msg_tools.interrupts: SIGINT as a request inside the block, the handler restored after."""
+"""console.deferred_sigint: SIGINT as a request inside the block, the handler restored after."""
 
 import os
 import signal
 import threading
 
-from msg_tools.interrupts import deferred_sigint
+from cdr_translator.console import deferred_sigint
 import pytest
 
 
