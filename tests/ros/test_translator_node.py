@@ -1,8 +1,8 @@
 """
 translator_node over real DDS: round trip, bad input, bursts, shutdown, parameters.
 
-Each test session has its own ROS_DOMAIN_ID (random in 100..200) and localhost-only
-discovery; the node runs as a child process (``python -m
+Each test session has its own ROS_DOMAIN_ID (random in 1..101, client.ISOLATED_DOMAINS)
+and localhost-only discovery; the node runs as a child process (``python -m
 cdr_translator.ros.translator_node``) that every test kills in the end. Every wait is
 bounded; none of the assertions depends on timing.
 """
