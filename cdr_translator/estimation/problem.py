@@ -12,7 +12,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import cached_property
 import math
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -124,15 +124,7 @@ class Weights:
         key = (target.rows, target.free, target.given[held].tobytes(), target.length,
                None if target.covariance is None else target.covariance.tobytes(),
                target.prior_mean.tobytes(), target.prior_covariance.tobytes())
-        weights = _WEIGHTS.get(key)
-        if weights is None:
-            weights = cls._made(target)
-            _WEIGHTS[key] = weights
-            while len(_WEIGHTS) > WEIGHTS_KEPT:
-                _WEIGHTS.popitem(last=False)
-        else:
-            _WEIGHTS.move_to_end(key)
-        return weights
+        return _kept(_WEIGHTS, key, lambda: cls._made(target))
 
     @classmethod
     def _made(cls, target: Target) -> 'Weights':
@@ -152,6 +144,8 @@ class Weights:
             spread = spread - gain @ prior[np.ix_(held, free)]
         return cls(_inverse_root(covariance), _inverse_root(0.5 * (spread + spread.T)), mean)
 
+
+Kept = TypeVar('Kept')
 
 #: Whitenings kept for reuse (Weights.of), the most recent last.
 WEIGHTS_KEPT = 16
@@ -281,18 +275,25 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
 _CHECKED: 'OrderedDict[tuple, np.ndarray]' = OrderedDict()
 
 
+def _kept(cache: 'OrderedDict[tuple, Kept]', key: tuple, make: Callable[[], Kept]) -> Kept:
+    """Return ``cache[key]``, made by ``make()`` the first time; the last WEIGHTS_KEPT stay."""
+    if key in cache:
+        cache.move_to_end(key)
+        return cache[key]
+    value = make()
+    cache[key] = value
+    while len(cache) > WEIGHTS_KEPT:
+        cache.popitem(last=False)
+    return value
+
+
 def _remembered(key: tuple, check: Callable[[], np.ndarray]) -> np.ndarray:
-    """Return ``check()``, kept under ``key`` for the next equal input (WEIGHTS_KEPT kept)."""
-    found = _CHECKED.get(key)
-    if found is None:
-        found = check()
-        found.setflags(write=False)  # shared by the targets made from equal inputs
-        _CHECKED[key] = found
-        while len(_CHECKED) > WEIGHTS_KEPT:
-            _CHECKED.popitem(last=False)
-    else:
-        _CHECKED.move_to_end(key)
-    return found
+    """Return ``check()``, kept under ``key`` for the next equal input, read-only."""
+    def made() -> np.ndarray:
+        checked = check()
+        checked.setflags(write=False)  # shared by the targets made from equal inputs
+        return checked
+    return _kept(_CHECKED, key, made)
 
 
 def _checked_covariance(name: str, values: ArrayLike, size: int) -> np.ndarray:
