@@ -32,7 +32,7 @@ import statistics
 import time
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bench.solve_many import timed_kernel
+from bench.solve_many import overhead
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.bvp.problem import Problem
 import numpy as np
@@ -217,22 +217,11 @@ def kernel_split(params: TranslatorParams, wrenches: np.ndarray) -> Dict[str, fl
     """
     Median solve, time inside the compiled warm kernels and the rest (Python), along ``wrenches``.
 
-    The kernels are bench.solve_many's for the full model (``timed_kernel``): the usual
-    warm row's compiled call and the warm step's.
+    bench.solve_many's measurement of the full model (``overhead``: the usual warm row's
+    compiled call and the warm step's, timed by ``timed_kernel``), on this walk.
     """
-    solver = TranslatorSolver(params)
-    solver.solve(wrenches[0, :3], wrenches[0, 3:])
-    spent = [0.0]
-    totals, kernels = [], []
-    with timed_kernel('full', spent):
-        for wrench in wrenches[1:]:
-            spent[0] = 0.0
-            started = time.perf_counter()
-            solver.solve(wrench[:3], wrench[3:])
-            totals.append(time.perf_counter() - started)
-            kernels.append(spent[0])
-    return {'solve': statistics.median(totals), 'kernel': statistics.median(kernels),
-            'python': statistics.median(np.subtract(totals, kernels))}
+    split = overhead(params, 'full', wrenches)
+    return {'solve': split['solve'], 'kernel': split['kernel'], 'python': split['overhead']}
 
 
 def _us(seconds: float) -> str:
