@@ -15,6 +15,8 @@ import sys
 import time
 from typing import Callable, List, Mapping, Optional, Sequence
 
+from cdr_translator.interface.wrench_processing import WrenchProcessor
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: How long a command may take to end after SIGINT (a loaded CI machine; seconds usually).
@@ -134,3 +136,16 @@ def after(seconds: float) -> Callable[[subprocess.Popen], bool]:
         return time.monotonic() - started[0] >= seconds
 
     return elapsed
+
+
+def interrupt_processing_at(monkeypatch, call: int) -> None:
+    """Make the ``call``-th WrenchProcessor.process raise KeyboardInterrupt (a Ctrl-C there)."""
+    original, calls = WrenchProcessor.process, []
+
+    def interrupted(self, *args):
+        calls.append(1)
+        if len(calls) == call:
+            raise KeyboardInterrupt
+        return original(self, *args)
+
+    monkeypatch.setattr(WrenchProcessor, 'process', interrupted)

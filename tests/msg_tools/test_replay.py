@@ -21,6 +21,7 @@ from cdr_wire.mcap_log import McapLog
 from cdr_wire.reader import McapSource
 from chunked import chunk_offsets, write_chunked, write_undecodable
 from figure_checks import assert_readable
+from interrupting import interrupt_processing_at
 from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from msg_tools import synth
@@ -324,16 +325,7 @@ def test_ctrl_c_finalizes_the_output(tmp_path, monkeypatch):
     """Stop by KeyboardInterrupt midway: the output MCAP has its summary and what was done."""
     bag = tmp_path / 'ramp.mcap'
     synth.write_wrenches(bag, synth.generate('ramp', count=20))
-    original = WrenchProcessor.process
-    calls = []
-
-    def interrupted(self, *args):
-        calls.append(1)
-        if len(calls) == 6:
-            raise KeyboardInterrupt
-        return original(self, *args)
-
-    monkeypatch.setattr(WrenchProcessor, 'process', interrupted)
+    interrupt_processing_at(monkeypatch, 6)
     summary = replay(bag, tmp_path / 'out.mcap', compliance=False, csv_path=tmp_path / 'o.csv')
     assert summary.interrupted and summary.solved == 5
     with open(tmp_path / 'out.mcap', 'rb') as stream:

@@ -11,9 +11,9 @@ import os
 from pathlib import Path
 import signal
 
-from cdr_translator.interface.wrench_processing import WrenchProcessor
 from cdr_wire.reader import McapSource
 from figure_checks import assert_readable
+from interrupting import interrupt_processing_at
 from msg_tools import synth
 from msg_tools.__main__ import main
 from msg_tools.info import describe
@@ -147,15 +147,7 @@ def test_an_interrupted_replay_is_marked_partial_and_info_says_so(tmp_path, monk
     assert dict(McapSource(tmp_path / 'complete.mcap').metadata())[REPLAY_RECORD][
         'status'] == 'complete'
     assert 'PARTIAL' not in describe(tmp_path / 'complete.mcap')
-    original, calls = WrenchProcessor.process, []
-
-    def interrupted(self, *args):
-        calls.append(1)
-        if len(calls) == 6:
-            raise KeyboardInterrupt
-        return original(self, *args)
-
-    monkeypatch.setattr(WrenchProcessor, 'process', interrupted)
+    interrupt_processing_at(monkeypatch, 6)
     summary = replay(bag, tmp_path / 'out.mcap', compliance=False)
     assert summary.interrupted
     record = dict(McapSource(tmp_path / 'out.mcap').metadata())[REPLAY_RECORD]
