@@ -11,8 +11,9 @@ of log time (``msg_tools.replay_diagnostics``). Output topics take the input top
 namespace ('/robot/wrench' gives '/robot/end_disk_pose'). Measured end-disk poses give the
 node's wrench estimates (``msg_tools.replay_estimates``). Optionally a CSV row per input
 message (``msg_tools.replay_csv``) and a plot. No rclpy needed.
-Wrenches are read in blocks of up to BLOCK_SIZE and solved together where the processor
-batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs).
+Wrenches are read in blocks of up to BLOCK_SIZE messages and solved together where the
+processor batches (``WrenchProcessor.process_many``: one ``solve_many``, the same outputs);
+measured poses read meanwhile join the block and are answered in their place.
 
 Memory stays bounded however long the input: messages stream through and the statistics
 are running ones (``msg_tools.replay_summary``). The topics replayed are chosen by
@@ -24,7 +25,8 @@ import csv
 import math
 from pathlib import Path
 import time
-from typing import Any, Collection, Dict, IO, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import (Any, Callable, Collection, Dict, IO, List, Mapping, Optional, Sequence,
+                    Tuple, Union)
 
 from cdr_translator.console import deferred_sigint
 from cdr_translator.interface import messages
@@ -84,44 +86,68 @@ class Progress:
 
 class _Block:
     """
-    Wrench messages of one topic read ahead, solved together, written in their order.
+    Messages read ahead: wrenches of one topic solved together, everything written in order.
 
     ``WrenchProcessor.process_many`` solves a block's base-frame wrenches by one
-    ``solve_many``; each message is then written with its outputs, its CSV row and its
-    place in the summary, exactly as if handled alone.
+    ``solve_many``; measured poses read between them join the block (their estimates
+    follow the pose stream alone, so they wait without changing), so that a pose stream
+    does not cut the wrenches into blocks of one. Each message is then written with its
+    outputs, its CSV row and its place in the summary, exactly as if handled alone.
     """
 
     def __init__(self, log: McapLog, table: Any, summary: ReplaySummary,
-                 bar: Optional[Progress], processors: Dict[str, WrenchProcessor]) -> None:
-        """Write to ``log`` and ``table`` (None: no CSV), count in ``summary``."""
+                 bar: Optional[Progress], processors: Dict[str, WrenchProcessor],
+                 answer_pose: Callable[[int, RawMessage], None]) -> None:
+        """
+        Write to ``log`` and ``table`` (None: no CSV), count in ``summary``.
+
+        ``answer_pose(index, raw)`` estimates and writes a measured pose.
+        """
         self.log, self.table, self.summary, self.bar = log, table, summary, bar
         self.processors = processors
-        self.pending: List[Tuple[int, RawMessage, Wrench]] = []
+        self.answer_pose = answer_pose
+        #: (index, message, its wrench; None for a measured pose), in the input's order
+        self.pending: List[Tuple[int, RawMessage, Optional[Wrench]]] = []
+        self.topic: Optional[str] = None  # of the wrenches pending
 
     def add(self, index: int, raw: RawMessage, wrench: Wrench) -> bool:
-        """Take message ``index``; False when a write failed (the replay ends)."""
-        if self.pending and (self.pending[0][1].topic != raw.topic
-                             or len(self.pending) >= BLOCK_SIZE):
+        """Take wrench message ``index``; False when a write failed (the replay ends)."""
+        if ((self.topic is not None and self.topic != raw.topic)
+                or len(self.pending) >= BLOCK_SIZE):
             if not self.flush():
                 return False
         processor = self.processors[raw.topic]
         if processor.batches:
             self.pending.append((index, raw, wrench))
+            self.topic = raw.topic
             return True
+        if not self.flush():  # the poses read before it are answered first
+            return False
         self._write_input(raw)  # then its outputs, as soon as solved
         self._write(index, raw, wrench, processor.process(*wrench))
         return self._log_ok()
 
+    def add_pose(self, index: int, raw: RawMessage) -> bool:
+        """Take measured pose ``index``; False when a write failed (the replay ends)."""
+        if len(self.pending) >= BLOCK_SIZE and not self.flush():
+            return False
+        self.pending.append((index, raw, None))
+        return True
+
     def flush(self) -> bool:
-        """Solve and write the messages taken; False when a write failed."""
+        """Solve, estimate and write the messages taken; False when a write failed."""
         if not self.pending:
             return True
         pending, self.pending = self.pending, []
-        processor = self.processors[pending[0][1].topic]
-        outcomes = processor.process_many([wrench for _, _, wrench in pending])
-        for (index, raw, wrench), outcome in zip(pending, outcomes):
-            self._write_input(raw)
-            self._write(index, raw, wrench, outcome)
+        topic, self.topic = self.topic, None
+        outcomes = iter(()) if topic is None else iter(self.processors[topic].process_many(
+            [wrench for _, _, wrench in pending if wrench is not None]))
+        for index, raw, wrench in pending:
+            if wrench is None:
+                self.answer_pose(index, raw)
+            else:
+                self._write_input(raw)
+                self._write(index, raw, wrench, next(outcomes))
             if not self._log_ok():
                 return False
         return True
@@ -269,7 +295,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
             for topic in chosen:
                 log.register(topic, messages.WRENCH_TYPE, qos='sensor_data')
             register_poses(log, poses)
-            block = _Block(log, table, summary, bar, processors)
+            block = _Block(log, table, summary, bar, processors, lambda index, raw: replay_pose(
+                log, raw, estimators[raw.topic], decoders, summary, index, table))
             try:
                 for index, raw in window_messages(source.messages(), window, warm_wrench):
                     if interrupt.requested:
@@ -281,10 +308,8 @@ def replay(input_path: Union[str, Path], output_path: Union[str, Path], *,
                             break
                         diagnostics.write(log, raw.log_time_ns)
                     if raw.topic in estimators:
-                        if not block.flush():
+                        if not block.add_pose(index, raw):
                             break
-                        replay_pose(log, raw, estimators[raw.topic], decoders, summary, index,
-                                    table)
                         continue
                     try:
                         wrench = messages.wrench_from_message(decoders.decode(raw))

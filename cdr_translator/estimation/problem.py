@@ -62,6 +62,9 @@ class Evaluation:
     message: str
     analysis: Optional[ComplianceAnalysis]
     solution: Any  # the forward solve's result
+    #: the search's accepted step that arrived here was predicted within search.FINISH_GAIN:
+    #: the linearization here is shown right over a step of about a standard deviation
+    linear: bool = False
 
     def moved(self, change: np.ndarray) -> 'Evaluation':
         """

@@ -34,9 +34,12 @@ CONVERGED_CHI2 = 1e-2
 
 #: A remaining Gauss-Newton decrease up to this (a step of at most one posterior standard
 #: deviation) is taken from the last forward solve without another one, once an accepted
-#: step of the search has shown the linearization right to FINISH_GAIN: the last step's
+#: step has shown the linearization there right to FINISH_GAIN (a step of this search, or
+#: for a warm start the step that arrived at it, ``Evaluation.linear``): the last step's
 #: error is then second order in a step of a standard deviation, far below the spread. A
-#: warm estimate along a noisy stream thus takes one forward solve, not two.
+#: warm estimate along a noisy stream thus takes one forward solve, not two, and a pose
+#: within a standard deviation of the last solved one (the same pose on a second topic)
+#: none.
 FINISH_CHI2 = 1.0
 
 #: An accepted step whose decrease is within this fraction of the predicted one shows the
@@ -124,7 +127,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if start is None:
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
-    current, radius, verified = start, None, False
+    # a warm start's linearization was shown right by the step that arrived at it
+    current, radius, verified = start, None, warm and start.linear and not shifted
     found.best = None if shifted else current
     residual, jacobian = _whitened(target, weights, current, scale)
     while True:
@@ -185,7 +189,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     radius = min(2.0 * radius, MAX_TRUST_RADIUS_N)
                 elif gain < 0.25:
                     radius = 0.5 * float(np.linalg.norm(step))
-                verified = abs(gain - 1.0) <= FINISH_GAIN
+                verified = trial.linear = abs(gain - 1.0) <= FINISH_GAIN
                 current, residual, jacobian = trial, trial_residual, trial_jacobian
                 found.best, shifted = current, False
                 continue

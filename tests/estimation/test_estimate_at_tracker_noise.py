@@ -214,6 +214,32 @@ def test_a_warm_estimate_takes_one_forward_solve_and_agrees_with_a_cold_one(solv
     assert finished >= 20 and np.mean(solves[1:]) <= 1.3, solves
 
 
+def test_the_same_pose_again_takes_no_forward_solve(solver, params):
+    """
+    A pose on two topics (PoseStamped and with its covariance): the second estimate is free.
+
+    The step that arrived at the last estimate showed the linearization right there
+    (Evaluation.linear), so the remaining Gauss-Newton step of the repeated pose, within a
+    standard deviation, is taken without a forward solve, and gives the first estimate.
+    """
+    warm = TranslatorSolver(params)
+    rng = np.random.default_rng(12)
+    load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
+    covariance = pose_covariance(2e-4, 0.1)
+    repeated = []
+    for _ in range(20):
+        load += rng.normal(size=6) * np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
+        solved = solver.solve(load[:3], load[3:])
+        position, quaternion = noisy_pose(solved, covariance, rng)
+        first = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
+        again = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
+        assert first.converged and again.converged, again.message
+        difference = again.wrench - first.wrench
+        assert difference @ np.linalg.solve(first.covariance, difference) <= 0.1 ** 2
+        repeated.append(again.solves)
+    assert np.mean(repeated) <= 0.1, repeated
+
+
 def test_held_values_that_move_along_a_stream_cost_no_extra_forward_solve(solver, params):
     """
     The lateral force with the axial force held at a value that walks: one solve each.

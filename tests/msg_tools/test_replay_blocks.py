@@ -13,11 +13,13 @@ from mcap_ros2.reader import read_ros2_messages
 from msg_tools import replay as replay_module
 from msg_tools import synth
 from msg_tools.replay import replay
+from msg_tools.synth_poses import measure, PoseNoise
 import numpy as np
 import pytest
 
 #: Diagnostic values that are measured, not computed: they differ between any two runs.
-MEASURED = ('solve_time_ms', 'mean_solve_time_ms', 'max_solve_time_ms')
+MEASURED = ('solve_time_ms', 'mean_solve_time_ms', 'max_solve_time_ms', 'estimate_time_ms',
+            'mean_estimate_time_ms', 'max_estimate_time_ms')
 
 
 def _plain(value):
@@ -35,7 +37,7 @@ def _outputs(path):
     records = []
     for item in read_ros2_messages(str(path)):
         message = _plain(item.ros_msg)
-        if item.channel.topic in ('/diagnostics', '/solve_status'):
+        if item.channel.topic in ('/diagnostics', '/solve_status', '/estimate_status'):
             for status in message['status']:
                 status['values'] = [pair for pair in status['values']
                                     if pair['key'] not in MEASURED]
@@ -110,6 +112,37 @@ def test_blocks_give_the_per_message_outputs(fidelity, tmp_path, monkeypatch):
         (topic, time) for topic, time, _ in expected]
     topics = {topic for topic, _, _ in expected}
     assert {'/compliance', '/compliance_eigenvalues', '/solve_status', '/diagnostics'} <= topics
+    for (topic, _, left), (_, _, right) in zip(got, expected):
+        _assert_close(left, right, topic)
+
+
+def test_measured_poses_between_the_wrenches_join_the_blocks(tmp_path, monkeypatch):
+    """Each wrench followed by its pose on two topics: blocks stay whole, outputs unchanged."""
+    samples = synth.generate('random-walk', count=20, seed=4)
+    poses, frame_id = measure(samples, PoseNoise(2e-4, 0.1), seed=4)
+    bag = tmp_path / 'walk_and_poses.mcap'
+    synth.write_wrenches(bag, samples, poses=poses, pose_frame_id=frame_id)
+    monkeypatch.setattr(replay_module, 'BLOCK_SIZE', 16)
+    runs = []
+    solve_many = FidelitySolver.solve_many
+
+    def counted(self, forces, *args, **kwargs):
+        runs.append(len(forces))
+        return solve_many(self, forces, *args, **kwargs)
+
+    monkeypatch.setattr(FidelitySolver, 'solve_many', counted)
+    batched = replay(bag, tmp_path / 'blocks.mcap')
+    # 60 messages in blocks of 16: 6, 5, 5 and 4 wrenches (3 messages a wrench)
+    assert runs == [6, 5, 5, 4]
+    with monkeypatch.context() as patch:
+        patch.setattr(WrenchProcessor, 'batches', property(lambda self: False))
+        single = replay(bag, tmp_path / 'single.mcap')
+    assert (batched.solved, batched.poses) == (single.solved, single.poses) == (20, 40)
+    got, expected = _outputs(tmp_path / 'blocks.mcap'), _outputs(tmp_path / 'single.mcap')
+    # every record in the place and at the log time of the per-message path
+    assert [(topic, time) for topic, time, _ in got] == [
+        (topic, time) for topic, time, _ in expected]
+    assert '/estimated_wrench' in {topic for topic, _, _ in expected}
     for (topic, _, left), (_, _, right) in zip(got, expected):
         _assert_close(left, right, topic)
 
