@@ -218,6 +218,19 @@ def assess(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
     return Stability(stable, margin, parity_ok, compliance, vectors[:, 0], message)
 
 
+def margin(compliance: np.ndarray, origin: Reference) -> float:
+    """
+    Return the stability margin mu of an end-disk compliance (module docstring).
+
+    lambda_min(sym K~) / lambda_min(sym K~0), K = C^-1; -inf when C is singular.
+    """
+    try:
+        values, _ = _scaled_stiffness_eigen(compliance, origin.length)
+    except np.linalg.LinAlgError:
+        return -math.inf
+    return float(values[0]) / origin.smallest_stiffness
+
+
 def critical_wrench(verdict: Stability, length: float) -> np.ndarray:
     """
     Unit-size wrench along the critical mode, for perturbing past a bifurcation.

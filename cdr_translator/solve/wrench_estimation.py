@@ -7,7 +7,6 @@ compliance there, since the solve's may come from a factorization made at anothe
 """
 
 from dataclasses import replace
-import math
 import time
 from typing import Callable, Optional
 
@@ -15,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .result import SolveResult
-from ..analysis.stability import load_scale, Reference
+from ..analysis.stability import load_scale, margin, Reference
 from ..estimation import (Components, DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD,
                           estimate_along, estimate_from, Evaluation, LOAD_LIMIT,
                           measured_target, Search, WrenchEstimate)
@@ -30,7 +29,7 @@ __all__ = ['estimate_wrench', 'REACH']
 REACH = 1.01
 
 
-def _translator_evaluation(solve: SolveWithCompliance, reference: Reference, length: float,
+def _translator_evaluation(solve: SolveWithCompliance, reference: Reference,
                            wrench: np.ndarray, deadline: float) -> Optional[Evaluation]:
     """Solve the translator at ``wrench`` with its compliance by ``deadline`` (None: failed)."""
     result = solve(wrench, max(deadline - time.perf_counter(), 0.0))
@@ -39,15 +38,9 @@ def _translator_evaluation(solve: SolveWithCompliance, reference: Reference, len
     # the margin from the exact compliance here: the solve's may come from a factorization
     # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
     compliance = result.compliance.matrix
-    scale = np.repeat([1.0, length], 3)
-    try:
-        stiffness = np.linalg.inv(scale[:, None] * compliance * scale[None, :])
-        margin = float(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0]
-                       / reference.smallest_stiffness)
-    except np.linalg.LinAlgError:
-        margin = -math.inf
-    return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable, margin,
-                      result.accuracy_met, result.message, result.compliance, result)
+    return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable,
+                      margin(compliance, reference), result.accuracy_met, result.message,
+                      result.compliance, result)
 
 
 def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Reference,
@@ -84,5 +77,5 @@ def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Refere
                    f'base (stack height {length:.4g} m)'), target, started)
     deadline = started + time_limit_s
     return estimate_along(
-        owner, lambda wrench: _translator_evaluation(solve, reference, length, wrench, deadline),
+        owner, lambda wrench: _translator_evaluation(solve, reference, wrench, deadline),
         target, started, deadline, warm, reset)
