@@ -2,22 +2,21 @@
 The WrenchEstimate of a search: the posterior, the conditioning and every verdict.
 
 The posterior covariance is (J^T J)^-1 with J the whitened derivative [W C_b; L] at the
-estimate. ``flags`` says every reason not to act on an estimate; ``accuracy_met`` is True only
+estimate, from the SVD of J the search made. ``flags`` says every reason not to act on an estimate; ``accuracy_met`` is True only
 when a pose covariance was given and no flag was raised, None (not assessed) for an exact
 pose, False otherwise (WrenchEstimate's docstring).
 """
 
 import math
 import time
-from typing import List, Optional, Sequence
+from typing import Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
 from scipy.special import chdtrc
 
-from .problem import estimated_name, Evaluation, Search, Target
+from .problem import estimated_name, Evaluation, linearized, Linearization, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
-from ..analysis.compliance import frame_twist
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
 
@@ -30,32 +29,33 @@ CHI2_TAIL = 1e-3
 
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
     """Build the WrenchEstimate of a search: posterior, conditioning, verdicts, message."""
-    best = found.best
-    if best is not None and found.finish is not None:
-        best = best.moved(found.finish)   # the last Gauss-Newton step (search.FINISH_CHI2)
+    solved = best = found.best
+    if solved is not None and found.finish is not None:
+        best = solved.moved(found.finish)   # the last Gauss-Newton step (search.FINISH_CHI2)
     components = tuple(COMPONENT_NAMES[index] for index in target.free)
-    if best is None:
+    if solved is None or best is None:
         return WrenchEstimate(np.full(3, np.nan), np.full(3, np.nan), None, False, None,
                               False, math.nan, math.nan, [], found.message,
                               estimated=estimated_name(target), components=components,
                               iterations=found.iterations, solves=found.solves,
                               flags=[found.message],
                               estimate_time_s=time.perf_counter() - started)
-    rows, free = list(target.rows), list(target.free)
-    weights = target.weights
-    pose_block = weights.pose @ best.compliance[np.ix_(rows, free)]
-    information = pose_block.T @ pose_block + weights.prior.T @ weights.prior
-    posterior = np.linalg.inv(information)
-    sensitivity = np.zeros((6, len(rows)))
-    sensitivity[free] = posterior @ pose_block.T @ weights.pose
+    linear = found.linearization
+    if linear is None or linear.at is not solved:  # a Search not made by search()
+        linear = linearized(target, solved)
+    posterior, sensitivity = _posterior(linear, target)
+    rows, free = target.rows, list(target.free)
     covariance = None
     if target.covariance is not None:
         covariance = np.zeros((6, 6))
         covariance[np.ix_(free, free)] = 0.5 * (posterior + posterior.T)
     condition, directions = observability(best.compliance, rows, free, target.length,
                                           target.labels, covariance, best.analysis)
-    error = frame_twist(target.frame, best.frame)
-    whitened = weights.pose @ error[rows]
+    if found.finish is None:
+        error, whitened = linear.error, linear.residual[:len(rows)]
+    else:  # moved by the last step: another pose, the same derivative
+        error = target.error(best)
+        whitened = target.weights.pose @ error
     chi_square = float(whitened @ whitened)
     tail = float(chdtrc(len(rows), chi_square)) if target.covariance is not None else math.nan
     deviation = np.zeros(6)
@@ -77,9 +77,8 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
         converged=found.converged, stable=best.stable, accuracy_met=accuracy_met,
-        residual_m=float(np.linalg.norm(error[:3])),
-        residual_deg=(math.degrees(float(np.linalg.norm(error[3:]))) if len(rows) == 6
-                      else math.nan),
+        residual_m=_norm(error[:3].tolist()),
+        residual_deg=math.degrees(_norm(error[3:].tolist())) if len(rows) == 6 else math.nan,
         conditioning=directions, message='; '.join(messages), estimated=estimated_name(target),
         components=components, condition_number=condition,
         ill_conditioned=bool(directions), stability_margin=best.margin,
@@ -89,6 +88,24 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
         standard_deviation=deviation if covariance is not None else np.full(6, np.nan),
         target_sd=_on(free, target.target_sd),
         chi_square=chi_square, chi_square_p=tail, flags=flags)
+
+
+def _posterior(linear: Linearization, target: Target) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return the posterior covariance of the estimated components and the sensitivity (6, m).
+
+    From the SVD J = U diag(s) V^T of the whitened derivative by the scaled components
+    (w_f = S_f u): the posterior (J^T J)^-1 is S_f V diag(s^-2) V^T S_f in SI units, and
+    the estimate's derivative by the measured pose (J^T J)^-1 J_pose^T W is
+    S_f V diag(s^-1) U_pose^T W; no J^T J is formed, which would square J's condition
+    number. The prior term keeps every s positive.
+    """
+    left, values, right = linear.factors
+    free = target.free_index
+    spread = target.scale[free, None] * right.T / values  # S_f V diag(s^-1)
+    sensitivity = np.zeros((6, len(target.rows)))
+    sensitivity[free] = spread @ left[:len(target.rows)].T @ target.weights.pose
+    return spread @ spread.T, sensitivity
 
 
 def _on(free: Sequence[int], values: np.ndarray) -> np.ndarray:
@@ -120,13 +137,14 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append(f'the pose is further from the model than its covariance allows '
                      f'(chi-square {_chi_text(tail, len(target.rows))})')
     free = set(target.free)
-    for name, part, unit in (('force', slice(0, 3), 'N'), ('moment', slice(3, 6), 'N m')):
-        indices = [index for index in range(6)[part] if index in free]
+    deviations, loads, targets = deviation.tolist(), best.wrench.tolist(), target.target_sd.tolist()
+    for name, part, unit in (('force', range(0, 3), 'N'), ('moment', range(3, 6), 'N m')):
+        indices = [index for index in part if index in free]
         if not indices:
             continue
-        spread = float(np.linalg.norm(deviation[indices]))
-        load = float(np.linalg.norm(best.wrench[part]))
-        if spread > load and spread > float(np.linalg.norm(target.target_sd[indices])):
+        spread = _norm(deviations[index] for index in indices)
+        load = _norm(loads[index] for index in part)
+        if spread > load and spread > _norm(targets[index] for index in indices):
             flags.append(f'uninformative: the {name} spread {spread:.3g} {unit} exceeds the '
                          f'{name} it reports ({load:.3g} {unit})')
     missed = [f'{COMPONENT_NAMES[index]} {deviation[index]:.3g} > {target.target_sd[index]:.3g}'
@@ -135,6 +153,11 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append('accuracy target missed (posterior standard deviation): '
                      + ', '.join(missed))
     return flags
+
+
+def _norm(values: Iterable[float]) -> float:
+    """Return the Euclidean norm of a few floats (np.linalg.norm costs ten times more)."""
+    return math.sqrt(sum(value * value for value in values))
 
 
 def _chi_text(tail: float, dof: int) -> str:
