@@ -4,9 +4,9 @@ The estimation problem: what is measured, what is estimated, and what is known b
 A Target holds a measured pose (and its covariance), the wrench components solved for
 (the others held at given values) and a Gaussian prior on the wrench; Weights whitens
 both, so that the estimate minimizes |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2
-(cdr_translator.estimation). Evaluation is the forward model at one wrench, Linearization the cost's
-whitened residual and derivative there, Search where an iteration ended: the types the
-search and the verdicts share.
+(cdr_translator.estimation). Evaluation is the forward model at one wrench, Linearization
+the whitened cost and its derivative there, Search where an iteration ended: the types
+the search and the verdicts share.
 """
 
 from collections import OrderedDict
@@ -18,7 +18,7 @@ from typing import Any, Callable, Optional, Sequence, Tuple, TypeVar, Union
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .wrench_estimate import (block_index, component_index, COMPONENT_CHOICES, COMPONENT_NAMES,
+from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
                               length_scale, TRANSLATOR_WRENCH_LABELS)
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector

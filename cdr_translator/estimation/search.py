@@ -12,7 +12,7 @@ position alone from several starts.
 
 import math
 import time
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Optional
 from weakref import WeakKeyDictionary
 
 import numpy as np

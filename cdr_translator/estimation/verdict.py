@@ -2,9 +2,10 @@
 The WrenchEstimate of a search: the posterior, the conditioning and every verdict.
 
 The posterior covariance is (J^T J)^-1 with J the whitened derivative [W C_b; L] at the
-estimate, from the SVD of J the search made. ``flags`` says every reason not to act on an estimate; ``accuracy_met`` is True only
-when a pose covariance was given and no flag was raised, None (not assessed) for an exact
-pose, False otherwise (WrenchEstimate's docstring).
+estimate, from the SVD of J the search made. ``flags`` says every reason not to act on an
+estimate; ``accuracy_met`` is True only when a pose covariance was given and no flag was
+raised, None (not assessed) for an exact pose, False otherwise (WrenchEstimate's
+docstring).
 """
 
 import math
@@ -15,7 +16,7 @@ import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
 from scipy.special import chdtrc
 
-from .problem import estimated_name, Evaluation, linearized, Linearization, Search, Target
+from .problem import estimated_name, Evaluation, Linearization, linearized, Search, Target
 from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
@@ -137,7 +138,8 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append(f'the pose is further from the model than its covariance allows '
                      f'(chi-square {_chi_text(tail, len(target.rows))})')
     free = set(target.free)
-    deviations, loads, targets = deviation.tolist(), best.wrench.tolist(), target.target_sd.tolist()
+    deviations, targets = deviation.tolist(), target.target_sd.tolist()
+    loads = best.wrench.tolist()
     for name, part, unit in (('force', range(0, 3), 'N'), ('moment', range(3, 6), 'N m')):
         indices = [index for index in part if index in free]
         if not indices:

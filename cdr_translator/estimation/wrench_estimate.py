@@ -22,9 +22,9 @@ import numpy as np
 
 from ..analysis.compliance import analyse, ComplianceAnalysis
 
-__all__ = ['block_index', 'COMPONENT_CHOICES', 'COMPONENT_NAMES', 'CONDITION_LIMIT',
-           'component_index', 'json_safe', 'length_scale', 'observability', 'TRANSLATOR_WRENCH_LABELS',
-           'WrenchEstimate']
+__all__ = ['block_index', 'COMPONENT_CHOICES', 'component_index', 'COMPONENT_NAMES',
+           'CONDITION_LIMIT', 'json_safe', 'length_scale', 'observability',
+           'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
