@@ -225,10 +225,10 @@ def linearized(target: Target, evaluation: Evaluation) -> Linearization:
     free = target.free_index
     error = target.error(evaluation)
     block = evaluation.compliance[target.block] * target.scale[free]
-    residual = np.concatenate([weights.pose @ error,
-                               weights.prior @ (evaluation.wrench[free] - weights.mean)])
-    return Linearization(evaluation, error, residual, np.vstack([weights.pose @ block,
-                                                                 weights.scaled_prior]))
+    residual = np.concatenate((weights.pose @ error,
+                               weights.prior @ (evaluation.wrench[free] - weights.mean)))
+    return Linearization(evaluation, error, residual,
+                         np.concatenate((weights.pose @ block, weights.scaled_prior)))
 
 
 @dataclass

@@ -91,7 +91,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     free, fixed, scale = target.free_index, target.held_index, target.scale
     warm = start is not None
     shifted = False  # the start is a solved one moved to the held values to first order
-    if start is not None and np.any(start.wrench[fixed] != target.given[fixed]):
+    if start is not None and not _holds(start, target):
         change = np.zeros(6)
         change[fixed] = target.given[fixed] - start.wrench[fixed]
         if start.stable is True and float(np.linalg.norm(change / scale)) <= HELD_SHIFT_N:
@@ -99,7 +99,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             # start moved to them, so that its first forward solve is already the answer's
             start, shifted = start.moved(change), True
             start.wrench[fixed] = target.given[fixed]  # exactly, not to rounding
-    if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
+    if start is None or not _holds(start, target):
         wrench = target.given.copy()
         wrench[free] = target.weights.mean
         origin = start.wrench if start is not None else begin
@@ -188,6 +188,12 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
                     else '')
             return found
+
+
+def _holds(evaluation: Evaluation, target: Target) -> bool:
+    """Return True when ``evaluation`` is exactly at ``target``'s held values."""
+    held = target.held_index
+    return not held.size or bool(np.all(evaluation.wrench[held] == target.given[held]))
 
 
 def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndarray,

@@ -10,14 +10,14 @@ docstring).
 
 import math
 import time
-from typing import Iterable, List, Optional, Sequence, Tuple
+from typing import List, Optional, Tuple
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
 from scipy.special import chdtrc
 
 from .problem import estimated_name, Evaluation, Linearization, linearized, Search, Target
-from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
+from .wrench_estimate import block_index, COMPONENT_NAMES, observability, WrenchEstimate
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
 
@@ -45,12 +45,12 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     if linear is None or linear.at is not solved:  # a Search not made by search()
         linear = linearized(target, solved)
     posterior, sensitivity = _posterior(linear, target)
-    rows, free = target.rows, list(target.free)
+    rows, free = target.rows, target.free_index
     covariance = None
     if target.covariance is not None:
         covariance = np.zeros((6, 6))
-        covariance[np.ix_(free, free)] = 0.5 * (posterior + posterior.T)
-    condition, directions = observability(best.compliance, rows, free, target.length,
+        covariance[block_index(target.free, target.free)] = 0.5 * (posterior + posterior.T)
+    condition, directions = observability(best.compliance, rows, target.free, target.length,
                                           target.labels, covariance, best.analysis)
     if found.finish is None:
         error, whitened = linear.error, linear.residual[:len(rows)]
@@ -78,8 +78,9 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
         converged=found.converged, stable=best.stable, accuracy_met=accuracy_met,
-        residual_m=_norm(error[:3].tolist()),
-        residual_deg=math.degrees(_norm(error[3:].tolist())) if len(rows) == 6 else math.nan,
+        residual_m=math.hypot(*error[:3].tolist()),
+        residual_deg=math.degrees(math.hypot(*error[3:].tolist())) if len(rows) == 6
+        else math.nan,
         conditioning=directions, message='; '.join(messages), estimated=estimated_name(target),
         components=components, condition_number=condition,
         ill_conditioned=bool(directions), stability_margin=best.margin,
@@ -109,10 +110,10 @@ def _posterior(linear: Linearization, target: Target) -> Tuple[np.ndarray, np.nd
     return spread @ spread.T, sensitivity
 
 
-def _on(free: Sequence[int], values: np.ndarray) -> np.ndarray:
-    """Return ``values`` at the ``free`` components, NaN (not estimated) elsewhere."""
+def _on(free: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Return ``values`` at the ``free`` components (index array), NaN elsewhere."""
     shown = np.full(6, math.nan)
-    shown[list(free)] = values[list(free)]
+    shown[free] = values[free]
     return shown
 
 
@@ -138,15 +139,16 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append(f'the pose is further from the model than its covariance allows '
                      f'(chi-square {_chi_text(tail, len(target.rows))})')
     free = set(target.free)
+    # floats: math.hypot of a few costs a tenth of np.linalg.norm, and estimates run per pose
     deviations, targets = deviation.tolist(), target.target_sd.tolist()
     loads = best.wrench.tolist()
     for name, part, unit in (('force', range(0, 3), 'N'), ('moment', range(3, 6), 'N m')):
         indices = [index for index in part if index in free]
         if not indices:
             continue
-        spread = _norm(deviations[index] for index in indices)
-        load = _norm(loads[index] for index in part)
-        if spread > load and spread > _norm(targets[index] for index in indices):
+        spread = math.hypot(*(deviations[index] for index in indices))
+        load = math.hypot(*(loads[index] for index in part))
+        if spread > load and spread > math.hypot(*(targets[index] for index in indices)):
             flags.append(f'uninformative: the {name} spread {spread:.3g} {unit} exceeds the '
                          f'{name} it reports ({load:.3g} {unit})')
     missed = [f'{COMPONENT_NAMES[index]} {deviation[index]:.3g} > {target.target_sd[index]:.3g}'
@@ -155,11 +157,6 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append('accuracy target missed (posterior standard deviation): '
                      + ', '.join(missed))
     return flags
-
-
-def _norm(values: Iterable[float]) -> float:
-    """Return the Euclidean norm of a few floats (np.linalg.norm costs ten times more)."""
-    return math.sqrt(sum(value * value for value in values))
 
 
 def _chi_text(tail: float, dof: int) -> str:

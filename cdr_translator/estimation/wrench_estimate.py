@@ -200,8 +200,9 @@ def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[in
     index = block_index(rows, free)
     block = scale[index[0]] * compliance[index] * scale[index[1]]
     _, values, right = np.linalg.svd(block)
-    largest = float(values[0])
-    condition = largest / float(values[-1]) if values[-1] > 0.0 else math.inf
+    singular = values.tolist()
+    largest = singular[0]
+    condition = largest / singular[-1] if singular[-1] > 0.0 else math.inf
     if not condition > CONDITION_LIMIT:
         return condition, []  # every direction observed: no eigen-twists to match
     if analysis is None:
@@ -209,13 +210,14 @@ def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[in
     twists = scale[:, None] * analysis.eigenvectors
     twists /= np.sqrt(np.add.reduce(twists * twists, axis=0))  # np.linalg.norm(axis=0)'s sum
     directions = []
-    for value, vector in zip(values.tolist(), right):
+    for value, vector in zip(singular, right):
         ratio = largest / value if value > 0.0 else math.inf
         if not ratio > CONDITION_LIMIT:
             continue
-        dominant = int(np.argmax(np.abs(vector)))
+        sizes = np.abs(vector).tolist()
+        dominant = sizes.index(max(sizes))  # the first largest, as np.argmax
         unit = np.zeros(6)  # scaled, pointing along its dominant component
-        unit[list(free)] = vector * math.copysign(1.0, vector[dominant])
+        unit[component_index(free)] = vector * math.copysign(1.0, vector[dominant])
         direction = unit * scale  # back to N and N m
         match = int(np.argmax(np.abs(twists.T @ (scale * (compliance @ direction)))))
         along = unit / scale  # the scaled wrench's component along the direction
