@@ -151,8 +151,8 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         if spread > load and spread > math.hypot(*(targets[index] for index in indices)):
             flags.append(f'uninformative: the {name} spread {spread:.3g} {unit} exceeds the '
                          f'{name} it reports ({load:.3g} {unit})')
-    missed = [f'{COMPONENT_NAMES[index]} {deviation[index]:.3g} > {target.target_sd[index]:.3g}'
-              for index in target.free if deviation[index] > target.target_sd[index]]
+    missed = [f'{COMPONENT_NAMES[index]} {deviations[index]:.3g} > {targets[index]:.3g}'
+              for index in target.free if deviations[index] > targets[index]]
     if missed:
         flags.append('accuracy target missed (posterior standard deviation): '
                      + ', '.join(missed))
