@@ -5,15 +5,15 @@ A Target holds a measured pose (and its covariance), the wrench components solve
 (the others held at given values) and a Gaussian prior on the wrench; Weights whitens
 both, so that the estimate minimizes |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2
 (cdr_translator.estimation). Evaluation is the forward model at one wrench, Linearization
-the whitened cost and its derivative there, Search where an iteration ended: the types
-the search and the verdicts share.
+the whitened cost there and Derivative its derivative, Search where an iteration ended:
+the types the search and the verdicts share.
 """
 
 from collections import OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 import math
-from typing import Any, Callable, Optional, Sequence, Tuple, TypeVar, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -27,8 +27,9 @@ from ..geometry import rotation_of_quaternion, rotation_of_vector
 
 __all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
            'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
-           'estimated_components', 'estimated_name', 'Evaluation', 'EXACT_POSE_SD_M',
-           'linearized', 'Linearization', 'measured_target', 'Search', 'Target', 'Weights']
+           'Derivative', 'estimated_components', 'estimated_name', 'Evaluation',
+           'EXACT_POSE_SD_M', 'linearized', 'Linearization', 'measured_target', 'Search',
+           'Target', 'Weights']
 
 #: What ``estimate=`` takes: a name of COMPONENT_CHOICES or a sequence of COMPONENT_NAMES.
 Components = Union[str, Sequence[str]]
@@ -67,6 +68,27 @@ class Evaluation:
     #: the search's accepted step that arrived here was predicted within search.FINISH_GAIN:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
+    #: the whitened derivatives made at this compliance, each with the Weights it was made
+    #: for (``derivative``); the moved copies share them, as they share the compliance
+    derivatives: List[Tuple['Weights', 'Derivative']] = field(
+        default_factory=list, repr=False, compare=False)
+
+    def derivative(self, target: 'Target') -> 'Derivative':
+        """
+        Return the whitened derivative of ``target``'s cost at this compliance.
+
+        Made once per whitening: along a stream an estimate's warm start is the last
+        estimate's solve, whose derivative that estimate made already (the compliance is
+        never changed in place).
+        """
+        weights = target.weights
+        for made_for, derivative in self.derivatives:
+            if made_for is weights:
+                return derivative
+        derivative = Derivative.made(target, self.compliance)
+        self.derivatives.append((weights, derivative))
+        del self.derivatives[:-DERIVATIVES_KEPT]
+        return derivative
 
     def moved(self, change: np.ndarray) -> 'Evaluation':
         """
@@ -193,30 +215,48 @@ def _inverse_root(covariance: np.ndarray) -> np.ndarray:
     return np.linalg.solve(factor, np.eye(len(factor)))
 
 
+#: Whitened derivatives kept per compliance (Evaluation.derivatives): one per estimated
+#: set of components and pose covariance in use.
+DERIVATIVES_KEPT = 4
+
+
+@dataclass(frozen=True, eq=False)  # by identity: the verdicts key what they make of it
+class Derivative:
+    """
+    The whitened cost's derivative J = [W C_b S_f; L S_f] at one compliance, and its SVD.
+
+    J is by the estimated components in scaled units (N: moments over H); its thin SVD
+    J = U diag(values) V^T gives both the search's steps and the estimate's posterior.
+    """
+
+    jacobian: np.ndarray  # J, (m + k, k)
+    left: np.ndarray  # U, (m + k, k)
+    values: np.ndarray  # (k,), descending
+    right: np.ndarray  # V^T, (k, k)
+
+    @classmethod
+    def made(cls, target: 'Target', compliance: np.ndarray) -> 'Derivative':
+        """Return J of ``target``'s cost at ``compliance`` and its SVD."""
+        weights = target.weights
+        block = compliance[target.block] * target.scale[target.free_index]
+        jacobian = np.concatenate((weights.pose @ block, weights.scaled_prior))
+        left, values, right = np.linalg.svd(jacobian, full_matrices=False)
+        return cls(jacobian, left, values, right)
+
+
 @dataclass(frozen=True)
 class Linearization:
-    """
-    The whitened cost at one Evaluation: r = [W e; L (w_f - mu)] and its derivative J.
-
-    J is by the estimated components in scaled units (N: moments over H); ``factors`` is
-    its thin SVD, which gives both the search's steps and the estimate's posterior.
-    """
+    """The whitened cost at one Evaluation: r = [W e; L (w_f - mu)] and its Derivative."""
 
     at: Evaluation  # where
     error: np.ndarray  # e: model pose minus measured pose, the measured components (m, rad)
     residual: np.ndarray  # r, (m + k,)
-    jacobian: np.ndarray  # J, (m + k, k)
+    derivative: Derivative
 
     @property
     def cost(self) -> float:
         """Return |r|^2."""
         return float(self.residual @ self.residual)
-
-    @cached_property
-    def factors(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return (U, singular values, V^T) of J (thin; made once, when first needed)."""
-        left, values, right = np.linalg.svd(self.jacobian, full_matrices=False)
-        return left, values, right
 
 
 def linearized(target: Target, evaluation: Evaluation) -> Linearization:
@@ -224,11 +264,9 @@ def linearized(target: Target, evaluation: Evaluation) -> Linearization:
     weights = target.weights
     free = target.free_index
     error = target.error(evaluation)
-    block = evaluation.compliance[target.block] * target.scale[free]
     residual = np.concatenate((weights.pose @ error,
                                weights.prior @ (evaluation.wrench[free] - weights.mean)))
-    return Linearization(evaluation, error, residual,
-                         np.concatenate((weights.pose @ block, weights.scaled_prior)))
+    return Linearization(evaluation, error, residual, evaluation.derivative(target))
 
 
 @dataclass

@@ -117,7 +117,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         found.best, found.linearization = current, linear
     while True:
         cost = linear.cost
-        left, values, right = linear.factors
+        derivative = linear.derivative
+        left, values, right = derivative.left, derivative.values, derivative.right
         projected = left.T @ linear.residual
         decrease = float(projected @ projected)
         if shifted:
@@ -154,7 +155,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
         trial = None if beyond else evaluate(wrench)
         found.solves += 0 if beyond else 1
-        predicted = cost - float(np.sum((linear.residual + linear.jacobian @ step) ** 2))
+        predicted = cost - float(np.sum((linear.residual + derivative.jacobian @ step) ** 2))
         if shifted and (trial is None or trial.stable is not True):
             # the step from the moved start failed: search from its wrench as from afar
             restart = search(evaluate, None, target, deadline, begin=current.wrench,
