@@ -333,6 +333,11 @@ def diagonal_prior(force_sd: float = DEFAULT_PRIOR_FORCE_SD,
     return np.diag(np.repeat([force_sd, moment_sd], 3) ** 2)
 
 
+#: The prior of an estimate that names none (made once: the default along a stream).
+_DEFAULT_PRIOR = diagonal_prior()
+_DEFAULT_PRIOR.setflags(write=False)
+
+
 def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     covariance: Optional[ArrayLike], moment: Optional[ArrayLike],
                     force: Optional[ArrayLike], length: float,
@@ -422,7 +427,7 @@ def _checked_covariance(name: str, values: ArrayLike, size: int) -> np.ndarray:
 def _checked_prior(prior_covariance: Optional[ArrayLike], free: Tuple[int, ...]
                    ) -> np.ndarray:
     """Return the checked prior covariance, positive definite over the ``free`` components."""
-    spread = (diagonal_prior() if prior_covariance is None
+    spread = (_DEFAULT_PRIOR if prior_covariance is None
               else _checked_covariance('prior_covariance', prior_covariance, 6))
 
     def definite() -> np.ndarray:
