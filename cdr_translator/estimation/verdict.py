@@ -10,8 +10,8 @@ docstring).
 
 import math
 import time
-from weakref import WeakKeyDictionary
 from typing import Any, Dict, List, Optional, Sequence, Tuple
+from weakref import WeakKeyDictionary
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
@@ -112,11 +112,13 @@ def _posterior(linear: Linearization, target: Target) -> Tuple[np.ndarray, np.nd
     return spread @ spread.T, sensitivity
 
 
-#: The conditioning made at each derivative (with the labels and the compliance analysis it
-#: was made with): the estimates at one solve (a repeated pose, or the same pose on a second
-#: topic) have the same posterior and share it.
-_OBSERVED: 'WeakKeyDictionary[Derivative, Tuple[Sequence[str], Any, float, List[Dict[str, Any]]]]' = \
-    WeakKeyDictionary()
+#: What observability() made at a derivative: the labels and the compliance analysis it
+#: was made with, the condition number and the poorly observable directions.
+Conditioning = Tuple[Sequence[str], Any, float, List[Dict[str, Any]]]
+
+#: The conditioning made at each derivative: the estimates at one solve and whitening (a
+#: repeated pose) have the same posterior and share it.
+_OBSERVED: 'WeakKeyDictionary[Derivative, Conditioning]' = WeakKeyDictionary()
 
 
 def _observed(derivative: Derivative, best: Evaluation, target: Target,
