@@ -69,9 +69,10 @@ class Evaluation:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
     #: the whitened derivatives made at this compliance, each with the Weights it was made
-    #: for (``derivative``); the moved copies share them, as they share the compliance
+    #: for (``derivative``); not an argument, so that a copy (dataclasses.replace) starts
+    #: without them whatever its compliance
     derivatives: List[Tuple['Weights', 'Derivative']] = field(
-        default_factory=list, repr=False, compare=False)
+        default_factory=list, init=False, repr=False, compare=False)
 
     def derivative(self, target: 'Target') -> 'Derivative':
         """
@@ -248,7 +249,7 @@ class Derivative:
 class Linearization:
     """The whitened cost at one Evaluation: r = [W e; L (w_f - mu)] and its Derivative."""
 
-    at: Evaluation  # where
+    at: Evaluation  # the evaluation it was made at
     error: np.ndarray  # e: model pose minus measured pose, the measured components (m, rad)
     residual: np.ndarray  # r, (m + k,)
     derivative: Derivative
