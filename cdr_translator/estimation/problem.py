@@ -4,20 +4,22 @@ The estimation problem: what is measured, what is estimated, and what is known b
 A Target holds a measured pose (and its covariance), the wrench components solved for
 (the others held at given values) and a Gaussian prior on the wrench; Weights whitens
 both, so that the estimate minimizes |W (y(w) - y_m)|^2 + |L (w_f - mu)|^2
-(cdr_translator.estimation). Evaluation is the forward model at one wrench, Search where an
-iteration ended: the types the search and the verdicts share.
+(cdr_translator.estimation). Evaluation is the forward model at one wrench, Linearization
+the whitened cost there and Derivative its derivative, Search where an iteration ended:
+the types the search and the verdicts share.
 """
 
 from collections import OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 import math
-from typing import Any, Callable, Optional, Sequence, Tuple, TypeVar, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .wrench_estimate import COMPONENT_CHOICES, COMPONENT_NAMES, TRANSLATOR_WRENCH_LABELS
+from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
+                              length_scale, TRANSLATOR_WRENCH_LABELS)
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
@@ -25,8 +27,9 @@ from ..geometry import rotation_of_quaternion, rotation_of_vector
 
 __all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
            'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
-           'estimated_components', 'estimated_name', 'Evaluation', 'EXACT_POSE_SD_M',
-           'measured_target', 'Search', 'Target', 'Weights']
+           'Derivative', 'estimated_components', 'estimated_name', 'Evaluation',
+           'EXACT_POSE_SD_M', 'linearized', 'Linearization', 'measured_target', 'Search',
+           'Target', 'Weights']
 
 #: What ``estimate=`` takes: a name of COMPONENT_CHOICES or a sequence of COMPONENT_NAMES.
 Components = Union[str, Sequence[str]]
@@ -65,6 +68,28 @@ class Evaluation:
     #: the search's accepted step that arrived here was predicted within search.FINISH_GAIN:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
+    #: the whitened derivatives made at this compliance, each with the Weights it was made
+    #: for (``derivative``); not an argument, so that a copy (dataclasses.replace) starts
+    #: without them whatever its compliance
+    derivatives: List[Tuple['Weights', 'Derivative']] = field(
+        default_factory=list, init=False, repr=False, compare=False)
+
+    def derivative(self, target: 'Target') -> 'Derivative':
+        """
+        Return the whitened derivative of ``target``'s cost at this compliance.
+
+        Made once per whitening: along a stream an estimate's warm start is the last
+        estimate's solve, whose derivative that estimate made already (the compliance is
+        never changed in place).
+        """
+        weights = target.weights
+        for made_for, derivative in self.derivatives:
+            if made_for is weights:
+                return derivative
+        derivative = Derivative.made(target, self.compliance)
+        self.derivatives.append((weights, derivative))
+        del self.derivatives[:-DERIVATIVES_KEPT]
+        return derivative
 
     def moved(self, change: np.ndarray) -> 'Evaluation':
         """
@@ -99,12 +124,39 @@ class Target:
 
     def error(self, evaluation: Evaluation) -> np.ndarray:
         """Model pose minus measured pose, the measured components (m, rad)."""
-        return frame_twist(self.frame, evaluation.frame)[list(self.rows)]
+        return frame_twist(self.frame, evaluation.frame)[self.row_index]
 
     @cached_property
     def weights(self) -> 'Weights':
         """Return the whitening of the pose and the prior (made once per Target)."""
         return Weights.of(self)
+
+    # shared index arrays (wrench_estimate.component_index): a search and its verdicts
+    # index with them often
+    @property
+    def row_index(self) -> np.ndarray:
+        """Return ``rows`` as an index array (read-only)."""
+        return component_index(self.rows)
+
+    @property
+    def free_index(self) -> np.ndarray:
+        """Return ``free`` as an index array (read-only)."""
+        return component_index(self.free)
+
+    @property
+    def held_index(self) -> np.ndarray:
+        """Return the components not estimated as an index array (read-only)."""
+        return component_index(tuple(index for index in range(6) if index not in self.free))
+
+    @property
+    def block(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the index of the compliance block C[rows, free] (np.ix_, read-only)."""
+        return block_index(self.rows, self.free)
+
+    @property
+    def scale(self) -> np.ndarray:
+        """Return S = diag(1, 1, 1, H, H, H)'s diagonal: wrenches over it in N (read-only)."""
+        return length_scale(self.length)
 
 
 @dataclass(frozen=True)
@@ -114,6 +166,8 @@ class Weights:
     pose: np.ndarray  # W, (m, m): W^T W = Sigma^-1 (Sigma the pose covariance, or exact)
     prior: np.ndarray  # L, (k, k): L^T L = P^-1, P the prior of w_f given the held values
     mean: np.ndarray  # (k,) the prior mean of w_f given the held values
+    #: L S_f: the prior term's derivative by the estimated components in scaled units (N)
+    scaled_prior: np.ndarray
 
     @classmethod
     def of(cls, target: Target) -> 'Weights':
@@ -123,8 +177,7 @@ class Weights:
         Along a stream the covariances and held values rarely change: the last few
         whitenings are kept (_WEIGHTS) and reused for equal inputs.
         """
-        held = [index for index in range(6) if index not in target.free]
-        key = (target.rows, target.free, target.given[held].tobytes(), target.length,
+        key = (target.rows, target.free, target.given[target.held_index].tobytes(), target.length,
                None if target.covariance is None else target.covariance.tobytes(),
                target.prior_mean.tobytes(), target.prior_covariance.tobytes())
         return _kept(_WEIGHTS, key, lambda: cls._made(target))
@@ -145,7 +198,9 @@ class Weights:
             gain = prior[np.ix_(free, held)] @ np.linalg.pinv(prior[np.ix_(held, held)])
             mean = mean + gain @ (target.given[held] - target.prior_mean[held])
             spread = spread - gain @ prior[np.ix_(held, free)]
-        return cls(_inverse_root(covariance), _inverse_root(0.5 * (spread + spread.T)), mean)
+        prior_root = _inverse_root(0.5 * (spread + spread.T))
+        return cls(_inverse_root(covariance), prior_root, mean,
+                   prior_root * target.scale[None, free])
 
 
 Kept = TypeVar('Kept')
@@ -159,6 +214,60 @@ def _inverse_root(covariance: np.ndarray) -> np.ndarray:
     """Return W with W^T W = covariance^-1: the inverse of its lower Cholesky factor."""
     factor = np.linalg.cholesky(covariance)
     return np.linalg.solve(factor, np.eye(len(factor)))
+
+
+#: Whitened derivatives kept per compliance (Evaluation.derivatives): one per estimated
+#: set of components and pose covariance in use.
+DERIVATIVES_KEPT = 4
+
+
+@dataclass(frozen=True, eq=False)  # by identity: the verdicts key what they make of it
+class Derivative:
+    """
+    The whitened cost's derivative J = [W C_b S_f; L S_f] at one compliance, and its SVD.
+
+    J is by the estimated components in scaled units (N: moments over H); its thin SVD
+    J = U diag(values) V^T gives both the search's steps and the estimate's posterior.
+    """
+
+    jacobian: np.ndarray  # J, (m + k, k)
+    left: np.ndarray  # U, (m + k, k)
+    values: np.ndarray  # (k,), descending
+    right: np.ndarray  # V^T, (k, k)
+
+    @classmethod
+    def made(cls, target: 'Target', compliance: np.ndarray) -> 'Derivative':
+        """Return J of ``target``'s cost at ``compliance`` and its SVD."""
+        weights = target.weights
+        block = compliance[target.block] * target.scale[target.free_index]
+        jacobian = np.concatenate((weights.pose @ block, weights.scaled_prior))
+        left, values, right = np.linalg.svd(jacobian, full_matrices=False)
+        return cls(jacobian, left, values, right)
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """The whitened cost at one Evaluation: r = [W e; L (w_f - mu)] and its Derivative."""
+
+    at: Evaluation  # the evaluation it was made at
+    error: np.ndarray  # e: model pose minus measured pose, the measured components (m, rad)
+    residual: np.ndarray  # r, (m + k,)
+    derivative: Derivative
+
+    @property
+    def cost(self) -> float:
+        """Return |r|^2."""
+        return float(self.residual @ self.residual)
+
+
+def linearized(target: Target, evaluation: Evaluation) -> Linearization:
+    """Return the whitened cost of ``target`` at ``evaluation`` and its derivative."""
+    weights = target.weights
+    free = target.free_index
+    error = target.error(evaluation)
+    residual = np.concatenate((weights.pose @ error,
+                               weights.prior @ (evaluation.wrench[free] - weights.mean)))
+    return Linearization(evaluation, error, residual, evaluation.derivative(target))
 
 
 @dataclass
@@ -175,6 +284,8 @@ class Search:
     #: the last Gauss-Newton step (6, SI), taken from ``best`` without another forward
     #: solve (search's FINISH_CHI2); None when ``best`` is the estimate itself
     finish: Optional[np.ndarray] = None
+    #: the cost at ``best`` (None: not made); the verdicts reuse its pose error and SVD
+    linearization: Optional[Linearization] = None
 
 
 def estimated_components(estimate: Optional[Components], oriented: bool,
@@ -221,6 +332,11 @@ def diagonal_prior(force_sd: float = DEFAULT_PRIOR_FORCE_SD,
     moment_sd = check_number('prior moment standard deviation', moment_sd, low=0.0,
                              low_open=True, error=InputError)
     return np.diag(np.repeat([force_sd, moment_sd], 3) ** 2)
+
+
+#: The prior of an estimate that names none (made once: the default along a stream).
+_DEFAULT_PRIOR = diagonal_prior()
+_DEFAULT_PRIOR.setflags(write=False)
 
 
 def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
@@ -312,7 +428,7 @@ def _checked_covariance(name: str, values: ArrayLike, size: int) -> np.ndarray:
 def _checked_prior(prior_covariance: Optional[ArrayLike], free: Tuple[int, ...]
                    ) -> np.ndarray:
     """Return the checked prior covariance, positive definite over the ``free`` components."""
-    spread = (diagonal_prior() if prior_covariance is None
+    spread = (_DEFAULT_PRIOR if prior_covariance is None
               else _checked_covariance('prior_covariance', prior_covariance, 6))
 
     def definite() -> np.ndarray:

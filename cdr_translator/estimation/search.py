@@ -12,12 +12,12 @@ position alone from several starts.
 
 import math
 import time
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Optional
 from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from .problem import estimated_name, Evaluation, Search, Target, Weights
+from .problem import estimated_name, Evaluation, linearized, Search, Target
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
@@ -77,20 +77,6 @@ LOAD_LIMIT = 20.0
 _STARTS: 'WeakKeyDictionary[Any, Evaluation]' = WeakKeyDictionary()
 
 
-def _whitened(target: Target, weights: Weights, evaluation: Evaluation,
-              scale: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """
-    Return (r, J): the whitened residual [W e; L (w_f - mu)] and its derivative.
-
-    J is by the estimated components in scaled units (N: moments over H).
-    """
-    free = list(target.free)
-    block = evaluation.compliance[np.ix_(list(target.rows), free)] * scale[None, free]
-    residual = np.concatenate([weights.pose @ target.error(evaluation),
-                               weights.prior @ (evaluation.wrench[free] - weights.mean)])
-    return residual, np.vstack([weights.pose @ block, weights.prior * scale[None, free]])
-
-
 def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
            start: Optional[Evaluation], target: Target, deadline: float,
            begin: Optional[np.ndarray] = None, solves: int = MAX_SOLVES) -> Search:
@@ -102,13 +88,10 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
     at most ``solves`` of them.
     """
     found = Search(None, False, '')
-    weights = target.weights
-    free = list(target.free)
-    fixed = [index for index in range(6) if index not in target.free]
+    free, fixed, scale = target.free_index, target.held_index, target.scale
     warm = start is not None
-    scale = np.repeat([1.0, target.length], 3)
     shifted = False  # the start is a solved one moved to the held values to first order
-    if start is not None and np.any(start.wrench[fixed] != target.given[fixed]):
+    if start is not None and not _holds(start, target):
         change = np.zeros(6)
         change[fixed] = target.given[fixed] - start.wrench[fixed]
         if start.stable is True and float(np.linalg.norm(change / scale)) <= HELD_SHIFT_N:
@@ -116,9 +99,9 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             # start moved to them, so that its first forward solve is already the answer's
             start, shifted = start.moved(change), True
             start.wrench[fixed] = target.given[fixed]  # exactly, not to rounding
-    if start is None or np.any(start.wrench[fixed] != target.given[fixed]):
+    if start is None or not _holds(start, target):
         wrench = target.given.copy()
-        wrench[free] = weights.mean
+        wrench[free] = target.weights.mean
         origin = start.wrench if start is not None else begin
         if origin is not None:
             wrench[free] = origin[free]
@@ -129,12 +112,14 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             return found
     # a warm start's linearization was shown right by the step that arrived at it
     current, radius, verified = start, None, warm and start.linear and not shifted
-    found.best = None if shifted else current
-    residual, jacobian = _whitened(target, weights, current, scale)
+    linear = linearized(target, current)
+    if not shifted:
+        found.best, found.linearization = current, linear
     while True:
-        cost = float(residual @ residual)
-        left, values, right = np.linalg.svd(jacobian, full_matrices=False)
-        projected = left.T @ residual
+        cost = linear.cost
+        derivative = linear.derivative
+        left, values, right = derivative.left, derivative.values, derivative.right
+        projected = left.T @ linear.residual
         decrease = float(projected @ projected)
         if shifted:
             pass  # a start moved to first order is no answer: step from it and solve
@@ -170,7 +155,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
         trial = None if beyond else evaluate(wrench)
         found.solves += 0 if beyond else 1
-        predicted = cost - float(np.sum((residual + jacobian @ step) ** 2))
+        predicted = cost - float(np.sum((linear.residual + derivative.jacobian @ step) ** 2))
         if shifted and (trial is None or trial.stable is not True):
             # the step from the moved start failed: search from its wrench as from afar
             restart = search(evaluate, None, target, deadline, begin=current.wrench,
@@ -181,8 +166,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if trial is not None and not (trial.stable is False and current.stable is not False):
             # a stable iterate never steps past buckling: the structure rests on a stable
             # equilibrium, and the unstable side only leads the iteration to kilonewtons
-            trial_residual, trial_jacobian = _whitened(target, weights, trial, scale)
-            trial_cost = float(trial_residual @ trial_residual)
+            trial_linear = linearized(target, trial)
+            trial_cost = trial_linear.cost
             if trial_cost < cost or shifted:   # the first solved point after a shift
                 gain = (cost - trial_cost) / predicted if predicted > 0.0 else 0.0
                 if gain > 0.75 and float(np.linalg.norm(step)) >= 0.99 * radius:
@@ -190,8 +175,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                 elif gain < 0.25:
                     radius = 0.5 * float(np.linalg.norm(step))
                 verified = trial.linear = abs(gain - 1.0) <= FINISH_GAIN
-                current, residual, jacobian = trial, trial_residual, trial_jacobian
-                found.best, shifted = current, False
+                current, linear, shifted = trial, trial_linear, False
+                found.best, found.linearization = current, linear
                 continue
         if float(projected @ projected) <= ROUNDING_CHI2:
             found.converged = True
@@ -204,6 +189,12 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
                     else '')
             return found
+
+
+def _holds(evaluation: Evaluation, target: Target) -> bool:
+    """Return True when ``evaluation`` is exactly at ``target``'s held values."""
+    held = target.held_index
+    return not held.size or bool(np.all(evaluation.wrench[held] == target.given[held]))
 
 
 def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndarray,
@@ -237,11 +228,10 @@ def _other_match(evaluate: Callable[[np.ndarray], Optional[Evaluation]], found: 
                  target: Target, deadline: float) -> Optional[np.ndarray]:
     """Search from the other starts of a moment (estimate_along); return a second match."""
     assert found.best is not None and found.best.compliance is not None
-    scale = np.repeat([1.0, target.length], 3)
-    rows, free = list(target.rows), list(target.free)
-    block = scale[rows, None] * found.best.compliance[np.ix_(rows, free)] * scale[None, free]
+    scale, (rows, free) = target.scale, target.block
+    block = scale[rows] * found.best.compliance[rows, free] * scale[free]
     least = np.zeros(6)
-    least[free] = np.linalg.svd(block)[2][-1] * scale[free]
+    least[target.free_index] = np.linalg.svd(block)[2][-1] * scale[target.free_index]
     reach = 0.1 * target.load_limit / LOAD_LIMIT  # a tenth of w* (scaled N)
     match = found.best.wrench
     for begin in (target.given, match + reach * least, match - reach * least):

@@ -2,22 +2,24 @@
 The WrenchEstimate of a search: the posterior, the conditioning and every verdict.
 
 The posterior covariance is (J^T J)^-1 with J the whitened derivative [W C_b; L] at the
-estimate. ``flags`` says every reason not to act on an estimate; ``accuracy_met`` is True only
-when a pose covariance was given and no flag was raised, None (not assessed) for an exact
-pose, False otherwise (WrenchEstimate's docstring).
+estimate, from the SVD of J the search made. ``flags`` says every reason not to act on an
+estimate; ``accuracy_met`` is True only when a pose covariance was given and no flag was
+raised, None (not assessed) for an exact pose, False otherwise (WrenchEstimate's
+docstring).
 """
 
 import math
 import time
-from typing import List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+from weakref import WeakKeyDictionary
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
 from scipy.special import chdtrc
 
-from .problem import estimated_name, Evaluation, Search, Target
-from .wrench_estimate import COMPONENT_NAMES, observability, WrenchEstimate
-from ..analysis.compliance import frame_twist
+from .problem import (Derivative, estimated_name, Evaluation, Linearization, linearized, Search,
+                      Target)
+from .wrench_estimate import block_index, COMPONENT_NAMES, observability, WrenchEstimate
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
 
@@ -30,32 +32,32 @@ CHI2_TAIL = 1e-3
 
 def estimate_from(found: Search, target: Target, started: float) -> WrenchEstimate:
     """Build the WrenchEstimate of a search: posterior, conditioning, verdicts, message."""
-    best = found.best
-    if best is not None and found.finish is not None:
-        best = best.moved(found.finish)   # the last Gauss-Newton step (search.FINISH_CHI2)
+    solved = best = found.best
+    if solved is not None and found.finish is not None:
+        best = solved.moved(found.finish)   # the last Gauss-Newton step (search.FINISH_CHI2)
     components = tuple(COMPONENT_NAMES[index] for index in target.free)
-    if best is None:
+    if solved is None or best is None:
         return WrenchEstimate(np.full(3, np.nan), np.full(3, np.nan), None, False, None,
                               False, math.nan, math.nan, [], found.message,
                               estimated=estimated_name(target), components=components,
                               iterations=found.iterations, solves=found.solves,
                               flags=[found.message],
                               estimate_time_s=time.perf_counter() - started)
-    rows, free = list(target.rows), list(target.free)
-    weights = target.weights
-    pose_block = weights.pose @ best.compliance[np.ix_(rows, free)]
-    information = pose_block.T @ pose_block + weights.prior.T @ weights.prior
-    posterior = np.linalg.inv(information)
-    sensitivity = np.zeros((6, len(rows)))
-    sensitivity[free] = posterior @ pose_block.T @ weights.pose
+    linear = found.linearization
+    if linear is None or linear.at is not solved:  # a Search not made by search()
+        linear = linearized(target, solved)
+    posterior, sensitivity = _posterior(linear, target)
+    rows, free = target.rows, target.free_index
     covariance = None
     if target.covariance is not None:
         covariance = np.zeros((6, 6))
-        covariance[np.ix_(free, free)] = 0.5 * (posterior + posterior.T)
-    condition, directions = observability(best.compliance, rows, free, target.length,
-                                          target.labels, covariance, best.analysis)
-    error = frame_twist(target.frame, best.frame)
-    whitened = weights.pose @ error[rows]
+        covariance[block_index(target.free, target.free)] = 0.5 * (posterior + posterior.T)
+    condition, directions = _observed(linear.derivative, best, target, covariance)
+    if found.finish is None:
+        error, whitened = linear.error, linear.residual[:len(rows)]
+    else:  # moved by the last step: another pose, the same derivative
+        error = target.error(best)
+        whitened = target.weights.pose @ error
     chi_square = float(whitened @ whitened)
     tail = float(chdtrc(len(rows), chi_square)) if target.covariance is not None else math.nan
     deviation = np.zeros(6)
@@ -77,9 +79,9 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     return WrenchEstimate(
         force=best.wrench[:3].copy(), moment=best.wrench[3:].copy(), covariance=covariance,
         converged=found.converged, stable=best.stable, accuracy_met=accuracy_met,
-        residual_m=float(np.linalg.norm(error[:3])),
-        residual_deg=(math.degrees(float(np.linalg.norm(error[3:]))) if len(rows) == 6
-                      else math.nan),
+        residual_m=math.hypot(*error[:3].tolist()),
+        residual_deg=math.degrees(math.hypot(*error[3:].tolist())) if len(rows) == 6
+        else math.nan,
         conditioning=directions, message='; '.join(messages), estimated=estimated_name(target),
         components=components, condition_number=condition,
         ill_conditioned=bool(directions), stability_margin=best.margin,
@@ -91,10 +93,56 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
         chi_square=chi_square, chi_square_p=tail, flags=flags)
 
 
-def _on(free: Sequence[int], values: np.ndarray) -> np.ndarray:
-    """Return ``values`` at the ``free`` components, NaN (not estimated) elsewhere."""
+def _posterior(linear: Linearization, target: Target) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return the posterior covariance of the estimated components and the sensitivity (6, m).
+
+    From the SVD J = U diag(s) V^T of the whitened derivative by the scaled components
+    (w_f = S_f u): the posterior (J^T J)^-1 is S_f V diag(s^-2) V^T S_f in SI units, and
+    the estimate's derivative by the measured pose (J^T J)^-1 J_pose^T W is
+    S_f V diag(s^-1) U_pose^T W; no J^T J is formed, which would square J's condition
+    number. The prior term keeps every s positive.
+    """
+    derivative = linear.derivative
+    left, values, right = derivative.left, derivative.values, derivative.right
+    free = target.free_index
+    spread = target.scale[free, None] * right.T / values  # S_f V diag(s^-1)
+    sensitivity = np.zeros((6, len(target.rows)))
+    sensitivity[free] = spread @ left[:len(target.rows)].T @ target.weights.pose
+    return spread @ spread.T, sensitivity
+
+
+#: What observability() made at a derivative: the labels and the compliance analysis it
+#: was made with, the condition number and the poorly observable directions.
+Conditioning = Tuple[Sequence[str], Any, float, List[Dict[str, Any]]]
+
+#: The conditioning made at each derivative: the estimates at one solve and whitening (a
+#: repeated pose) have the same posterior and share it.
+_OBSERVED: 'WeakKeyDictionary[Derivative, Conditioning]' = WeakKeyDictionary()
+
+
+def _observed(derivative: Derivative, best: Evaluation, target: Target,
+              covariance: Optional[np.ndarray]) -> Tuple[float, List[Dict[str, Any]]]:
+    """
+    Return observability() at ``best`` for ``target``, made once per derivative.
+
+    The derivative (of one compliance and whitening) determines the posterior
+    ``covariance``, so equal inputs give an equal answer; each caller gets its own dicts.
+    """
+    kept = _OBSERVED.get(derivative)
+    if kept is None or kept[0] != target.labels or kept[1] is not best.analysis:
+        kept = (target.labels, best.analysis, *observability(
+            best.compliance, target.rows, target.free, target.length, target.labels,
+            covariance, best.analysis))
+        _OBSERVED[derivative] = kept
+    return kept[2], [{**direction, 'direction': list(direction['direction'])}
+                     for direction in kept[3]]
+
+
+def _on(free: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Return ``values`` at the ``free`` components (index array), NaN elsewhere."""
     shown = np.full(6, math.nan)
-    shown[list(free)] = values[list(free)]
+    shown[free] = values[free]
     return shown
 
 
@@ -120,17 +168,20 @@ def _flags(found: Search, best: Evaluation, target: Target, deviation: np.ndarra
         flags.append(f'the pose is further from the model than its covariance allows '
                      f'(chi-square {_chi_text(tail, len(target.rows))})')
     free = set(target.free)
-    for name, part, unit in (('force', slice(0, 3), 'N'), ('moment', slice(3, 6), 'N m')):
-        indices = [index for index in range(6)[part] if index in free]
+    # floats: math.hypot of a few costs a tenth of np.linalg.norm, and estimates run per pose
+    deviations, targets = deviation.tolist(), target.target_sd.tolist()
+    loads = best.wrench.tolist()
+    for name, part, unit in (('force', range(0, 3), 'N'), ('moment', range(3, 6), 'N m')):
+        indices = [index for index in part if index in free]
         if not indices:
             continue
-        spread = float(np.linalg.norm(deviation[indices]))
-        load = float(np.linalg.norm(best.wrench[part]))
-        if spread > load and spread > float(np.linalg.norm(target.target_sd[indices])):
+        spread = math.hypot(*(deviations[index] for index in indices))
+        load = math.hypot(*(loads[index] for index in part))
+        if spread > load and spread > math.hypot(*(targets[index] for index in indices)):
             flags.append(f'uninformative: the {name} spread {spread:.3g} {unit} exceeds the '
                          f'{name} it reports ({load:.3g} {unit})')
-    missed = [f'{COMPONENT_NAMES[index]} {deviation[index]:.3g} > {target.target_sd[index]:.3g}'
-              for index in target.free if deviation[index] > target.target_sd[index]]
+    missed = [f'{COMPONENT_NAMES[index]} {deviations[index]:.3g} > {targets[index]:.3g}'
+              for index in target.free if deviations[index] > targets[index]]
     if missed:
         flags.append('accuracy target missed (posterior standard deviation): '
                      + ', '.join(missed))

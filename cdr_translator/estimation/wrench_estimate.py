@@ -14,6 +14,7 @@ lateral one (docs/explanation/model.md, xi of translation z).
 """
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 import math
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
@@ -21,8 +22,9 @@ import numpy as np
 
 from ..analysis.compliance import analyse, ComplianceAnalysis
 
-__all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'CONDITION_LIMIT', 'json_safe',
-           'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
+__all__ = ['block_index', 'COMPONENT_CHOICES', 'component_index', 'COMPONENT_NAMES',
+           'CONDITION_LIMIT', 'json_safe', 'length_scale', 'observability',
+           'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
@@ -152,9 +154,33 @@ class WrenchEstimate:
         return {key: json_safe(getattr(self, key)) for key in keys}
 
 
-def _scale(length: float) -> np.ndarray:
-    """S = diag(1, 1, 1, H, H, H): twists times S are in m, wrenches over S in N."""
-    return np.repeat([1.0, length], 3)
+# The small arrays below are made once per distinct argument and shared read-only: every
+# estimate along a stream uses the same ones, and making one costs as much as the small
+# product it serves.
+
+@lru_cache(maxsize=16)
+def length_scale(length: float) -> np.ndarray:
+    """S = diag(1, 1, 1, H, H, H) (read-only): twists times S are in m, wrenches over S in N."""
+    return _read_only(np.repeat([1.0, length], 3))
+
+
+@lru_cache(maxsize=64)
+def component_index(components: Tuple[int, ...]) -> np.ndarray:
+    """Return the tuple of component indices as an index array (read-only)."""
+    return _read_only(np.array(components, dtype=np.intp))
+
+
+@lru_cache(maxsize=64)
+def block_index(rows: Tuple[int, ...], free: Tuple[int, ...]) -> Tuple[np.ndarray, np.ndarray]:
+    """Return np.ix_(rows, free) (read-only): the index of the compliance block C[rows, free]."""
+    index = np.ix_(rows, free)
+    return _read_only(index[0]), _read_only(index[1])
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """Return ``array`` made read-only (cached and shared)."""
+    array.setflags(write=False)
+    return array
 
 
 def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[int],
@@ -169,24 +195,29 @@ def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[in
     (6x6) gives each direction's standard deviation, ``analysis`` (of the whole C; made
     here when not given) each direction's eigen-twist label and role.
     """
-    scale = _scale(length)
-    rows, free = list(rows), list(free)
-    block = scale[rows, None] * compliance[np.ix_(rows, free)] * scale[None, free]
+    scale = length_scale(length)
+    rows, free = tuple(rows), tuple(free)
+    index = block_index(rows, free)
+    block = scale[index[0]] * compliance[index] * scale[index[1]]
     _, values, right = np.linalg.svd(block)
-    largest = float(values[0])
-    condition = largest / float(values[-1]) if values[-1] > 0.0 else math.inf
+    singular = values.tolist()
+    largest = singular[0]
+    condition = largest / singular[-1] if singular[-1] > 0.0 else math.inf
+    if not condition > CONDITION_LIMIT:
+        return condition, []  # every direction observed: no eigen-twists to match
     if analysis is None:
         analysis = analyse(compliance, length)
     twists = scale[:, None] * analysis.eigenvectors
-    twists /= np.linalg.norm(twists, axis=0)
+    twists /= np.sqrt(np.add.reduce(twists * twists, axis=0))  # np.linalg.norm(axis=0)'s sum
     directions = []
-    for value, vector in zip(values.tolist(), right):
+    for value, vector in zip(singular, right):
         ratio = largest / value if value > 0.0 else math.inf
         if not ratio > CONDITION_LIMIT:
             continue
-        dominant = int(np.argmax(np.abs(vector)))
+        sizes = np.abs(vector).tolist()
+        dominant = sizes.index(max(sizes))  # the first largest, as np.argmax
         unit = np.zeros(6)  # scaled, pointing along its dominant component
-        unit[free] = vector * math.copysign(1.0, vector[dominant])
+        unit[component_index(free)] = vector * math.copysign(1.0, vector[dominant])
         direction = unit * scale  # back to N and N m
         match = int(np.argmax(np.abs(twists.T @ (scale * (compliance @ direction)))))
         along = unit / scale  # the scaled wrench's component along the direction
