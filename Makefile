@@ -61,8 +61,9 @@ hard-cases: setup
 # (0.02, 0.1, 0.4 N per sample; about 30 s): bench/results/walks.md; then 'auto' at 1 mm /
 # 0.5 deg against full, batch, on the sequence and three noisy random walks (about 1 min):
 # bench/results/auto_speed.{md,json}; then the robot's inverse statics, warm per 1 mm step
-# and cold: bench/results/delta_inverse.md; then replay's throughput in one process and on
-# 1 and 2 Dask workers (about 3 min): bench/results/replay_scale.md.
+# and cold: bench/results/delta_inverse.md; then replay with measured poses against replay
+# without them (about 1 min): bench/results/replay_poses.md; then replay's throughput in one
+# process and on 1 and 2 Dask workers (about 3 min): bench/results/replay_scale.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
@@ -76,6 +77,7 @@ bench: setup
 	$(VPY) -m bench.walks
 	$(VPY) -m bench.auto_speed
 	$(VPY) -m bench.delta_inverse
+	$(VPY) -m bench.replay_poses
 	$(VPY) -m bench.replay_scale --count 20000 --single-count 3000
 
 # Robot atlas samples/s on 1 and 2 Dask workers and through a separate `dask scheduler` +
