@@ -13,13 +13,14 @@ from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 import math
-from typing import Any, Callable, List, Optional, Sequence, Tuple, TypeVar, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
-                              length_scale, TRANSLATOR_WRENCH_LABELS)
+                              Conditioning, conditioning, length_scale,
+                              TRANSLATOR_WRENCH_LABELS)
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
@@ -73,6 +74,10 @@ class Evaluation:
     #: without them whatever its compliance
     derivatives: List[Tuple['Weights', 'Derivative']] = field(
         default_factory=list, init=False, repr=False, compare=False)
+    #: the conditioning of the compliance blocks (``conditioning``), by rows, estimated
+    #: components, length and labels; not an argument, as ``derivatives``
+    conditionings: Dict[tuple, Conditioning] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
 
     def derivative(self, target: 'Target') -> 'Derivative':
         """
@@ -90,6 +95,21 @@ class Evaluation:
         self.derivatives.append((weights, derivative))
         del self.derivatives[:-DERIVATIVES_KEPT]
         return derivative
+
+    def conditioning(self, target: 'Target') -> Conditioning:
+        """
+        Return how the compliance block of ``target`` observes the wrench, made once.
+
+        It depends on the compliance alone, not on the pose covariance: along a stream the
+        estimates of a pose on two topics (two covariances) share it.
+        """
+        key = (target.rows, target.free, target.length, target.labels)
+        made = self.conditionings.get(key)
+        if made is None:
+            made = self.conditionings[key] = conditioning(
+                self.compliance, target.rows, target.free, target.length, target.labels,
+                self.analysis)
+        return made
 
     def moved(self, change: np.ndarray) -> 'Evaluation':
         """
