@@ -10,6 +10,7 @@ the types the search and the verdicts share.
 """
 
 from collections import OrderedDict
+import copy
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 import math
@@ -70,8 +71,8 @@ class Evaluation:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
     #: the whitened derivatives made at this compliance, each with the Weights it was made
-    #: for (``derivative``); not an argument, so that a copy (dataclasses.replace) starts
-    #: without them whatever its compliance
+    #: for (``derivative``); not an argument, so that a copy by dataclasses.replace (which
+    #: may carry another compliance) starts without them; ``moved`` shares them
     derivatives: List[Tuple['Weights', 'Derivative']] = field(
         default_factory=list, init=False, repr=False, compare=False)
     #: the conditioning of the compliance blocks (``conditioning``), by rows, estimated
@@ -117,13 +118,16 @@ class Evaluation:
 
         The pose moves by the compliance times the change (a twist: the origin's
         displacement and a spatial rotation increment, analysis.compliance.frame_twist's
-        convention); the compliance, the stability verdict and the forward solve stay these.
+        convention); the compliance, the stability verdict and the forward solve stay these,
+        and so do the derivatives and conditionings made of the compliance (shared).
         """
         twist = self.compliance @ change
         frame = self.frame.copy()
         frame[:3, 3] += twist[:3]
         frame[:3, :3] = rotation_of_vector(twist[3:]) @ self.frame[:3, :3]
-        return replace(self, wrench=self.wrench + change, frame=frame)
+        moved = copy.copy(self)  # what is made of the compliance too: it is the same
+        moved.wrench, moved.frame = self.wrench + change, frame
+        return moved
 
 
 @dataclass(frozen=True)
@@ -369,7 +373,8 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     prior_mean: Optional[ArrayLike] = None,
                     prior_covariance: Optional[ArrayLike] = None,
                     target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
-                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> Target:
+                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD,
+                    load_limit: float = math.inf) -> Target:
     """
     Check a measured pose, the components to estimate and the prior; return the Target.
 
@@ -380,8 +385,9 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     it. ``prior_mean`` (6, default zero) and ``prior_covariance`` (6x6, default
     diagonal_prior()) are the Gaussian prior on the wrench in the base frame.
     ``target_force_sd`` and ``target_moment_sd`` (N, N m) are the posterior standard
-    deviations an estimate must reach to meet its accuracy target. InputError (a
-    ValueError) names a bad value.
+    deviations an estimate must reach to meet its accuracy target, ``load_limit`` the
+    largest scaled wrench norm (N) a search tries. InputError (a ValueError) names a bad
+    value.
     """
     frame = np.eye(4)
     frame[:3, 3] = check_vector(names[0], position)
@@ -407,7 +413,7 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                          check_number('target_moment_sd', target_moment_sd, low=0.0,
                                       low_open=True, error=InputError)], 3)
     return Target(frame, rows, free, given, checked, float(length), labels, mean, spread,
-                  targets)
+                  targets, load_limit)
 
 
 #: Covariances already checked (the same along a stream), the most recent last.
