@@ -72,12 +72,18 @@ def pose_from_message(message: Any) -> MeasuredPose:
     if carried is not None:
         covariance = np.asarray(carried, dtype=float).reshape(6, 6)
         pose = get(pose, 'pose')
-    position, orientation = get(pose, 'position'), get(pose, 'orientation')
     stamp = get(head, 'stamp')
-    return MeasuredPose(np.array([float(get(position, axis)) for axis in 'xyz']),
-                        np.array([float(get(orientation, axis)) for axis in 'xyzw']),
+    return MeasuredPose(np.array(_components(get(pose, 'position'), 'xyz')),
+                        np.array(_components(get(pose, 'orientation'), 'xyzw')),
                         covariance, str(get(head, 'frame_id')),
                         {'sec': int(get(stamp, 'sec')), 'nanosec': int(get(stamp, 'nanosec'))})
+
+
+def _components(vector: Any, axes: str) -> List[float]:
+    """Return the ``axes`` components of a Point or Quaternion (dict or decoded) as floats."""
+    if type(vector) is dict or isinstance(vector, Mapping):  # judged once, not per component
+        return [float(vector[axis]) for axis in axes]
+    return [float(getattr(vector, axis)) for axis in axes]
 
 
 def check_frame(measured: MeasuredPose, frame: str) -> None:
@@ -101,7 +107,7 @@ def _accuracy_text(accuracy_met: Optional[bool]) -> str:
 
 def _numbers_text(values: np.ndarray) -> str:
     """Return numbers as '1.2e-05 3.4' ('nan' for a component that has none)."""
-    return ' '.join(f'{float(value):.4g}' for value in values)
+    return ' '.join(f'{value:.4g}' for value in values.tolist())  # floats: no numpy scalars
 
 
 def estimate_values(estimate: WrenchEstimate) -> Dict[str, Any]:
