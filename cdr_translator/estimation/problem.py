@@ -11,7 +11,7 @@ the types the search and the verdicts share.
 
 from collections import OrderedDict
 import copy
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 import math
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar, Union

@@ -259,8 +259,8 @@ def _grid_damping(weights: np.ndarray, squares: np.ndarray, radius: float) -> fl
                 DAMPING_GRID_POINTS - 1)
     while index > 0 and _step_size(weights, squares, point(index - 1)) <= radius:
         index -= 1
-    while index < DAMPING_GRID_POINTS - 1 and _step_size(weights, squares,
-                                                          point(index)) > radius:
+    last = DAMPING_GRID_POINTS - 1
+    while index < last and _step_size(weights, squares, point(index)) > radius:
         index += 1
     return point(index)
 

@@ -23,8 +23,8 @@ import numpy as np
 from ..analysis.compliance import analyse, ComplianceAnalysis
 
 __all__ = ['block_index', 'COMPONENT_CHOICES', 'component_index', 'COMPONENT_NAMES',
-           'CONDITION_LIMIT', 'Conditioning', 'conditioning', 'json_safe', 'length_scale', 'observability',
-           'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
+           'CONDITION_LIMIT', 'Conditioning', 'conditioning', 'json_safe', 'length_scale',
+           'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
