@@ -243,23 +243,24 @@ def _grid_damping(weights: np.ndarray, squares: np.ndarray, radius: float) -> fl
     Return the smallest lambda of a logarithmic grid with |p(lambda)| <= ``radius``.
 
     The grid: DAMPING_GRID_POINTS from max(1e-6 s_min^2, 1e-12 top) to top =
-    |weights| / radius (|p(lambda)| <= |weights| / lambda: top fits), the search's steps
-    being made on it. |p| falls with lambda, so the grid point is the one just above
-    the root of |p(lambda)| = radius (``_boundary_damping``), confirmed on both sides
-    with |p| itself; a grid point is computed to rounding, not as np.geomspace's.
+    |weights| / radius (|p(lambda)| <= |weights| / lambda: top fits). |p| falls with
+    lambda, so that point is the one just above the root of |p(lambda)| = radius
+    (``_boundary_damping``), confirmed on both sides with |p| itself; the points are
+    np.geomspace's to rounding. The grid point, not the root: a step on the radius
+    instead of up to a grid interval inside it changes which radius the next step gets,
+    and so the path of a search and its estimate (within the posterior spread).
     """
     top = math.sqrt(float(weights @ weights)) / radius
     low = max(1e-6 * float(squares[-1]), 1e-12 * top)
-    ratio = math.log(top / low) / (DAMPING_GRID_POINTS - 1)  # of neighbouring points, log
+    last = DAMPING_GRID_POINTS - 1
+    spacing = math.log(top / low) / last  # of neighbouring points, logarithmic
 
     def point(index: int) -> float:
-        return top if index == DAMPING_GRID_POINTS - 1 else low * math.exp(index * ratio)
+        return top if index == last else low * math.exp(index * spacing)
     root = _boundary_damping(weights, squares, radius)
-    index = min(max(math.ceil(math.log(max(root, low) / low) / ratio), 0),
-                DAMPING_GRID_POINTS - 1)
+    index = min(max(math.ceil(math.log(max(root, low) / low) / spacing), 0), last)
     while index > 0 and _step_size(weights, squares, point(index - 1)) <= radius:
         index -= 1
-    last = DAMPING_GRID_POINTS - 1
     while index < last and _step_size(weights, squares, point(index)) > radius:
         index += 1
     return point(index)
