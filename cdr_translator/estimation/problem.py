@@ -10,16 +10,18 @@ the types the search and the verdicts share.
 """
 
 from collections import OrderedDict
-from dataclasses import dataclass, field, replace
+import copy
+from dataclasses import dataclass, field
 from functools import cached_property
 import math
-from typing import Any, Callable, List, Optional, Sequence, Tuple, TypeVar, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
-                              length_scale, TRANSLATOR_WRENCH_LABELS)
+                              Conditioning, conditioning, length_scale,
+                              TRANSLATOR_WRENCH_LABELS)
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
@@ -69,10 +71,14 @@ class Evaluation:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
     #: the whitened derivatives made at this compliance, each with the Weights it was made
-    #: for (``derivative``); not an argument, so that a copy (dataclasses.replace) starts
-    #: without them whatever its compliance
+    #: for (``derivative``); not an argument, so that a copy by dataclasses.replace (which
+    #: may carry another compliance) starts without them; ``moved`` shares them
     derivatives: List[Tuple['Weights', 'Derivative']] = field(
         default_factory=list, init=False, repr=False, compare=False)
+    #: the conditioning of the compliance blocks (``conditioning``), by rows, estimated
+    #: components, length and labels; not an argument, as ``derivatives``
+    conditionings: Dict[tuple, Conditioning] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
 
     def derivative(self, target: 'Target') -> 'Derivative':
         """
@@ -91,19 +97,37 @@ class Evaluation:
         del self.derivatives[:-DERIVATIVES_KEPT]
         return derivative
 
+    def conditioning(self, target: 'Target') -> Conditioning:
+        """
+        Return how the compliance block of ``target`` observes the wrench, made once.
+
+        It depends on the compliance alone, not on the pose covariance: along a stream the
+        estimates of a pose on two topics (two covariances) share it.
+        """
+        key = (target.rows, target.free, target.length, target.labels)
+        made = self.conditionings.get(key)
+        if made is None:
+            made = self.conditionings[key] = conditioning(
+                self.compliance, target.rows, target.free, target.length, target.labels,
+                self.analysis)
+        return made
+
     def moved(self, change: np.ndarray) -> 'Evaluation':
         """
         Return this evaluation moved to the wrench ``change`` (6, SI) away, to first order.
 
         The pose moves by the compliance times the change (a twist: the origin's
         displacement and a spatial rotation increment, analysis.compliance.frame_twist's
-        convention); the compliance, the stability verdict and the forward solve stay these.
+        convention); the compliance, the stability verdict and the forward solve stay these,
+        and so do the derivatives and conditionings made of the compliance (shared).
         """
         twist = self.compliance @ change
         frame = self.frame.copy()
         frame[:3, 3] += twist[:3]
         frame[:3, :3] = rotation_of_vector(twist[3:]) @ self.frame[:3, :3]
-        return replace(self, wrench=self.wrench + change, frame=frame)
+        moved = copy.copy(self)  # what is made of the compliance too: it is the same
+        moved.wrench, moved.frame = self.wrench + change, frame
+        return moved
 
 
 @dataclass(frozen=True)
@@ -349,7 +373,8 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     prior_mean: Optional[ArrayLike] = None,
                     prior_covariance: Optional[ArrayLike] = None,
                     target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
-                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> Target:
+                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD,
+                    load_limit: float = math.inf) -> Target:
     """
     Check a measured pose, the components to estimate and the prior; return the Target.
 
@@ -360,8 +385,9 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     it. ``prior_mean`` (6, default zero) and ``prior_covariance`` (6x6, default
     diagonal_prior()) are the Gaussian prior on the wrench in the base frame.
     ``target_force_sd`` and ``target_moment_sd`` (N, N m) are the posterior standard
-    deviations an estimate must reach to meet its accuracy target. InputError (a
-    ValueError) names a bad value.
+    deviations an estimate must reach to meet its accuracy target, ``load_limit`` the
+    largest scaled wrench norm (N) a search tries. InputError (a ValueError) names a bad
+    value.
     """
     frame = np.eye(4)
     frame[:3, 3] = check_vector(names[0], position)
@@ -387,7 +413,7 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                          check_number('target_moment_sd', target_moment_sd, low=0.0,
                                       low_open=True, error=InputError)], 3)
     return Target(frame, rows, free, given, checked, float(length), labels, mean, spread,
-                  targets)
+                  targets, load_limit)
 
 
 #: Covariances already checked (the same along a stream), the most recent last.

@@ -10,16 +10,15 @@ docstring).
 
 import math
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
-from weakref import WeakKeyDictionary
+from typing import List, Optional, Tuple
 
 import numpy as np
 # the chi-square tail from scipy.special: scipy.stats takes about a second to import
 from scipy.special import chdtrc
 
-from .problem import (Derivative, estimated_name, Evaluation, Linearization, linearized, Search,
+from .problem import (estimated_name, Evaluation, Linearization, linearized, Search,
                       Target)
-from .wrench_estimate import block_index, COMPONENT_NAMES, observability, WrenchEstimate
+from .wrench_estimate import block_index, COMPONENT_NAMES, WrenchEstimate
 from ..analysis.stability import CLOSE_BRANCH_MARGIN
 from ..geometry import quaternion_xyzw
 
@@ -52,7 +51,9 @@ def estimate_from(found: Search, target: Target, started: float) -> WrenchEstima
     if target.covariance is not None:
         covariance = np.zeros((6, 6))
         covariance[block_index(target.free, target.free)] = 0.5 * (posterior + posterior.T)
-    condition, directions = _observed(linear.derivative, best, target, covariance)
+    # the compliance's own (best is solved moved by the finish: the same compliance)
+    observed = solved.conditioning(target)
+    condition, directions = observed.condition, observed.directions_with(covariance)
     if found.finish is None:
         error, whitened = linear.error, linear.residual[:len(rows)]
     else:  # moved by the last step: another pose, the same derivative
@@ -110,33 +111,6 @@ def _posterior(linear: Linearization, target: Target) -> Tuple[np.ndarray, np.nd
     sensitivity = np.zeros((6, len(target.rows)))
     sensitivity[free] = spread @ left[:len(target.rows)].T @ target.weights.pose
     return spread @ spread.T, sensitivity
-
-
-#: What observability() made at a derivative: the labels and the compliance analysis it
-#: was made with, the condition number and the poorly observable directions.
-Conditioning = Tuple[Sequence[str], Any, float, List[Dict[str, Any]]]
-
-#: The conditioning made at each derivative: the estimates at one solve and whitening (a
-#: repeated pose) have the same posterior and share it.
-_OBSERVED: 'WeakKeyDictionary[Derivative, Conditioning]' = WeakKeyDictionary()
-
-
-def _observed(derivative: Derivative, best: Evaluation, target: Target,
-              covariance: Optional[np.ndarray]) -> Tuple[float, List[Dict[str, Any]]]:
-    """
-    Return observability() at ``best`` for ``target``, made once per derivative.
-
-    The derivative (of one compliance and whitening) determines the posterior
-    ``covariance``, so equal inputs give an equal answer; each caller gets its own dicts.
-    """
-    kept = _OBSERVED.get(derivative)
-    if kept is None or kept[0] != target.labels or kept[1] is not best.analysis:
-        kept = (target.labels, best.analysis, *observability(
-            best.compliance, target.rows, target.free, target.length, target.labels,
-            covariance, best.analysis))
-        _OBSERVED[derivative] = kept
-    return kept[2], [{**direction, 'direction': list(direction['direction'])}
-                     for direction in kept[3]]
 
 
 def _on(free: np.ndarray, values: np.ndarray) -> np.ndarray:

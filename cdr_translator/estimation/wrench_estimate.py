@@ -23,8 +23,8 @@ import numpy as np
 from ..analysis.compliance import analyse, ComplianceAnalysis
 
 __all__ = ['block_index', 'COMPONENT_CHOICES', 'component_index', 'COMPONENT_NAMES',
-           'CONDITION_LIMIT', 'json_safe', 'length_scale', 'observability',
-           'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
+           'CONDITION_LIMIT', 'Conditioning', 'conditioning', 'json_safe', 'length_scale',
+           'observability', 'TRANSLATOR_WRENCH_LABELS', 'WrenchEstimate']
 
 #: A wrench direction is poorly observable, and the estimate ill-conditioned, when the
 #: largest length-scaled singular value of the compliance block is more than this many
@@ -183,6 +183,65 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return array
 
 
+@dataclass(frozen=True)
+class Conditioning:
+    """
+    How a compliance block C[rows, free] observes the wrench (observability without spreads).
+
+    ``directions`` are observability()'s dicts without 'standard_deviation', ``along``
+    the scaled wrench's component along each (a 6-vector, N^-1 in scaled units): they
+    depend on the compliance alone, so that the estimates at one solve share them
+    whatever their pose covariance (``directions_with`` adds the spreads).
+    """
+
+    condition: float
+    directions: Tuple[Dict[str, Any], ...]
+    along: Tuple[np.ndarray, ...]
+
+    def directions_with(self, covariance: Optional[np.ndarray]) -> List[Dict[str, Any]]:
+        """Return the directions with their standard deviations from ``covariance`` (6x6)."""
+        return [{**direction, 'direction': list(direction['direction']),
+                 'standard_deviation': None if covariance is None
+                 else math.sqrt(max(float(along @ covariance @ along), 0.0))}
+                for direction, along in zip(self.directions, self.along)]
+
+
+def conditioning(compliance: np.ndarray, rows: Sequence[int], free: Sequence[int],
+                 length: float, labels: Sequence[str],
+                 analysis: Optional[ComplianceAnalysis] = None) -> Conditioning:
+    """Return the Conditioning of the block C[rows, free] (observability's arguments)."""
+    scale = length_scale(length)
+    rows, free = tuple(rows), tuple(free)
+    index = block_index(rows, free)
+    block = scale[index[0]] * compliance[index] * scale[index[1]]
+    _, values, right = np.linalg.svd(block)
+    singular = values.tolist()
+    largest = singular[0]
+    condition = largest / singular[-1] if singular[-1] > 0.0 else math.inf
+    if not condition > CONDITION_LIMIT:
+        return Conditioning(condition, (), ())  # every direction observed: no eigen-twists
+    if analysis is None:
+        analysis = analyse(compliance, length)
+    twists = scale[:, None] * analysis.eigenvectors
+    twists /= np.sqrt(np.add.reduce(twists * twists, axis=0))  # np.linalg.norm(axis=0)'s sum
+    directions, alongs = [], []
+    for value, vector in zip(singular, right):
+        ratio = largest / value if value > 0.0 else math.inf
+        if not ratio > CONDITION_LIMIT:
+            continue
+        sizes = np.abs(vector).tolist()
+        dominant = sizes.index(max(sizes))  # the first largest, as np.argmax
+        unit = np.zeros(6)  # scaled, pointing along its dominant component
+        unit[component_index(free)] = vector * math.copysign(1.0, vector[dominant])
+        direction = unit * scale  # back to N and N m
+        match = int(np.argmax(np.abs(twists.T @ (scale * (compliance @ direction)))))
+        alongs.append(unit / scale)  # the scaled wrench's component along the direction
+        directions.append({'label': labels[free[dominant]], 'direction': direction.tolist(),
+                           'singular_value': value, 'ratio': ratio,
+                           'twist': analysis.labels[match], 'role': analysis.roles[match]})
+    return Conditioning(condition, tuple(directions), tuple(alongs))
+
+
 def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[int],
                   length: float, labels: Sequence[str],
                   covariance: Optional[np.ndarray] = None,
@@ -195,36 +254,5 @@ def observability(compliance: np.ndarray, rows: Sequence[int], free: Sequence[in
     (6x6) gives each direction's standard deviation, ``analysis`` (of the whole C; made
     here when not given) each direction's eigen-twist label and role.
     """
-    scale = length_scale(length)
-    rows, free = tuple(rows), tuple(free)
-    index = block_index(rows, free)
-    block = scale[index[0]] * compliance[index] * scale[index[1]]
-    _, values, right = np.linalg.svd(block)
-    singular = values.tolist()
-    largest = singular[0]
-    condition = largest / singular[-1] if singular[-1] > 0.0 else math.inf
-    if not condition > CONDITION_LIMIT:
-        return condition, []  # every direction observed: no eigen-twists to match
-    if analysis is None:
-        analysis = analyse(compliance, length)
-    twists = scale[:, None] * analysis.eigenvectors
-    twists /= np.sqrt(np.add.reduce(twists * twists, axis=0))  # np.linalg.norm(axis=0)'s sum
-    directions = []
-    for value, vector in zip(singular, right):
-        ratio = largest / value if value > 0.0 else math.inf
-        if not ratio > CONDITION_LIMIT:
-            continue
-        sizes = np.abs(vector).tolist()
-        dominant = sizes.index(max(sizes))  # the first largest, as np.argmax
-        unit = np.zeros(6)  # scaled, pointing along its dominant component
-        unit[component_index(free)] = vector * math.copysign(1.0, vector[dominant])
-        direction = unit * scale  # back to N and N m
-        match = int(np.argmax(np.abs(twists.T @ (scale * (compliance @ direction)))))
-        along = unit / scale  # the scaled wrench's component along the direction
-        spread = (None if covariance is None
-                  else math.sqrt(max(float(along @ covariance @ along), 0.0)))
-        directions.append({'label': labels[free[dominant]], 'direction': direction.tolist(),
-                           'singular_value': value, 'ratio': ratio,
-                           'twist': analysis.labels[match], 'role': analysis.roles[match],
-                           'standard_deviation': spread})
-    return condition, directions
+    made = conditioning(compliance, rows, free, length, labels, analysis)
+    return made.condition, made.directions_with(covariance)

@@ -50,7 +50,12 @@ class PayloadProcessor(MeasuredPoseProcessor):
                                 time_limit_s=settings.solve_time_limit_s)
 
     def check(self, measured: MeasuredPose) -> None:
-        """Raise ValueError for another frame, a non-finite value, a bad quaternion."""
+        """
+        Raise InputError for another frame, a non-finite value, a bad quaternion.
+
+        The values too, although the estimate checks them: it names them as the robot's
+        (platform_position, ...), a rejection as the measured pose's (position, ...).
+        """
         check_pose(measured, self.settings.world_frame, self.robot.params.stack_height)
 
     def estimate(self, measured: MeasuredPose) -> WrenchEstimate:

@@ -21,6 +21,7 @@ import numpy as np
 from . import messages
 from .diagnostics_period import StreamDiagnostics
 from .settings import estimate_components, TranslatorSettings
+from ..errors import InputError
 from ..estimation import diagonal_prior, measured_target, WrenchEstimate
 from ..params.translator_params import TranslatorParams
 from ..solve.solver import TranslatorSolver
@@ -71,19 +72,30 @@ def pose_from_message(message: Any) -> MeasuredPose:
     if carried is not None:
         covariance = np.asarray(carried, dtype=float).reshape(6, 6)
         pose = get(pose, 'pose')
-    position, orientation = get(pose, 'position'), get(pose, 'orientation')
     stamp = get(head, 'stamp')
-    return MeasuredPose(np.array([float(get(position, axis)) for axis in 'xyz']),
-                        np.array([float(get(orientation, axis)) for axis in 'xyzw']),
+    return MeasuredPose(np.array(_components(get(pose, 'position'), 'xyz')),
+                        np.array(_components(get(pose, 'orientation'), 'xyzw')),
                         covariance, str(get(head, 'frame_id')),
                         {'sec': int(get(stamp, 'sec')), 'nanosec': int(get(stamp, 'nanosec'))})
 
 
-def check_pose(measured: MeasuredPose, frame: str, length: float) -> None:
-    """Raise ValueError naming what is wrong: the frame, a non-finite value, the quaternion."""
+def _components(vector: Any, axes: str) -> List[float]:
+    """Return the ``axes`` components of a Point or Quaternion (dict or decoded) as floats."""
+    if type(vector) is dict or isinstance(vector, Mapping):  # judged once, not per component
+        return [float(vector[axis]) for axis in axes]
+    return [float(getattr(vector, axis)) for axis in axes]
+
+
+def check_frame(measured: MeasuredPose, frame: str) -> None:
+    """Raise InputError (a ValueError) for a pose in another frame than ``frame``."""
     if measured.frame_id not in ('', frame):
-        raise ValueError(f'unknown frame_id {measured.frame_id!r}: a measured pose must be in '
-                         f'{frame!r} (or have an empty frame_id); no tf here')
+        raise InputError(f'unknown frame_id {measured.frame_id!r}: a measured pose must be '
+                         f'in {frame!r} (or have an empty frame_id); no tf here')
+
+
+def check_pose(measured: MeasuredPose, frame: str, length: float) -> None:
+    """Raise InputError naming what is wrong: the frame, a non-finite value, the quaternion."""
+    check_frame(measured, frame)
     measured_target(measured.position, measured.quaternion_xyzw, measured.covariance, None,
                     None, length)
 
@@ -95,7 +107,7 @@ def _accuracy_text(accuracy_met: Optional[bool]) -> str:
 
 def _numbers_text(values: np.ndarray) -> str:
     """Return numbers as '1.2e-05 3.4' ('nan' for a component that has none)."""
-    return ' '.join(f'{float(value):.4g}' for value in values)
+    return ' '.join(f'{value:.4g}' for value in values.tolist())  # floats: no numpy scalars
 
 
 def estimate_values(estimate: WrenchEstimate) -> Dict[str, Any]:
@@ -257,9 +269,9 @@ class MeasuredPoseProcessor(abc.ABC):
             return self.reject({'sec': 0, 'nanosec': 0}, f'malformed message: {error}')
         try:
             self.check(measured)
-        except ValueError as error:
+            estimate = self.estimate(measured)
+        except InputError as error:  # the pose's values are checked once, by the estimate
             return self.reject(measured.stamp, str(error))
-        estimate = self.estimate(measured)
         if estimate.converged:
             self.counts['solved'] += 1
             self.counts['flagged' if estimate.flagged else 'estimated'] += 1
@@ -272,11 +284,11 @@ class MeasuredPoseProcessor(abc.ABC):
 
     @abc.abstractmethod
     def check(self, measured: MeasuredPose) -> None:
-        """Raise ValueError naming what is wrong with a measured pose."""
+        """Raise InputError naming what is wrong with a pose that ``estimate`` does not check."""
 
     @abc.abstractmethod
     def estimate(self, measured: MeasuredPose) -> WrenchEstimate:
-        """Estimate the load of a checked pose."""
+        """Estimate the load of a pose; InputError naming a bad value: the pose's rejection."""
 
     @abc.abstractmethod
     def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
@@ -338,8 +350,13 @@ class PoseProcessor(MeasuredPoseProcessor):
                                 Optional[np.ndarray]] = (None, {}, None)
 
     def check(self, measured: MeasuredPose) -> None:
-        """Raise ValueError for another frame, a non-finite value, a bad quaternion."""
-        check_pose(measured, self.settings.base_frame, self.solver.params.stack_height)
+        """
+        Raise InputError for another frame.
+
+        The estimate checks the values (a non-finite one, a bad quaternion or covariance)
+        as it takes them, with the messages check_pose gives: a pose is checked once.
+        """
+        check_frame(measured, self.settings.base_frame)
 
     def _options(self) -> Tuple[Dict[str, Any], Optional[np.ndarray]]:
         """Return (estimate options, assumed pose covariance) of the current settings."""

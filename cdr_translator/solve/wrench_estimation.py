@@ -6,7 +6,7 @@ compliance there, since the solve's may come from a factorization made at anothe
 (docs/stability.md), and near zero it decides the ambiguity.
 """
 
-from dataclasses import replace
+import math
 import time
 from typing import Callable, Optional
 
@@ -64,13 +64,12 @@ def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Refere
     limited to ``time_limit_s``.
     """
     started = time.perf_counter()
-    target = replace(measured_target(position, quaternion_xyzw, pose_covariance, moment, force,
-                                     length, estimate=estimate, prior_mean=prior_mean,
-                                     prior_covariance=prior_covariance,
-                                     target_force_sd=target_force_sd,
-                                     target_moment_sd=target_moment_sd),
-                     load_limit=LOAD_LIMIT * load_scale(reference))
-    reach = float(np.linalg.norm(target.frame[:3, 3]))
+    target = measured_target(position, quaternion_xyzw, pose_covariance, moment, force, length,
+                             estimate=estimate, prior_mean=prior_mean,
+                             prior_covariance=prior_covariance, target_force_sd=target_force_sd,
+                             target_moment_sd=target_moment_sd,
+                             load_limit=LOAD_LIMIT * load_scale(reference))
+    reach = math.hypot(*target.frame[:3, 3].tolist())
     if reach > REACH * length:
         return estimate_from(
             Search(None, False, f'unreachable: the end disk cannot be {reach:.4g} m from the '

@@ -14,7 +14,7 @@ from fractions import Fraction
 from typing import List, Optional
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.estimation import measured_target
+from cdr_translator.estimation import measured_target, observability, TRANSLATOR_WRENCH_LABELS
 from cdr_translator.estimation.problem import Derivative
 import numpy as np
 import pytest
@@ -132,3 +132,23 @@ def test_estimates_at_one_solve_do_not_share_their_conditioning(solver, params):
     second = estimator.estimate_wrench(*pose, pose_covariance=TRACKER)
     assert second.solves == 0
     assert second.conditioning == expected
+
+
+def test_estimates_at_one_solve_share_the_conditioning_not_its_spreads(solver, params):
+    """Under another pose covariance at the same solve: observability() with its posterior."""
+    solved = solver.solve([1.0, 2.0, -1.0], [0.02, 0.0, 0.05])
+    estimator = TranslatorSolver(params)
+    pose = solved.end_disk_position, solved.end_disk_quaternion_xyzw
+    first = estimator.estimate_wrench(*pose, pose_covariance=TRACKER)
+    second = estimator.estimate_wrench(*pose, pose_covariance=CORRELATED)
+    assert second.solves == 0 and second.solution is first.solution
+    compliance = second.solution.compliance
+    for estimate in (first, second):
+        condition, directions = observability(
+            compliance.matrix, range(6), range(6), params.stack_height,
+            TRANSLATOR_WRENCH_LABELS, estimate.covariance, compliance)
+        assert estimate.condition_number == condition
+        assert estimate.conditioning == directions
+    spreads = [[direction['standard_deviation'] for direction in estimate.conditioning]
+               for estimate in (first, second)]
+    assert spreads[0] != spreads[1]  # the posterior's: the covariances differ
