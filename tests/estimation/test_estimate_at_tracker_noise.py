@@ -25,6 +25,7 @@ chance gives once in two million.
 """
 
 import contextlib
+import importlib
 import io
 import math
 from pathlib import Path
@@ -212,6 +213,44 @@ def test_a_warm_estimate_takes_one_forward_solve_and_agrees_with_a_cold_one(solv
         check = solver.solve(estimate.force, estimate.moment)
         assert np.linalg.norm(check.end_disk_position - estimate.position) < 1e-6
     assert finished >= 20 and np.mean(solves[1:]) <= 1.3, solves
+
+
+def test_a_step_without_a_forward_solve_stays_within_a_tenth_of_a_spread(
+        solver, params, monkeypatch):
+    """
+    Loads across the range, each estimated from the last one's solution (far away).
+
+    The last Gauss-Newton step taken from the last forward solve is bounded in load
+    (search.FINISH_REACH), not only in standard deviations: along the axial force one is
+    15-25 N. Each estimate is within a tenth of a posterior standard deviation (Mahalanobis)
+    of the search carried to the end, which takes no such step.
+    """
+    search_module = importlib.import_module('cdr_translator.estimation.search')
+    rng = np.random.default_rng(21)
+    covariance = pose_covariance(1e-4, 0.05)
+    warm = TranslatorSolver(params)
+    loads = np.zeros((30, 6))
+    loads[:, :2] = rng.uniform(-10.0, 10.0, (30, 2))
+    loads[:, 2] = rng.uniform(-3.0, 3.0, 30)
+    finished = 0
+    for load in loads:
+        solved = solver.solve(load[:3], load[3:])
+        position, quaternion = noisy_pose(solved, covariance, rng)
+        estimate = warm.estimate_wrench(position, quaternion, pose_covariance=covariance,
+                                        estimate='force')
+        assert estimate.converged, estimate.message
+        if 'last Gauss-Newton step' not in estimate.message:
+            continue
+        finished += 1
+        with monkeypatch.context() as patch:
+            patch.setattr(search_module, 'FINISH_CHI2', 0.0)
+            patch.setattr(search_module, 'CONVERGED_CHI2', 1e-8)
+            full = TranslatorSolver(params).estimate_wrench(
+                position, quaternion, pose_covariance=covariance, estimate='force')
+        difference = (estimate.wrench - full.wrench)[:3]
+        spread = full.covariance[:3, :3]
+        assert difference @ np.linalg.solve(spread, difference) <= 0.1 ** 2, (load, difference)
+    assert finished >= 5
 
 
 def test_the_same_pose_again_takes_no_forward_solve(solver, params):
