@@ -81,14 +81,8 @@ def _params(tmp_path, fidelity):
     return path
 
 
-@pytest.mark.parametrize('fidelity', BATCHED_FIDELITIES)
-def test_blocks_give_the_per_message_outputs(fidelity, tmp_path, monkeypatch):
-    """Block boundaries, a rejection and a follower load inside blocks: the node's outputs."""
-    params = _params(tmp_path, fidelity)
-    settings = TranslatorSettings.from_params_file(params)
-    assert settings.fidelity == fidelity
-    bag = tmp_path / 'walk.mcap'
-    _recording(bag, settings)
+def _counted_blocks_of_16(monkeypatch):
+    """Replay in blocks of 16 messages; return the list each solve_many's row count joins."""
     monkeypatch.setattr(replay_module, 'BLOCK_SIZE', 16)
     runs = []
     solve_many = FidelitySolver.solve_many
@@ -98,6 +92,18 @@ def test_blocks_give_the_per_message_outputs(fidelity, tmp_path, monkeypatch):
         return solve_many(self, forces, *args, **kwargs)
 
     monkeypatch.setattr(FidelitySolver, 'solve_many', counted)
+    return runs
+
+
+@pytest.mark.parametrize('fidelity', BATCHED_FIDELITIES)
+def test_blocks_give_the_per_message_outputs(fidelity, tmp_path, monkeypatch):
+    """Block boundaries, a rejection and a follower load inside blocks: the node's outputs."""
+    params = _params(tmp_path, fidelity)
+    settings = TranslatorSettings.from_params_file(params)
+    assert settings.fidelity == fidelity
+    bag = tmp_path / 'walk.mcap'
+    _recording(bag, settings)
+    runs = _counted_blocks_of_16(monkeypatch)
     batched = replay(bag, tmp_path / 'blocks.mcap', params_path=params)
     # blocks 0-15, 16-31, 32-39; runs end at the rejections (9, 30) and the follower (21)
     assert runs == [9, 6, 5, 8, 1, 8]
@@ -122,15 +128,7 @@ def test_measured_poses_between_the_wrenches_join_the_blocks(tmp_path, monkeypat
     poses, frame_id = measure(samples, PoseNoise(2e-4, 0.1), seed=4)
     bag = tmp_path / 'walk_and_poses.mcap'
     synth.write_wrenches(bag, samples, poses=poses, pose_frame_id=frame_id)
-    monkeypatch.setattr(replay_module, 'BLOCK_SIZE', 16)
-    runs = []
-    solve_many = FidelitySolver.solve_many
-
-    def counted(self, forces, *args, **kwargs):
-        runs.append(len(forces))
-        return solve_many(self, forces, *args, **kwargs)
-
-    monkeypatch.setattr(FidelitySolver, 'solve_many', counted)
+    runs = _counted_blocks_of_16(monkeypatch)
     batched = replay(bag, tmp_path / 'blocks.mcap')
     # 60 messages in blocks of 16: 6, 5, 5 and 4 wrenches (3 messages a wrench)
     assert runs == [6, 5, 5, 4]
