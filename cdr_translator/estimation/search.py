@@ -217,12 +217,15 @@ def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndar
 
     Minimizes |r + J step|^2 + lambda |step|^2 (scaled units; J = U diag(values) V^T and
     ``projected`` = U^T r) with the smallest lambda >= 0 that keeps the step within the
-    radius (the Gauss-Newton step when it fits), picked on a logarithmic grid
-    (``_grid_damping``). Without a radius (an estimate's first step) lambda is
-    (values_max / CONDITION_LIMIT)^2: the poorly observable directions (the axial force)
-    barely move until the others fit, since there the pose error is mostly the others'
-    second-order effect (the end disk drops as it swings sideways) that a first-order
-    model reads as axial load.
+    radius: the Gauss-Newton step when it fits, else the step on the radius
+    (``_boundary_damping``). On the radius, not inside it: the radius grows only after a
+    step that reached it, and a step held inside would hold the radius too, so that a
+    search along a valley of the cost (the axial force against the lateral one) would
+    creep in steps of one length, a forward solve each. Without a radius (an estimate's
+    first step) lambda is (values_max / CONDITION_LIMIT)^2: the poorly observable
+    directions (the axial force) barely move until the others fit, since there the pose
+    error is mostly the others' second-order effect (the end disk drops as it swings
+    sideways) that a first-order model reads as axial load.
     """
     weights = values * projected
     if radius is None:
@@ -232,51 +235,14 @@ def _trust_region_step(values: np.ndarray, right: np.ndarray, projected: np.ndar
     size = math.sqrt(float(newton @ newton))
     if size <= radius or not math.isfinite(size):
         return -right.T @ newton
-    return -right.T @ (weights / (squares + _grid_damping(weights, squares, radius)))
+    return -right.T @ (weights / (squares + _boundary_damping(weights, squares, radius)))
 
-
-#: Points of the logarithmic grid the damping is picked on (_grid_damping).
-DAMPING_GRID_POINTS = 200
 
 #: The step's length on the radius, relative, at which _boundary_damping stops.
 BOUNDARY_TOLERANCE = 1e-10
 
 #: Newton iterations of _boundary_damping at most (it takes 1-6, rarely 10).
 BOUNDARY_ITERATIONS = 50
-
-
-def _step_size(weights: np.ndarray, squares: np.ndarray, damping: float) -> float:
-    """Return |p(lambda)|, p_i = weights_i / (squares_i + lambda), at lambda = ``damping``."""
-    step = weights / (squares + damping)
-    return math.sqrt(float(step @ step))
-
-
-def _grid_damping(weights: np.ndarray, squares: np.ndarray, radius: float) -> float:
-    """
-    Return the smallest lambda of a logarithmic grid with |p(lambda)| <= ``radius``.
-
-    The grid: DAMPING_GRID_POINTS from max(1e-6 s_min^2, 1e-12 top) to top =
-    |weights| / radius (|p(lambda)| <= |weights| / lambda: top fits). |p| falls with
-    lambda, so that point is the one just above the root of |p(lambda)| = radius
-    (``_boundary_damping``), confirmed on both sides with |p| itself; the points are
-    np.geomspace's to rounding. The grid point, not the root: a step on the radius
-    instead of up to a grid interval inside it changes which radius the next step gets,
-    and so the path of a search and its estimate (within the posterior spread).
-    """
-    top = math.sqrt(float(weights @ weights)) / radius
-    low = max(1e-6 * float(squares[-1]), 1e-12 * top)
-    last = DAMPING_GRID_POINTS - 1
-    spacing = math.log(top / low) / last  # of neighbouring points, logarithmic
-
-    def point(index: int) -> float:
-        return top if index == last else low * math.exp(index * spacing)
-    root = _boundary_damping(weights, squares, radius)
-    index = min(max(math.ceil(math.log(max(root, low) / low) / spacing), 0), last)
-    while index > 0 and _step_size(weights, squares, point(index - 1)) <= radius:
-        index -= 1
-    while index < last and _step_size(weights, squares, point(index)) > radius:
-        index += 1
-    return point(index)
 
 
 def _boundary_damping(weights: np.ndarray, squares: np.ndarray, radius: float) -> float:

@@ -1,23 +1,13 @@
 """
-The trust-region damping of a search step: the logarithmic grid's point just above the root.
+The trust-region step of a search: the Gauss-Newton step when it fits, else on the radius.
 
-The damping is defined as the smallest point of a DAMPING_GRID_POINTS logarithmic grid
-whose step fits the radius; the search finds it from a Newton root of the secular
-equation. Here against the definition: |p| at every grid point.
+A step on the radius, not inside it: the radius grows only after a step that reached it
+(search.search), so a step held inside would keep a search creeping at one length.
 """
 
-from cdr_translator.estimation.search import (_boundary_damping, _grid_damping,
-                                              DAMPING_GRID_POINTS)
+from cdr_translator.estimation.search import _boundary_damping, _trust_region_step
 import numpy as np
 import pytest
-
-
-def scanned_damping(weights: np.ndarray, squares: np.ndarray, radius: float) -> float:
-    """Return the smallest grid point whose step fits the radius: every point evaluated."""
-    top = float(np.linalg.norm(weights)) / radius
-    grid = np.geomspace(max(1e-6 * squares[-1], 1e-12 * top), top, DAMPING_GRID_POINTS)
-    sizes = np.linalg.norm(weights[None, :] / (squares[None, :] + grid[:, None]), axis=1)
-    return float(grid[int(np.argmax(sizes <= radius))])
 
 
 def problems(count: int):
@@ -33,15 +23,40 @@ def problems(count: int):
 
 
 @pytest.mark.parametrize('weights, squares, radius', list(problems(100)))
-def test_the_damping_is_the_grid_point_the_scan_picks(weights, squares, radius):
-    """The same grid point as scanning all of them (to the rounding of the points)."""
-    expected = scanned_damping(weights, squares, radius)
-    assert _grid_damping(weights, squares, radius) == pytest.approx(expected, rel=1e-13)
-
-
-@pytest.mark.parametrize('weights, squares, radius', list(problems(100)))
 def test_the_root_puts_the_step_on_the_radius(weights, squares, radius):
     """Newton on the secular equation: |p(lambda)| = radius to 1e-10, lambda > 0."""
     damping = _boundary_damping(weights, squares, radius)
     assert damping > 0.0
     assert np.linalg.norm(weights / (squares + damping)) == pytest.approx(radius, rel=1e-9)
+
+
+@pytest.mark.parametrize('weights, squares, radius', list(problems(30)))
+def test_a_step_that_does_not_fit_is_the_constrained_minimum_on_the_radius(
+        weights, squares, radius):
+    """
+    On the radius, and no point of the ball models a lower cost.
+
+    The model cost |r + J p|^2 (U^T r = projected, rotated by a random V) against 2000
+    random points within the radius: none is lower (Nocedal & Wright, Theorem 4.1).
+    """
+    rng = np.random.default_rng(3)
+    values = np.sqrt(squares)
+    projected = weights / values
+    right = np.linalg.qr(rng.normal(size=(len(values), len(values))))[0]
+    step = _trust_region_step(values, right, projected, radius)
+    assert np.linalg.norm(step) == pytest.approx(radius, rel=1e-9)
+
+    def model(points: np.ndarray) -> np.ndarray:
+        return np.sum((projected + values * (points @ right.T)) ** 2, axis=-1)
+    directions = rng.normal(size=(2000, len(values)))
+    points = (directions / np.linalg.norm(directions, axis=1)[:, None]
+              * radius * rng.uniform(0.0, 1.0, (2000, 1)) ** (1.0 / len(values)))
+    assert model(step) <= model(points).min() * (1.0 + 1e-12) + 1e-300
+
+
+def test_the_gauss_newton_step_is_taken_when_it_fits():
+    """Within the radius: the undamped step, which zeroes the model residual."""
+    values, projected = np.array([3.0, 0.5]), np.array([1.5, -0.25])
+    right = np.eye(2)
+    step = _trust_region_step(values, right, projected, 10.0)
+    np.testing.assert_allclose(projected + values * (right @ step), 0.0, atol=1e-15)
