@@ -18,6 +18,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.linalg.lapack import dgesdd
 
 from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
                               Conditioning, conditioning, length_scale,
@@ -234,6 +235,19 @@ WEIGHTS_KEPT = 16
 _WEIGHTS: 'OrderedDict[tuple, Weights]' = OrderedDict()
 
 
+def thin_svd(matrix: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return the thin SVD (U, s, V^T) of a small matrix, as numpy.linalg.svd(full_matrices=False).
+
+    LAPACK's gesdd called directly: numpy's wrapping costs as much again as decomposing the
+    12 x 6 derivative of an estimate (two or three per pose). LinAlgError when it fails.
+    """
+    left, values, right, info = dgesdd(matrix, full_matrices=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'gesdd: the SVD did not converge ({info})')
+    return left, values, right
+
+
 def _inverse_root(covariance: np.ndarray) -> np.ndarray:
     """Return W with W^T W = covariance^-1: the inverse of its lower Cholesky factor."""
     factor = np.linalg.cholesky(covariance)
@@ -265,7 +279,7 @@ class Derivative:
         weights = target.weights
         block = compliance[target.block] * target.scale[target.free_index]
         jacobian = np.concatenate((weights.pose @ block, weights.scaled_prior))
-        left, values, right = np.linalg.svd(jacobian, full_matrices=False)
+        left, values, right = thin_svd(jacobian)
         return cls(jacobian, left, values, right)
 
 
