@@ -21,7 +21,8 @@ from .problem import estimated_name, Evaluation, linearized, Search, Target
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
-__all__ = ['estimate_along', 'FINISH_CHI2', 'FINISH_REACH', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
+__all__ = ['estimate_along', 'FINISH_CHI2', 'FINISH_MISS', 'FINISH_REACH', 'LINEAR_FINISH_CHI2',
+           'LOAD_LIMIT', 'MAX_SOLVES', 'search']
 
 #: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
 #: alone, which the pose sees poorly, can take 20).
@@ -32,15 +33,32 @@ MAX_SOLVES = 40
 #: estimate's variance (a warm estimate along a stream then takes one forward solve).
 CONVERGED_CHI2 = 1e-2
 
-#: A remaining Gauss-Newton decrease up to this (a step of at most one posterior standard
-#: deviation) is taken from the last forward solve without another one, once an accepted
-#: step has shown the linearization there right to FINISH_GAIN (a step of this search, or
-#: for a warm start the step that arrived at it, ``Evaluation.linear``): the last step's
-#: error is then second order in a step of a standard deviation, far below the spread. A
-#: warm estimate along a noisy stream thus takes one forward solve, not two, and a pose
-#: within a standard deviation of the last solved one (the same pose on a second topic)
-#: none.
-FINISH_CHI2 = 1.0
+#: A remaining Gauss-Newton decrease up to this (a step of at most three posterior standard
+#: deviations) may be taken from the last forward solve without another one, when the
+#: linearization there is shown right over it, in one of two ways:
+#:
+#: * an accepted step arrived at it within FINISH_GAIN of its predicted decrease (a step of
+#:   this search, or for a warm start the step that arrived at it, ``Evaluation.linear``),
+#:   and the remaining step is at most one standard deviation (LINEAR_FINISH_CHI2);
+#: * this search's last accepted step measured the curvature: the whitened pose it missed
+#:   by, scaled by the square of the remaining step's length over that step's (the miss is
+#:   second order in the step), is at most FINISH_MISS.
+#:
+#: Either way the step is short in load (FINISH_REACH). A warm estimate along a noisy
+#: stream thus takes one or two forward solves, rarely three, and a pose within a standard
+#: deviation of the last solved one (the same pose on a second topic) none.
+FINISH_CHI2 = 9.0
+
+#: The remaining decrease up to which a step shown right by its gain (FINISH_GAIN) is
+#: taken to first order: a step of one standard deviation, whose second-order error is far
+#: below the spread.
+LINEAR_FINISH_CHI2 = 1.0
+
+#: The largest miss, in posterior standard deviations, that the measured curvature may
+#: predict for a step taken without a forward solve: half the tenth of a standard
+#: deviation within which a search's answers agree (along the replay bench's walk the
+#: steps so taken landed within 0.073 of the search carried to the end).
+FINISH_MISS = 0.05
 
 #: An accepted step whose decrease is within this fraction of the predicted one shows the
 #: linearization right over the step.
@@ -50,7 +68,8 @@ FINISH_GAIN = 0.05
 #: than this fraction of the load scale w* (the scaled wrench norm; w* = ``load_limit`` /
 #: LOAD_LIMIT, stability.load_scale). Over a step dw the compliance changes by about
 #: |dw| / w*, so the pose the step predicts misses by about |dw| / (2 w*) of the step's
-#: own effect: a twentieth of a standard deviation at most here. A standard deviation
+#: own effect: a twentieth of a standard deviation at most for a step of one (the bound
+#: on a step shown right by its gain, LINEAR_FINISH_CHI2). A standard deviation
 #: alone is no bound: along the axial force, which the pose barely sees, one is 15-25 N,
 #: near the 29 N buckling load, and such steps taken to first order lowered the coverage
 #: of estimates from afar (0.1 mm / 0.05 deg, force: 87 % of 200 trials against 90.5 %
@@ -123,6 +142,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             return found
     # a warm start's linearization was shown right by the step that arrived at it
     current, radius, verified = start, None, warm and start.linear and not shifted
+    bent = None  # (miss, length) of this search's last accepted step: its measured curvature
     linear = linearized(target, current)
     if not shifted:
         found.best, found.linearization = current, linear
@@ -137,9 +157,13 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         elif decrease <= CONVERGED_CHI2:
             found.converged, found.message = True, 'converged'
             return found
-        elif verified and decrease <= FINISH_CHI2 and current.stable is True:
+        elif ((verified or bent is not None) and decrease <= FINISH_CHI2
+              and current.stable is True):
             finish = _trust_region_step(values, right, projected, math.inf)
-            if float(np.linalg.norm(finish)) <= FINISH_REACH * target.load_limit / LOAD_LIMIT:
+            size = float(np.linalg.norm(finish))
+            if size <= FINISH_REACH * target.load_limit / LOAD_LIMIT and (
+                    (verified and decrease <= LINEAR_FINISH_CHI2)
+                    or (bent is not None and bent[0] * (size / bent[1]) ** 2 <= FINISH_MISS)):
                 found.finish = np.zeros(6)
                 found.finish[free] = scale[free] * finish
                 found.converged = True
@@ -188,6 +212,10 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                 elif gain < 0.25:
                     radius = 0.5 * float(np.linalg.norm(step))
                 verified = trial.linear = abs(gain - 1.0) <= FINISH_GAIN
+                miss = trial_linear.residual - linear.residual - derivative.jacobian @ step
+                length = math.sqrt(float(step @ step))
+                bent = None if shifted or length == 0.0 else (
+                    math.sqrt(float(miss @ miss)), length)
                 current, linear, shifted = trial, trial_linear, False
                 found.best, found.linearization = current, linear
                 continue
