@@ -18,11 +18,11 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg.lapack import dgesdd
 
 from .wrench_estimate import (block_index, COMPONENT_CHOICES, component_index, COMPONENT_NAMES,
                               Conditioning, conditioning, length_scale,
                               TRANSLATOR_WRENCH_LABELS)
+from .._linalg import thin_svd
 from ..analysis.compliance import ComplianceAnalysis, frame_twist
 from ..checks import check_covariance, check_number, check_unit_quaternion, check_vector
 from ..errors import InputError
@@ -233,19 +233,6 @@ Kept = TypeVar('Kept')
 #: Whitenings kept for reuse (Weights.of), the most recent last.
 WEIGHTS_KEPT = 16
 _WEIGHTS: 'OrderedDict[tuple, Weights]' = OrderedDict()
-
-
-def thin_svd(matrix: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """
-    Return the thin SVD (U, s, V^T) of a small matrix, as numpy.linalg.svd(full_matrices=False).
-
-    LAPACK's gesdd called directly: numpy's wrapping costs as much again as decomposing the
-    12 x 6 derivative of an estimate (two or three per pose). LinAlgError when it fails.
-    """
-    left, values, right, info = dgesdd(matrix, full_matrices=0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f'gesdd: the SVD did not converge ({info})')
-    return left, values, right
 
 
 def _inverse_root(covariance: np.ndarray) -> np.ndarray:

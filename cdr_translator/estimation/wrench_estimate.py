@@ -20,6 +20,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .._linalg import thin_svd
 from ..analysis.compliance import analyse, ComplianceAnalysis
 
 __all__ = ['block_index', 'COMPONENT_CHOICES', 'component_index', 'COMPONENT_NAMES',
@@ -214,7 +215,7 @@ def conditioning(compliance: np.ndarray, rows: Sequence[int], free: Sequence[int
     rows, free = tuple(rows), tuple(free)
     index = block_index(rows, free)
     block = scale[index[0]] * compliance[index] * scale[index[1]]
-    _, values, right = np.linalg.svd(block)
+    _, values, right = thin_svd(block)
     singular = values.tolist()
     largest = singular[0]
     condition = largest / singular[-1] if singular[-1] > 0.0 else math.inf
