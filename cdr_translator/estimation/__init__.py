@@ -46,7 +46,7 @@ non-unit quaternion, a covariance that is not symmetric positive semidefinite, a
 component name) raises InputError, a ValueError naming it.
 """
 
-from .problem import (Components, DEFAULT_PRIOR_FORCE_SD, DEFAULT_PRIOR_MOMENT_SD,
+from .problem import (Components, Curvature, DEFAULT_PRIOR_FORCE_SD, DEFAULT_PRIOR_MOMENT_SD,
                       DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD, diagonal_prior,
                       estimated_components, Evaluation, measured_target, Search, Target)
 from .search import estimate_along, LOAD_LIMIT, search
@@ -54,7 +54,7 @@ from .verdict import estimate_from
 from .wrench_estimate import (COMPONENT_CHOICES, COMPONENT_NAMES, CONDITION_LIMIT, json_safe,
                               observability, TRANSLATOR_WRENCH_LABELS, WrenchEstimate)
 
-__all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'Components', 'CONDITION_LIMIT',
+__all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'Components', 'CONDITION_LIMIT', 'Curvature',
            'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD', 'DEFAULT_TARGET_FORCE_SD',
            'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior', 'estimate_along', 'estimate_from',
            'estimated_components', 'Evaluation', 'json_safe', 'LOAD_LIMIT',

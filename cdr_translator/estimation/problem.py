@@ -28,7 +28,7 @@ from ..checks import check_covariance, check_number, check_unit_quaternion, chec
 from ..errors import InputError
 from ..geometry import rotation_of_quaternion, rotation_of_vector
 
-__all__ = ['Components', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
+__all__ = ['Components', 'Curvature', 'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD',
            'DEFAULT_TARGET_FORCE_SD', 'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior',
            'Derivative', 'estimated_components', 'estimated_name', 'Evaluation',
            'EXACT_POSE_SD_M', 'linearized', 'Linearization', 'measured_target', 'Search',
@@ -55,6 +55,37 @@ DEFAULT_TARGET_MOMENT_SD = 0.05
 EXACT_POSE_SD_M = 1e-11
 
 
+@dataclass(frozen=True)
+class Curvature:
+    """
+    How far an accepted step's pose fell from its linear prediction: the model's curvature.
+
+    The miss is second order in the step, so a step of length l from the point it arrived
+    at misses by about |W miss| (l / length)^2 (search.FINISH_MISS). Only along a direction
+    like the measuring search's own: a search for another pose steps elsewhere, where the
+    curvature may be larger (along a recorded walk, a new pose finished from the last
+    estimate's curvature landed 0.106 standard deviations off, 7 times the extrapolation).
+    So it serves the searches for the measured pose it was made for: its own, and the same
+    pose again under another covariance (a second topic).
+    """
+
+    measured: np.ndarray  # the measured pose (4x4) of the search that made it
+    rows: Tuple[int, ...]  # the measured twist components of ``miss``
+    miss: np.ndarray  # the pose minus its linear prediction, those components (m, rad)
+    length: float  # the step's length in scaled units (N)
+
+    def scaled_miss(self, target: 'Target', length: float) -> Optional[float]:
+        """
+        Return the whitened miss expected of a step of ``length`` for ``target``.
+
+        None when ``target`` measures another pose or other components.
+        """
+        if target.rows != self.rows or not np.array_equal(target.frame, self.measured):
+            return None
+        whitened = target.weights.pose @ self.miss
+        return math.sqrt(float(whitened @ whitened)) * (length / self.length) ** 2
+
+
 @dataclass
 class Evaluation:
     """The forward model at one wrench: the pose it gives and its derivative."""
@@ -71,6 +102,9 @@ class Evaluation:
     #: the search's accepted step that arrived here was predicted within search.FINISH_GAIN:
     #: the linearization here is shown right over a step of about a standard deviation
     linear: bool = False
+    #: what the search's accepted step that arrived here measured of the model's curvature
+    #: (None: not measured)
+    curvature: Optional['Curvature'] = None
     #: the whitened derivatives made at this compliance, each with the Weights it was made
     #: for (``derivative``); not an argument, so that a copy by dataclasses.replace (which
     #: may carry another compliance) starts without them; ``moved`` shares them

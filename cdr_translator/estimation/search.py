@@ -17,7 +17,8 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from .problem import estimated_name, Evaluation, linearized, Search, Target
+from .problem import (Curvature, estimated_name, Evaluation, linearized, Linearization,
+                      Search, Target)
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
@@ -40,13 +41,15 @@ CONVERGED_CHI2 = 1e-2
 #: * an accepted step arrived at it within FINISH_GAIN of its predicted decrease (a step of
 #:   this search, or for a warm start the step that arrived at it, ``Evaluation.linear``),
 #:   and the remaining step is at most one standard deviation (LINEAR_FINISH_CHI2);
-#: * this search's last accepted step measured the curvature: the whitened pose it missed
-#:   by, scaled by the square of the remaining step's length over that step's (the miss is
-#:   second order in the step), is at most FINISH_MISS.
+#: * the accepted step that arrived at it measured the curvature (``Evaluation.curvature``,
+#:   a step of this search, or for a warm start of the same measured pose the step that
+#:   arrived at it): the whitened pose it missed by, scaled by the square of the remaining
+#:   step's length over that step's (the miss is second order in the step), is at most
+#:   FINISH_MISS.
 #:
 #: Either way the step is short in load (FINISH_REACH). A warm estimate along a noisy
-#: stream thus takes one or two forward solves, rarely three, and a pose within a standard
-#: deviation of the last solved one (the same pose on a second topic) none.
+#: stream thus takes one or two forward solves, rarely three, and the same pose again (on
+#: a second topic) none.
 FINISH_CHI2 = 9.0
 
 #: The remaining decrease up to which a step shown right by its gain (FINISH_GAIN) is
@@ -140,9 +143,10 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if start is None:
             found.message = 'the forward solve at the starting wrench did not converge'
             return found
-    # a warm start's linearization was shown right by the step that arrived at it
+    # a warm start's linearization was shown right, or its curvature measured, by the step
+    # that arrived at it
     current, radius, verified = start, None, warm and start.linear and not shifted
-    bent = None  # (miss, length) of this search's last accepted step: its measured curvature
+    bent = start.curvature if warm and not shifted else None
     linear = linearized(target, current)
     if not shifted:
         found.best, found.linearization = current, linear
@@ -161,9 +165,10 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
               and current.stable is True):
             finish = _trust_region_step(values, right, projected, math.inf)
             size = float(np.linalg.norm(finish))
+            miss = None if bent is None else bent.scaled_miss(target, size)
             if size <= FINISH_REACH * target.load_limit / LOAD_LIMIT and (
                     (verified and decrease <= LINEAR_FINISH_CHI2)
-                    or (bent is not None and bent[0] * (size / bent[1]) ** 2 <= FINISH_MISS)):
+                    or (miss is not None and miss <= FINISH_MISS)):
                 found.finish = np.zeros(6)
                 found.finish[free] = scale[free] * finish
                 found.converged = True
@@ -212,10 +217,8 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                 elif gain < 0.25:
                     radius = 0.5 * float(np.linalg.norm(step))
                 verified = trial.linear = abs(gain - 1.0) <= FINISH_GAIN
-                miss = trial_linear.residual - linear.residual - derivative.jacobian @ step
-                length = math.sqrt(float(step @ step))
-                bent = None if shifted or length == 0.0 else (
-                    math.sqrt(float(miss @ miss)), length)
+                bent = trial.curvature = None if shifted else _curvature(
+                    target, current, linear, trial_linear, step)
                 current, linear, shifted = trial, trial_linear, False
                 found.best, found.linearization = current, linear
                 continue
@@ -230,6 +233,17 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
                     f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
                     else '')
             return found
+
+
+def _curvature(target: Target, current: Evaluation, linear: Linearization,
+               trial: Linearization, step: np.ndarray) -> Optional[Curvature]:
+    """Return what ``step`` (scaled) from ``current`` to ``trial`` measured of the curvature."""
+    length = math.sqrt(float(step @ step))
+    if length == 0.0:
+        return None
+    free = target.free_index
+    predicted = current.compliance[target.block] @ (target.scale[free] * step)
+    return Curvature(target.frame, target.rows, trial.error - linear.error - predicted, length)
 
 
 def _holds(evaluation: Evaluation, target: Target) -> bool:

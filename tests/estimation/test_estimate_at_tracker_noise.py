@@ -33,7 +33,7 @@ import re
 from typing import Dict, List, Tuple
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.estimation import diagonal_prior
+from cdr_translator.estimation import Curvature, diagonal_prior, measured_target
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -277,6 +277,69 @@ def test_the_same_pose_again_takes_no_forward_solve(solver, params):
         assert difference @ np.linalg.solve(first.covariance, difference) <= 0.1 ** 2
         repeated.append(again.solves)
     assert np.mean(repeated) <= 0.1, repeated
+
+
+def test_steps_on_a_measured_curvature_and_a_second_topic_of_the_pose(
+        solver, params, monkeypatch):
+    """
+    The last step taken on the curvature the step before it measured, along a rough walk.
+
+    With the other way of finishing (a step shown right by its gain) switched off, every
+    step taken without a forward solve follows the curvature the step arriving at the last
+    forward solve measured (Evaluation.curvature, search.FINISH_MISS). Each such estimate is
+    within a tenth of a posterior standard deviation of its search carried to the end. A
+    tracker publishing PoseStamped and PoseWithCovarianceStamped gives each pose twice,
+    the node's assumed covariance on one and the message's on the other: the second
+    estimate reuses the measurement for the same pose, takes no forward solve and is
+    within a tenth of a standard deviation of its own search carried to the end too.
+    """
+    search_module = importlib.import_module('cdr_translator.estimation.search')
+    monkeypatch.setattr(search_module, 'LINEAR_FINISH_CHI2', 0.0)
+    warm = TranslatorSolver(params)
+    rng = np.random.default_rng(31)
+    load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
+    assumed = pose_covariance(2e-4, 0.1)
+    carried = pose_covariance(2e-4, 0.1000001)  # the message's own: not the same bytes
+
+    def within_a_tenth(estimate, position, quaternion, covariance) -> bool:
+        with monkeypatch.context() as patch:
+            patch.setattr(search_module, 'FINISH_CHI2', 0.0)
+            patch.setattr(search_module, 'CONVERGED_CHI2', 1e-8)
+            full = TranslatorSolver(params).estimate_wrench(position, quaternion,
+                                                            pose_covariance=covariance)
+        difference = estimate.wrench - full.wrench
+        return bool(difference @ np.linalg.solve(full.covariance, difference) <= 0.1 ** 2)
+
+    again_solves, finished = [], 0
+    for _ in range(25):
+        load += rng.normal(size=6) * np.array([1.0, 1.0, 0.3, 0.01, 0.01, 0.01])
+        solved = solver.solve(load[:3], load[3:])
+        position, quaternion = noisy_pose(solved, assumed, rng)
+        first = warm.estimate_wrench(position, quaternion, pose_covariance=assumed)
+        assert first.converged, first.message
+        if 'last Gauss-Newton step' in first.message:
+            finished += 1
+            assert within_a_tenth(first, position, quaternion, assumed)
+        again = warm.estimate_wrench(position, quaternion, pose_covariance=carried)
+        assert again.converged, again.message
+        again_solves.append(again.solves)
+        assert within_a_tenth(again, position, quaternion, carried)
+    assert finished >= 10, finished
+    assert np.mean(again_solves) <= 0.1, again_solves
+
+
+def test_a_measured_curvature_serves_its_own_pose_only():
+    """Curvature.scaled_miss: None for another measured pose or other measured components."""
+    covariance = pose_covariance(2e-4, 0.1)
+    here = measured_target([0.0, 0.0, 0.1], [0.0, 0.0, 0.0, 1.0], covariance, None, None, 0.1)
+    there = measured_target([0.001, 0.0, 0.1], [0.0, 0.0, 0.0, 1.0], covariance, None, None,
+                            0.1)
+    position_only = measured_target([0.0, 0.0, 0.1], None, covariance, None, None, 0.1)
+    miss = np.array([2e-4, 0.0, 0.0, 0.0, 0.0, 0.0])  # one standard deviation along x
+    curvature = Curvature(here.frame, here.rows, miss, 4.0)
+    assert curvature.scaled_miss(here, 2.0) == pytest.approx(0.25, rel=1e-6)
+    assert curvature.scaled_miss(there, 2.0) is None
+    assert curvature.scaled_miss(position_only, 2.0) is None
 
 
 def test_held_values_that_move_along_a_stream_cost_no_extra_forward_solve(solver, params):
