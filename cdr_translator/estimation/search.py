@@ -17,7 +17,7 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from .problem import (Curvature, estimated_name, Evaluation, linearized, Linearization,
+from .problem import (Curvature, estimated_name, Evaluation, Linearization, linearized,
                       Search, Target)
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
