@@ -30,7 +30,7 @@ import io
 import math
 from pathlib import Path
 import re
-from typing import Dict, List, Tuple
+from typing import Dict, Iterator, List, Tuple
 
 from cdr_translator import TranslatorSolver
 from cdr_translator.estimation import Curvature, diagonal_prior, measured_target
@@ -52,6 +52,9 @@ DOCS = Path(__file__).resolve().parents[2] / 'docs'
 #: The prior of the calibration trials: lateral and axial force (N), moments (N m).
 LAB_SD = np.array([5.0, 5.0, 1.5, 0.1, 0.1, 0.1])
 
+#: A walk's step standard deviations along a stream: forces (N), moments (N m).
+SMALL_STEPS = np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
+
 
 def pose_covariance(position_sd: float, orientation_deg: float) -> np.ndarray:
     """Return the diagonal 6x6 pose covariance (m^2, rad^2)."""
@@ -65,6 +68,21 @@ def noisy_pose(solved, covariance: np.ndarray, rng: np.random.Generator
     rotation = Rotation.from_rotvec(noise[3:]) * Rotation.from_quat(
         solved.end_disk_quaternion_xyzw)
     return solved.end_disk_position + noise[:3], rotation.as_quat()
+
+
+def noisy_walk(solver: TranslatorSolver, rng: np.random.Generator, load: np.ndarray,
+               step_sd: np.ndarray, covariance: np.ndarray, count: int
+               ) -> Iterator[Tuple[np.ndarray, np.ndarray]]:
+    """
+    Yield the noisy end-disk pose (position, quaternion_xyzw) of each step of a load's walk.
+
+    ``load`` (6) moves in place by ``step_sd`` times a normal draw, ``count`` times; each
+    step is solved and seen through ``covariance``'s noise.
+    """
+    for _ in range(count):
+        load += rng.normal(size=6) * step_sd
+        solved = solver.solve(load[:3], load[3:])
+        yield noisy_pose(solved, covariance, rng)
 
 
 def run_trials(solver: TranslatorSolver, estimator: TranslatorSolver, loads: np.ndarray,
@@ -196,10 +214,7 @@ def test_a_warm_estimate_takes_one_forward_solve_and_agrees_with_a_cold_one(solv
     load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
     covariance = pose_covariance(2e-4, 0.1)
     solves, finished = [], 0
-    for _ in range(40):
-        load += rng.normal(size=6) * np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
-        solved = solver.solve(load[:3], load[3:])
-        position, quaternion = noisy_pose(solved, covariance, rng)
+    for position, quaternion in noisy_walk(solver, rng, load, SMALL_STEPS, covariance, 40):
         estimate = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
         assert estimate.converged, estimate.message
         solves.append(estimate.solves)
@@ -266,10 +281,7 @@ def test_the_same_pose_again_takes_no_forward_solve(solver, params):
     load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
     covariance = pose_covariance(2e-4, 0.1)
     repeated = []
-    for _ in range(20):
-        load += rng.normal(size=6) * np.array([0.3, 0.3, 0.1, 0.005, 0.005, 0.005])
-        solved = solver.solve(load[:3], load[3:])
-        position, quaternion = noisy_pose(solved, covariance, rng)
+    for position, quaternion in noisy_walk(solver, rng, load, SMALL_STEPS, covariance, 20):
         first = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
         again = warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
         assert first.converged and again.converged, again.message
@@ -311,10 +323,8 @@ def test_steps_on_a_measured_curvature_and_a_second_topic_of_the_pose(
         return bool(difference @ np.linalg.solve(full.covariance, difference) <= 0.1 ** 2)
 
     again_solves, finished = [], 0
-    for _ in range(25):
-        load += rng.normal(size=6) * np.array([1.0, 1.0, 0.3, 0.01, 0.01, 0.01])
-        solved = solver.solve(load[:3], load[3:])
-        position, quaternion = noisy_pose(solved, assumed, rng)
+    steps = np.array([1.0, 1.0, 0.3, 0.01, 0.01, 0.01])
+    for position, quaternion in noisy_walk(solver, rng, load, steps, assumed, 25):
         first = warm.estimate_wrench(position, quaternion, pose_covariance=assumed)
         assert first.converged, first.message
         if 'last Gauss-Newton step' in first.message:
