@@ -40,7 +40,9 @@ DIARY = re.compile(r'what would (?:remove|reach)[ ]', re.IGNORECASE)
 JOURNAL = re.compile(r'session [0-9]|\bissue[ -]?#?[0-9]|this[ ]branch|\*\*changed', re.IGNORECASE)
 #: Where journal wording is looked for (CHANGELOG.rst is the one place for history).
 JOURNAL_PLACES = ('docs', 'README.md', 'tests', 'cdr_translator', 'cdr_wire', 'msg_tools',
-                  'bench', 'scripts', 'bags/README.md', 'config')
+                  'bench', 'scripts', 'bags/README.md', 'config', 'launch', '.ci/run',
+                  'Makefile', 'requirements.txt', 'setup.py', 'setup.cfg', 'package.xml',
+                  'mypy.ini', 'pytest.ini')
 JOURNAL_SUFFIXES = {'.md', '.py', '.rst', '.txt', '.yaml', '.cfg'}
 #: A path outside the repository: the parent of the checkout, or an absolute path.
 OUTSIDE_PATH = re.compile(r'\.\./shared|(?<![\w.~])/(?:home|tmp|work|root|mnt)/')
