@@ -62,8 +62,9 @@ hard-cases: setup
 # 0.5 deg against full, batch, on the sequence and three noisy random walks (about 1 min):
 # bench/results/auto_speed.{md,json}; then the robot's inverse statics, warm per 1 mm step
 # and cold: bench/results/delta_inverse.md; then replay with measured poses against replay
-# without them (about 1 min): bench/results/replay_poses.md; then replay's throughput in one
-# process and on 1 and 2 Dask workers (about 3 min): bench/results/replay_scale.md.
+# without them (15 rounds, about 4 min): bench/results/replay_poses.md; then replay's
+# throughput in one process and on 1 and 2 Dask workers (about 3 min):
+# bench/results/replay_scale.md.
 bench: setup
 	$(VPY) -m bench.speed_vs_error
 	$(VPY) -m bench.targets --spacers-slope
