@@ -25,9 +25,10 @@ within the caller's ``compliance_tolerance`` (default 0: always the exact one).
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 import math
 import time
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any, Dict, Mapping, NamedTuple, Optional, Tuple
 
 import numpy as np
 from scipy.linalg.lapack import dgeev, dgesv, dsyevd
@@ -53,6 +54,16 @@ MOBILITY_RATIO = 0.2
 DIRECTIONAL_STEP = 1e-5
 
 
+class _Mobility(NamedTuple):
+    """The primary-mobility analysis of a compliance (``analyse``'s, made when first read)."""
+
+    sparse_matrix: np.ndarray
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    labels: Tuple[str, ...]
+    roles: Tuple[str, ...]
+
+
 @dataclass(frozen=True)
 class ComplianceAnalysis:
     """
@@ -66,23 +77,78 @@ class ComplianceAnalysis:
     stiffness C^-1 is positive definite. ``time_s`` is the cost of computing C and
     ``estimated_error`` machine epsilon times a condition estimate of J (C is exact to
     rounding: no differencing is involved).
+
+    The analysis (C_s and its eigen-decomposition; the stiffness' smallest eigenvalue) is
+    made when one of its attributes is first read, then kept: a compliance that only feeds a
+    computation, as in the forward solves an estimate steps through, costs no
+    decomposition (``analyse`` checks its settings at once).
     """
 
     matrix: np.ndarray
-    sparse_matrix: np.ndarray
-    eigenvalues: np.ndarray
-    eigenvectors: np.ndarray
-    labels: Tuple[str, ...]
-    roles: Tuple[str, ...]
-    primary_mobility: Tuple[str, ...]
-    stable: bool
-    smallest_stiffness_eigenvalue: float
     sparsity_threshold: float
     mobility_ratio: float
     characteristic_length: float
     method: str
     time_s: float
     estimated_error: float = 0.0
+
+    @cached_property
+    def _mobility(self) -> _Mobility:
+        """Make C_s, its eigen-decomposition and the twists' labels and roles."""
+        sparse = np.empty((6, 6))
+        _sparsify(np.ascontiguousarray(self.matrix, dtype=float),
+                  float(self.sparsity_threshold), sparse)
+        values, vectors = _real_eigen(sparse)
+        dominant = np.empty(6, dtype=np.int64)
+        mobile = np.empty(6, dtype=np.bool_)
+        values, vectors = _arrange(values, np.asfortranarray(vectors),
+                                   float(self.characteristic_length),
+                                   float(self.mobility_ratio), dominant, mobile)
+        return _Mobility(sparse, values, vectors,
+                         tuple(AXIS_LABELS[axis] for axis in dominant.tolist()),
+                         tuple('mobility' if flag else 'constraint'
+                               for flag in mobile.tolist()))
+
+    @property
+    def sparse_matrix(self) -> np.ndarray:
+        """Return C_s: C with its coupling terms below the sparsity threshold zeroed."""
+        return self._mobility.sparse_matrix
+
+    @property
+    def eigenvalues(self) -> np.ndarray:
+        """Return the eigenvalues xi of C_s, in the order of ``labels``."""
+        return self._mobility.eigenvalues
+
+    @property
+    def eigenvectors(self) -> np.ndarray:
+        """Return the eigenvectors Gamma of C_s, one column per eigenvalue."""
+        return self._mobility.eigenvectors
+
+    @property
+    def labels(self) -> Tuple[str, ...]:
+        """Return the axis each eigenvector mostly moves along (AXIS_LABELS)."""
+        return self._mobility.labels
+
+    @property
+    def roles(self) -> Tuple[str, ...]:
+        """Return 'mobility' or 'constraint' for each eigenvector."""
+        return self._mobility.roles
+
+    @property
+    def primary_mobility(self) -> Tuple[str, ...]:
+        """Return the labels of the primary-mobility twists."""
+        return tuple(label for label, role in zip(self.labels, self.roles)
+                     if role == 'mobility')
+
+    @cached_property
+    def smallest_stiffness_eigenvalue(self) -> float:
+        """Return the smallest eigenvalue of the symmetric part of K = C^-1 (-inf: singular)."""
+        return _smallest_stiffness_eigenvalue(self.matrix)
+
+    @property
+    def stable(self) -> bool:
+        """Return whether the symmetric part of the stiffness C^-1 is positive definite."""
+        return self.smallest_stiffness_eigenvalue > 0.0
 
     def to_dict(self) -> dict:
         """JSON-ready form; the keys of ``solve --compliance --json``."""
@@ -276,23 +342,8 @@ def analyse(compliance: np.ndarray, characteristic_length: float,
         raise ValueError(f'mobility_ratio must lie in (0, 1], got {mobility_ratio}')
     if not characteristic_length > 0.0:
         raise ValueError(f'characteristic_length must be positive, got {characteristic_length}')
-    sparse = np.empty((6, 6))
-    _sparsify(np.ascontiguousarray(compliance, dtype=float), float(sparsity_threshold), sparse)
-    values, vectors = _real_eigen(sparse)
-    dominant = np.empty(6, dtype=np.int64)
-    mobile = np.empty(6, dtype=np.bool_)
-    values, vectors = _arrange(values, np.asfortranarray(vectors), float(characteristic_length),
-                               float(mobility_ratio), dominant, mobile)
-    labels = tuple(AXIS_LABELS[axis] for axis in dominant.tolist())
-    roles = tuple('mobility' if flag else 'constraint' for flag in mobile.tolist())
-    smallest = _smallest_stiffness_eigenvalue(compliance)
     return ComplianceAnalysis(
-        matrix=compliance, sparse_matrix=sparse, eigenvalues=values, eigenvectors=vectors,
-        labels=labels, roles=roles,
-        primary_mobility=tuple(label for label, role in zip(labels, roles)
-                               if role == 'mobility'),
-        stable=smallest > 0.0, smallest_stiffness_eigenvalue=smallest,
-        sparsity_threshold=sparsity_threshold, mobility_ratio=mobility_ratio,
+        matrix=compliance, sparsity_threshold=sparsity_threshold, mobility_ratio=mobility_ratio,
         characteristic_length=characteristic_length, method=method, time_s=time_s,
         estimated_error=estimated_error)
 
