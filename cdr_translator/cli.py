@@ -351,8 +351,8 @@ def _warm_up_stages(params: TranslatorParams, params_path: str
                         if fidelity != 'auto'})
         leveled['auto'] = FidelitySolver(params, 'auto', max_position_error=1e-3,
                                          max_angle_error_deg=0.5)
-        for solver in leveled.values():
-            solver.solve([1.0, 0.0, 0.0], compliance=True)
+        for solver in leveled.values():  # to_dict reads the compliance's analysis too
+            solver.solve([1.0, 0.0, 0.0], compliance=True).to_dict()
 
     def linear_sequences() -> None:
         wrenches = np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
