@@ -12,9 +12,10 @@ settings:
   iterations per answer and the mean expressed in shots (one residual shot, timed in the
   same run: a ratio that the machine's load cancels from);
 * ``solve_many`` per answer over the whole walk, from a fresh solver warm at its start;
-* the compliance on top of a warm solve: its own time (``ComplianceAnalysis.time_s``) and
-  what ``compliance=True`` adds to the whole solve, on the sigma = 0.02 N walk, exact (the
-  default) and from the stored factorization (``compliance_tolerance``);
+* the compliance on top of a warm solve: its own time (``ComplianceAnalysis.time_s``, and
+  its analysis', made when first read) and what ``compliance=True`` adds to the whole solve
+  with the analysis read, on the sigma = 0.02 N walk, exact (the default) and from the
+  stored factorization (``compliance_tolerance``);
 * the corrector iterations a prediction from the exact tangent would leave
   (``predictor_iterations``), against those of the solver's own prediction.
 
@@ -32,6 +33,7 @@ import statistics
 import time
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
+from bench.compliance_costs import compliance_time_s, computed_compliance
 from bench.solve_many import overhead
 from cdr_translator import TranslatorParams, TranslatorSolver
 from cdr_translator.bvp.problem import Problem
@@ -140,8 +142,9 @@ def compliance_times(params: TranslatorParams, wrenches: np.ndarray,
     """
     Median compliance time on top of warm solves along ``wrenches``, best of REPEATS.
 
-    'own': the compliance's own time_s; 'added': a solve with compliance=True (and
-    ``options``) minus the plain solve of the same wrench, each from the same warm state
+    'own': the compliance's own time_s and its analysis' (made when first read);
+    'added': a solve with compliance=True (and ``options``), its analysis read, minus the
+    plain solve of the same wrench, each from the same warm state
     (two solvers in step), in the thread's CPU time; 'error': the largest estimated relative
     error of a compliance along the walk.
     """
@@ -156,11 +159,10 @@ def compliance_times(params: TranslatorParams, wrenches: np.ndarray,
             plain.solve(wrench[:3], wrench[3:])
             middle = time.thread_time()
             result = with_compliance.solve(wrench[:3], wrench[3:], compliance=True, **options)
+            own.append(compliance_time_s(result))  # C and its analysis, made when first read
             ended = time.thread_time()
-            assert result.compliance is not None, result.message
-            own.append(result.compliance.time_s)
             added.append((ended - middle) - (middle - started))
-            best['error'] = max(best['error'], result.compliance.estimated_error)
+            best['error'] = max(best['error'], computed_compliance(result).estimated_error)
         best['own'] = min(best['own'], statistics.median(own))
         best['added'] = min(best['added'], statistics.median(added))
     return best
@@ -261,8 +263,8 @@ def main() -> None:
         ('full, `solve_many` per answer, σ = 0.4 N walk', 'solve_many',
          measured[SIGMAS[-1]]['batch_cpu'], measured[SIGMAS[-1]]['batch'])]
     for name, times in compliance.items():
-        rows.append((f'compliance on top of a warm solve, {name} (its own time_s, wall, '
-                     'median, σ = 0.02 N walk)', 'compliance', None, times['own']))
+        rows.append((f'compliance on top of a warm solve, {name} (C and its analysis, their own '
+                     'time, wall, median, σ = 0.02 N walk)', 'compliance', None, times['own']))
     targets = ['| measure | measured µs (CPU) | wall µs | target µs | measured / target | met '
                '| in shots |', '|---|---|---|---|---|---|---|']
     for name, key, cpu, wall in rows:
@@ -288,8 +290,8 @@ def main() -> None:
         '',
         *targets,
         '',
-        f'What `compliance=True` adds to the whole warm solve (median CPU difference of two '
-        f'solvers in step): {added}.',
+        f'What `compliance=True` adds to the whole warm solve, its analysis read (median CPU '
+        f'difference of two solvers in step): {added}.',
         '',
         *lines,
         '',
