@@ -1,5 +1,5 @@
 """
-The wrench from a measured pose: a maximum-a-posteriori estimate with the compliance.
+The wrench from a measured pose: a maximum-a-posteriori estimate with the exact compliance.
 
 Deflection-based force sensing runs the forward model backwards: the load on a continuum
 robot is the one whose equilibrium has the pose a tracker sees (Rucker & Webster,
@@ -20,18 +20,17 @@ conditional on the held values). Directions the pose cannot see come back at the
 with the prior's spread; the posterior covariance (J^T J)^-1, J the whitened derivative
 [W C_b; L], says which.
 
-Each iterate is a forward solve with the compliance (implicit differentiation: exact to
-rounding, or from the factorization the solve made on its way, stated within
-COMPLIANCE_TOLERANCE, a thousandth), so the Gauss-Newton step uses the derivative of the
-position and, at a matched pose, of the rotation. Steps are Levenberg-Marquardt steps
-within a trust radius in length-scaled units (moments as the force that makes them at the
-stack height H), the radius growing after steps the linearization predicted well and
-shrinking after steps that do not lower the cost (Nocedal & Wright, Numerical Optimization,
-2006, Ch. 4 and 10.3). The estimate has converged when the Gauss-Newton step would lower
-the whitened cost by less than CONVERGED_CHI2 (a tenth of a posterior standard deviation).
-Along a stream each estimate starts from the last converged one (its solve and compliance
-reused: the first step needs no solve), and one that cannot converge gives up after
-MAX_SOLVES forward solves.
+Each iterate is a forward solve with the compliance (implicit differentiation, exact to
+rounding), so the Gauss-Newton step uses the exact derivative of the position and, at a
+matched pose, of the rotation. Steps are Levenberg-Marquardt steps within a trust radius
+in length-scaled units (moments as the force that makes them at the stack height H), the
+radius growing after steps the linearization predicted well and shrinking after steps
+that do not lower the cost (Nocedal & Wright, Numerical Optimization, 2006, Ch. 4 and
+10.3). The estimate has converged when the Gauss-Newton step would lower the whitened
+cost by less than CONVERGED_CHI2 (a tenth of a posterior standard deviation). Along a
+stream each estimate starts from the last converged one (its solve and compliance reused:
+the first step needs no solve), and one that cannot converge gives up after MAX_SOLVES
+forward solves.
 
 Without a pose covariance the pose is taken as exact (a standard deviation of
 EXACT_POSE_SD_M): the estimate then matches the pose to the forward solve's rounding, and
@@ -50,13 +49,12 @@ component name) raises InputError, a ValueError naming it.
 from .problem import (Components, Curvature, DEFAULT_PRIOR_FORCE_SD, DEFAULT_PRIOR_MOMENT_SD,
                       DEFAULT_TARGET_FORCE_SD, DEFAULT_TARGET_MOMENT_SD, diagonal_prior,
                       estimated_components, Evaluation, measured_target, Search, Target)
-from .search import COMPLIANCE_TOLERANCE, estimate_along, LOAD_LIMIT, search
+from .search import estimate_along, LOAD_LIMIT, search
 from .verdict import estimate_from
 from .wrench_estimate import (COMPONENT_CHOICES, COMPONENT_NAMES, CONDITION_LIMIT, json_safe,
                               observability, TRANSLATOR_WRENCH_LABELS, WrenchEstimate)
 
-__all__ = ['COMPLIANCE_TOLERANCE', 'COMPONENT_CHOICES', 'COMPONENT_NAMES', 'Components',
-           'CONDITION_LIMIT', 'Curvature',
+__all__ = ['COMPONENT_CHOICES', 'COMPONENT_NAMES', 'Components', 'CONDITION_LIMIT', 'Curvature',
            'DEFAULT_PRIOR_FORCE_SD', 'DEFAULT_PRIOR_MOMENT_SD', 'DEFAULT_TARGET_FORCE_SD',
            'DEFAULT_TARGET_MOMENT_SD', 'diagonal_prior', 'estimate_along', 'estimate_from',
            'estimated_components', 'Evaluation', 'json_safe', 'LOAD_LIMIT',

@@ -1,9 +1,9 @@
 """
 The search: Levenberg-Marquardt steps on the estimated wrench components, warm along a stream.
 
-Each step is a forward solve with its compliance (COMPLIANCE_TOLERANCE), within a trust
-radius in length-scaled units (moments as the force that makes them at the stack height H);
-the radius grows after steps the linearization predicted well and shrinks after steps that do
+Each step is a forward solve with the exact compliance, within a trust radius in
+length-scaled units (moments as the force that makes them at the stack height H); the
+radius grows after steps the linearization predicted well and shrinks after steps that do
 not lower the cost (Nocedal & Wright, Numerical Optimization, 2006, Ch. 4 and 10.3). A
 stable iterate never steps past buckling. ``estimate_along`` runs a search from the
 owner's last estimate, restarts once from the prior mean, and searches a moment from a
@@ -22,23 +22,12 @@ from .problem import (Curvature, estimated_name, Evaluation, Linearization, line
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
-__all__ = ['COMPLIANCE_TOLERANCE', 'estimate_along', 'FINISH_CHI2', 'FINISH_MISS',
-           'FINISH_REACH', 'LINEAR_FINISH_CHI2', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
+__all__ = ['estimate_along', 'FINISH_CHI2', 'FINISH_MISS', 'FINISH_REACH', 'LINEAR_FINISH_CHI2',
+           'LOAD_LIMIT', 'MAX_SOLVES', 'search']
 
 #: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
 #: alone, which the pose sees poorly, can take 20).
 MAX_SOLVES = 40
-
-#: The relative error of the compliance a forward solve may state and still serve a search
-#: (the solver's ``compliance_tolerance``): the exact compliance needs a Jacobian at the
-#: solution (200-260 us with its factorization), while a solve that took a fresh Jacobian
-#: on its way there (along the replay bench's walk, 59 % of them) gives one within a
-#: thousandth about half the time, for one probe shot. A step of three posterior standard
-#: deviations (FINISH_CHI2) taken on it then misses by at most 0.003 of one, a
-#: sixteenth of FINISH_MISS, and the posterior spreads move by about a thousandth
-#: (along that walk: estimates within 9e-4 standard deviations of those with the exact
-#: compliance, spreads within 0.9 %).
-COMPLIANCE_TOLERANCE = 1e-3
 
 #: Converged when the Gauss-Newton step lowers the whitened cost by at most this: the step
 #: is within a tenth of a posterior standard deviation, which adds a hundredth to the

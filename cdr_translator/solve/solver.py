@@ -311,7 +311,7 @@ class TranslatorSolver:
         accuracy not assessed. ``prior_mean`` (6) and ``prior_covariance`` (6x6, default
         zero mean, 25 N and 2.5 N m standard deviations): the Gaussian prior on the wrench;
         ``target_force_sd`` and ``target_moment_sd``: the posterior standard deviations that
-        meet the accuracy target. A maximum-a-posteriori estimate with the compliance,
+        meet the accuracy target. A maximum-a-posteriori estimate with the exact compliance,
         warm-started from the previous estimate (cdr_translator/estimation); an
         unmatched pose is a flagged result, bad input an InputError (a ValueError).
         """
@@ -350,6 +350,5 @@ class TranslatorSolver:
         return self.engine.solve_row(batch, row, wrench, compliance, self.time_limit_s)
 
     def _solve_with_compliance(self, wrench: np.ndarray, time_limit_s: float) -> SolveResult:
-        """Solve at ``wrench`` (6) with its compliance, as a search takes it, in the limit."""
-        return self.solve(wrench[:3], wrench[3:], compliance=True, time_limit_s=time_limit_s,
-                          compliance_tolerance=estimation.COMPLIANCE_TOLERANCE)
+        """Solve at ``wrench`` (6) with its compliance within ``time_limit_s``."""
+        return self.solve(wrench[:3], wrench[3:], compliance=True, time_limit_s=time_limit_s)

@@ -1,10 +1,9 @@
 """
 The translator's wrench from its measured end-disk pose (TranslatorSolver.estimate_wrench).
 
-Each evaluation is a solve with the compliance (within estimation.COMPLIANCE_TOLERANCE);
-its stability margin comes from that compliance, made at this wrench, since the solve's
-verdict may come from a factorization made at another one
-(docs/explanation/solution_quality.md), and near zero it decides the ambiguity.
+Each evaluation is a solve with the compliance; its stability margin comes from the exact
+compliance there, since the solve's may come from a factorization made at another wrench
+(docs/stability.md), and near zero it decides the ambiguity.
 """
 
 import math
@@ -36,9 +35,8 @@ def _translator_evaluation(solve: SolveWithCompliance, reference: Reference,
     result = solve(wrench, max(deadline - time.perf_counter(), 0.0))
     if not result.converged or result.compliance is None:
         return None
-    # the margin from the compliance made here: the solve's verdict may come from a
-    # factorization made at another wrench (docs/explanation/solution_quality.md), and
-    # near zero it decides the ambiguity
+    # the margin from the exact compliance here: the solve's may come from a factorization
+    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
     compliance = result.compliance.matrix
     return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable,
                       margin(compliance, reference), result.accuracy_met, result.message,

@@ -33,7 +33,6 @@ import re
 from typing import Dict, Iterator, List, Tuple
 
 from cdr_translator import TranslatorSolver
-from cdr_translator.analysis.compliance import STORED_METHOD
 from cdr_translator.estimation import Curvature, diagonal_prior, measured_target
 import numpy as np
 import pytest
@@ -381,59 +380,6 @@ def test_held_values_that_move_along_a_stream_cost_no_extra_forward_solve(solver
         spread = estimate.covariance[:2, :2]
         assert difference @ np.linalg.solve(spread, difference) <= 0.1 ** 2
     assert np.mean(solves[1:]) <= 1.2, solves
-
-
-def test_a_compliance_from_the_solves_own_factorization_changes_no_estimate(
-        solver, params, monkeypatch):
-    """
-    A search's forward solve may take its compliance from the solve's own factorization.
-
-    That is the factorization the solve refactored on its way to the solution
-    (estimation.COMPLIANCE_TOLERANCE), not a new Jacobian at the solution.
-    Along a rough walk (steps of 1 N, as the replay bench's), every compliance so taken is
-    within its stated error of the exact one at the same equilibrium, each column (the
-    axial force's, 10^4 times smaller than the lateral ones, too) within ten times the
-    tolerance of its own size, and the estimates and their spreads are those of the same
-    stream estimated with the exact compliance throughout: within a fiftieth of a posterior
-    standard deviation (Mahalanobis), the spreads within 2 %.
-    """
-    estimation_module = importlib.import_module('cdr_translator.estimation')
-    tolerance = estimation_module.COMPLIANCE_TOLERANCE
-    rng = np.random.default_rng(41)
-    load = np.array([2.0, -1.0, 0.5, 0.05, -0.03, 0.02])
-    covariance = pose_covariance(2e-4, 0.1)
-    steps = np.array([1.0, 1.0, 0.3, 0.01, 0.01, 0.01])
-    poses = list(noisy_walk(solver, rng, load, steps, covariance, 30))
-    warm = TranslatorSolver(params)
-    estimates = [warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
-                 for position, quaternion in poses]
-    with monkeypatch.context() as patch:
-        patch.setattr(estimation_module, 'COMPLIANCE_TOLERANCE', 0.0)
-        exact_warm = TranslatorSolver(params)
-        exact = [exact_warm.estimate_wrench(position, quaternion, pose_covariance=covariance)
-                 for position, quaternion in poses]
-    scale = np.repeat([1.0, params.stack_height], 3)
-    stored = 0
-    for estimate, reference in zip(estimates, exact):
-        assert estimate.converged and reference.converged, estimate.message
-        assert reference.solution.compliance.method != STORED_METHOD
-        difference = estimate.wrench - reference.wrench
-        assert difference @ np.linalg.solve(reference.covariance, difference) <= 0.02 ** 2
-        np.testing.assert_allclose(estimate.standard_deviation, reference.standard_deviation,
-                                   rtol=0.02)
-        taken = estimate.solution.compliance
-        if taken.method != STORED_METHOD:
-            continue
-        stored += 1
-        assert taken.estimated_error <= tolerance
-        at = estimate.solution
-        check = TranslatorSolver(params).solve(at.force, at.moment, compliance=True)
-        true = scale[:, None] * check.compliance.matrix * scale
-        error = scale[:, None] * taken.matrix * scale - true
-        assert np.linalg.norm(error) <= taken.estimated_error * np.linalg.norm(true)
-        assert np.all(np.linalg.norm(error, axis=0)
-                      <= 10 * tolerance * np.linalg.norm(true, axis=0))
-    assert stored >= 5, stored
 
 
 def test_the_worked_example_of_the_docs_prints_what_they_show():
