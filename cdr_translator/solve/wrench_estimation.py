@@ -3,7 +3,7 @@ The translator's wrench from its measured end-disk pose (TranslatorSolver.estima
 
 Each evaluation is a solve with the compliance; its stability margin comes from the exact
 compliance there, since the solve's may come from a factorization made at another wrench
-(docs/stability.md), and near zero it decides the ambiguity.
+(docs/explanation/solution_quality.md), and near zero it decides the ambiguity.
 """
 
 import math
@@ -36,7 +36,8 @@ def _translator_evaluation(solve: SolveWithCompliance, reference: Reference,
     if not result.converged or result.compliance is None:
         return None
     # the margin from the exact compliance here: the solve's may come from a factorization
-    # made at another wrench (docs/stability.md), and near zero it decides the ambiguity
+    # made at another wrench (docs/explanation/solution_quality.md), and near zero it
+    # decides the ambiguity
     compliance = result.compliance.matrix
     return Evaluation(wrench.copy(), result.frames['de'], compliance, result.stable,
                       margin(compliance, reference), result.accuracy_met, result.message,
