@@ -34,7 +34,7 @@ def compliance_time_s(result: SolveResult) -> float:
     """
     analysis = computed_compliance(result)
     started = time.perf_counter()
-    analysis.eigenvalues.sum() + analysis.smallest_stiffness_eigenvalue  # made when read
+    _ = analysis.eigenvalues, analysis.smallest_stiffness_eigenvalue  # made when first read
     return analysis.time_s + time.perf_counter() - started
 
 
