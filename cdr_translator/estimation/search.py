@@ -22,8 +22,8 @@ from .problem import (Curvature, estimated_name, Evaluation, Linearization, line
 from .verdict import estimate_from
 from .wrench_estimate import CONDITION_LIMIT, WrenchEstimate
 
-__all__ = ['estimate_along', 'FINISH_CHI2', 'FINISH_MISS', 'FINISH_REACH', 'LINEAR_FINISH_CHI2',
-           'LOAD_LIMIT', 'MAX_SOLVES', 'search']
+__all__ = ['BUCKLING_RESOLUTION', 'estimate_along', 'FINISH_CHI2', 'FINISH_MISS',
+           'FINISH_REACH', 'LINEAR_FINISH_CHI2', 'LOAD_LIMIT', 'MAX_SOLVES', 'search']
 
 #: Forward solves of one estimate at most (a warm one takes 1-3; a moment from a position
 #: alone, which the pose sees poorly, can take 20).
@@ -86,6 +86,14 @@ HELD_SHIFT_N = 1.0
 #: A rejected step from a point whose Gauss-Newton decrease is below this has hit the
 #: forward solve's rounding (1e-12 m against EXACT_POSE_SD_M): converged.
 ROUNDING_CHI2 = 1.0
+
+#: A step toward the pose that crossed buckling (a stable iterate, an unstable trial) and
+#: moved the whitened fit by at most this many posterior standard deviations (its length
+#: in the metric of the posterior) has located the buckling load as finely as the pose
+#: tells loads apart: the best stable match lies there, and bisecting further costs a
+#: forward solve past buckling each (which seeks a stable branch from the unloaded state,
+#: 0.3-1 s), to place a boundary the estimate cannot resolve.
+BUCKLING_RESOLUTION = 1.0
 
 #: Trust radius after an estimate's first (damped) step, at least, and at most: scaled
 #: wrench norm (N).
@@ -225,6 +233,12 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         if float(projected @ projected) <= ROUNDING_CHI2:
             found.converged = True
             found.message = 'converged (to the rounding of the forward solve)'
+            return found
+        if (trial is not None and trial.stable is False
+                and float(np.linalg.norm(values * (right @ step))) <= BUCKLING_RESOLUTION):
+            found.message = ('no stable equilibrium matches the measured pose: the best '
+                             'stable match lies at the buckling load (a step toward the pose '
+                             'within one posterior standard deviation buckles the translator)')
             return found
         radius = 0.25 * float(np.linalg.norm(step))
         if radius <= floor:

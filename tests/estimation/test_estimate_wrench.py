@@ -181,6 +181,26 @@ def test_an_unreachable_pose_is_a_flagged_result(estimator, params):
     assert estimate.converged and not estimate.flags, estimate.message
 
 
+def test_a_pose_only_a_buckling_load_matches_stops_at_the_buckling_load(params):
+    """
+    A moment estimate whose held force (zero) is wrong: the match lies past buckling.
+
+    The search presses against the buckling load; once a step within one posterior standard
+    deviation buckles the translator it stops there, in a few forward solves (bisecting on
+    took all 40, each past buckling 0.3-1 s), and says so: not converged, flagged.
+    """
+    solved = TranslatorSolver(params).solve([4.0, -3.0, 1.0], [0.05, 0.0, 0.0])
+    covariance = np.diag([0.2e-3 ** 2] * 3 + [math.radians(0.1) ** 2] * 3)
+    estimate = TranslatorSolver(params).estimate_wrench(
+        solved.end_disk_position, solved.end_disk_quaternion_xyzw,
+        pose_covariance=covariance, estimate='moment')
+    assert not estimate.converged and not estimate.accuracy_met
+    assert estimate.flags[0].startswith('no stable equilibrium matches the measured pose: '
+                                        'the best stable match lies at the buckling load')
+    assert estimate.stable and estimate.solves <= 15, estimate.solves
+    np.testing.assert_array_equal(estimate.force, 0.0)
+
+
 def test_a_pose_near_buckling_is_ambiguous(params):
     """An equilibrium close to the axial buckling load is flagged: another branch matches too."""
     near = TranslatorSolver(params, follow_stable_branch=False).solve([0.0, 0.0, -28.0])
