@@ -71,6 +71,8 @@ def replay_pose(log: McapLog, raw: RawMessage, processor: PoseProcessor, decoder
             summary.flagged += 1
         else:
             summary.estimated += 1
+        if estimate.flags:
+            summary.count_reasons(estimate.flags)
     for name, type_name, values in outcome.outputs:
         log.write(output_topic(raw.topic, name), type_name, values, raw.log_time_ns,
                   raw.log_time_ns)

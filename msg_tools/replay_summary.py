@@ -12,7 +12,8 @@ the table ``python -m msg_tools replay`` prints; ``EXIT_CODES`` its exit codes
 
 from dataclasses import dataclass, field
 import math
-from typing import Collection, Dict, List, Optional, Tuple
+import re
+from typing import Collection, Dict, List, Optional, Sequence, Tuple
 
 from cdr_translator.interface.joint_summary import JointSummary
 from cdr_wire.log_status import LogStatus
@@ -50,6 +51,23 @@ REPLAY_RECORD = 'msg_tools.replay'
 SERIES_LIMIT = 5_000
 #: Most per-message warnings kept (the rest are counted).
 WARNING_LIMIT = 20
+
+#: Kinds of reason the summary table names for flagged and failed estimates (the rest are
+#: counted).
+REASONS_SHOWN = 4
+
+#: A parenthesized aside of a flag: '(stability margin 0.0184)', '(chi-square ...)'.
+_ASIDE = re.compile(r'\s*\([^)]*\)')
+
+
+def reason_kind(flag: str) -> str:
+    """
+    Return the kind of an estimate's flag: its text before any ':', without asides.
+
+    'near a bifurcation (stability margin 0.0184): another wrench may match this pose'
+    is 'near a bifurcation'; the values that differ from pose to pose are dropped.
+    """
+    return ' '.join(_ASIDE.sub('', flag.split(':', 1)[0]).split())
 
 
 @dataclass
@@ -201,6 +219,20 @@ class ReplaySummary:
     fidelity: str = ''
     #: Converged messages by the level that answered them ('full', 'cc', ...).
     levels: Dict[str, int] = field(default_factory=dict)
+    #: Flagged and failed estimates by reason (``reason_kind`` of each flag).
+    pose_reasons: Dict[str, int] = field(default_factory=dict)
+
+    def count_reasons(self, flags: Sequence[str]) -> None:
+        """Count a flagged or failed estimate under each kind of reason it gives (once each)."""
+        for kind in dict.fromkeys(reason_kind(flag) for flag in flags):
+            self.pose_reasons[kind] = self.pose_reasons.get(kind, 0) + 1
+
+    def reasons_text(self) -> str:
+        """Return the reasons of flagged and failed estimates, most frequent first."""
+        ranked = sorted(self.pose_reasons.items(), key=lambda item: (-item[1], item[0]))
+        shown = ', '.join(f'{count} {kind}' for kind, count in ranked[:REASONS_SHOWN])
+        rest = len(ranked) - REASONS_SHOWN
+        return shown + (f', {rest} other reason(s)' if rest > 0 else '')
 
     def count_level(self, level: str) -> None:
         """Count a converged message answered at ``level``."""
@@ -292,6 +324,8 @@ class ReplaySummary:
             self.warn(text)
         for level, count in later.levels.items():
             self.levels[level] = self.levels.get(level, 0) + count
+        for kind, count in later.pose_reasons.items():
+            self.pose_reasons[kind] = self.pose_reasons.get(kind, 0) + count
         self.fidelity = self.fidelity or later.fidelity
         self.solve_times.merge(later.solve_times)
         self.estimate_times.merge(later.estimate_times)
@@ -349,6 +383,8 @@ class ReplaySummary:
                 ('duplicates skipped', str(self.input_report.duplicates))]
         if self.poses:
             rows.append(('measured poses', self.pose_counts()))
+        if self.pose_reasons:
+            rows.append(('flagged or failed, why', self.reasons_text()))
         if self.solve_times.count:
             p50, p90, p99 = (1e3 * self.solve_times.percentile(q) for q in (50, 90, 99))
             rows.append(('solve time ms p50/p90/p99/max',

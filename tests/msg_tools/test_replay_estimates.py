@@ -79,6 +79,9 @@ def test_replay_estimates_the_wrench_of_each_measured_pose(tmp_path):
         2, 2, 0, 1)
     assert summary.pose_counts() == '5: 2 estimated, 2 flagged, 0 failed, 1 rejected'
     assert summary.pose_counts() in summary.table()
+    # why: each flagged estimate under every kind of reason it gives, values left out
+    assert summary.pose_reasons == {'uninformative': 2, 'accuracy target missed': 2}
+    assert '2 accuracy target missed, 2 uninformative' in summary.table()
     assert summary.estimate_times.count == 4
     found = _read(output)
     assert {name for name, _ in found[POSE_TOPIC]} == {messages.POSE_TYPE}
