@@ -180,6 +180,8 @@ class Target:
     prior_covariance: np.ndarray  # (6, 6) of the wrench, SI
     target_sd: np.ndarray  # (6,) accuracy targets: posterior standard deviations, SI
     load_limit: float = math.inf  # largest scaled wrench norm tried (N)
+    force_limit: float = math.inf  # largest |force| tried (N)
+    moment_limit: float = math.inf  # largest |moment| tried (N m)
 
     def error(self, evaluation: Evaluation) -> np.ndarray:
         """Model pose minus measured pose, the measured components (m, rad)."""
@@ -409,7 +411,8 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                     prior_covariance: Optional[ArrayLike] = None,
                     target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
                     target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD,
-                    load_limit: float = math.inf) -> Target:
+                    load_limit: float = math.inf, max_force: float = math.inf,
+                    max_moment: float = math.inf) -> Target:
     """
     Check a measured pose, the components to estimate and the prior; return the Target.
 
@@ -421,8 +424,9 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
     diagonal_prior()) are the Gaussian prior on the wrench in the base frame.
     ``target_force_sd`` and ``target_moment_sd`` (N, N m) are the posterior standard
     deviations an estimate must reach to meet its accuracy target, ``load_limit`` the
-    largest scaled wrench norm (N) a search tries. InputError (a ValueError) names a bad
-    value.
+    largest scaled wrench norm (N) a search tries, ``max_force`` and ``max_moment`` (N,
+    N m) the largest force and moment magnitudes it tries. InputError (a ValueError)
+    names a bad value.
     """
     frame = np.eye(4)
     frame[:3, 3] = check_vector(names[0], position)
@@ -447,8 +451,11 @@ def measured_target(position: ArrayLike, quaternion_xyzw: Optional[ArrayLike],
                                       low_open=True, error=InputError),
                          check_number('target_moment_sd', target_moment_sd, low=0.0,
                                       low_open=True, error=InputError)], 3)
+    limits = [value if value == math.inf  # no limit
+              else check_number(name, value, low=0.0, error=InputError)
+              for name, value in (('max_force', max_force), ('max_moment', max_moment))]
     return Target(frame, rows, free, given, checked, float(length), labels, mean, spread,
-                  targets, load_limit)
+                  targets, load_limit, *limits)
 
 
 #: Covariances already checked (the same along a stream), the most recent last.

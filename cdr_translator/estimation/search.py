@@ -202,7 +202,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
         found.iterations += 1
         wrench = current.wrench.copy()
         wrench[free] += scale[free] * step
-        beyond = float(np.linalg.norm(wrench / scale)) > target.load_limit
+        beyond = _past_limits(wrench, target)
         trial = None if beyond else evaluate(wrench)
         found.solves += 0 if beyond else 1
         predicted = cost - float(np.sum((linear.residual + derivative.jacobian @ step) ** 2))
@@ -242,10 +242,9 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             return found
         radius = 0.25 * float(np.linalg.norm(step))
         if radius <= floor:
-            found.message = 'no nearby wrench lowers the pose residual: no equilibrium ' \
-                'matches the measured pose' + (
-                    f' within the load limit ({target.load_limit:.4g} N, scaled)' if beyond
-                    else '')
+            found.message = ('no nearby wrench lowers the pose residual: no equilibrium '
+                             'matches the measured pose' + (f' within {beyond}' if beyond
+                                                            else ''))
             return found
 
 
@@ -258,6 +257,18 @@ def _curvature(target: Target, current: Evaluation, linear: Linearization,
     free = target.free_index
     predicted = current.compliance[target.block] @ (target.scale[free] * step)
     return Curvature(target.frame, target.rows, trial.error - linear.error - predicted, length)
+
+
+def _past_limits(wrench: np.ndarray, target: Target) -> str:
+    """Name the limit of ``target`` that ``wrench`` is past ('' when within all of them)."""
+    values = wrench.tolist()
+    if math.hypot(*values[:3]) > target.force_limit:
+        return f'|f| <= {target.force_limit:.4g} N (max_force)'
+    if math.hypot(*values[3:]) > target.moment_limit:
+        return f'|m| <= {target.moment_limit:.4g} N m (max_moment)'
+    if float(np.linalg.norm(wrench / target.scale)) > target.load_limit:
+        return f'the load limit ({target.load_limit:.4g} N, scaled)'
+    return ''
 
 
 def _holds(evaluation: Evaluation, target: Target) -> bool:

@@ -304,7 +304,8 @@ def estimate_options(settings: TranslatorSettings) -> Dict[str, Any]:
     orientation) and the held values unused; otherwise the others are held at
     ``estimate_held_force`` / ``estimate_held_moment``. The prior is zero-mean, its
     covariance ``estimate_prior_covariance`` or, when that is empty, diagonal from the two
-    prior standard deviations.
+    prior standard deviations. The search stays within ``max_force`` and ``max_moment``,
+    the magnitudes the node accepts as wrenches.
     """
     components = estimate_components(settings.estimate_components)
     prior = (np.reshape(settings.estimate_prior_covariance, (6, 6))
@@ -314,7 +315,8 @@ def estimate_options(settings: TranslatorSettings) -> Dict[str, Any]:
     options: Dict[str, Any] = {
         'estimate': components, 'prior_covariance': prior,
         'target_force_sd': settings.estimate_target_force_sd,
-        'target_moment_sd': settings.estimate_target_moment_sd}
+        'target_moment_sd': settings.estimate_target_moment_sd,
+        'max_force': settings.max_force, 'max_moment': settings.max_moment}
     if components is not None:
         options.update(force=np.array(settings.estimate_held_force),
                        moment=np.array(settings.estimate_held_moment))

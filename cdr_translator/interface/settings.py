@@ -93,10 +93,10 @@ _NODE = (
                   'an empty frame_id are used as they are; poses are published in it'),
     ParameterSpec('end_disk_frame', 'frame_id of {de}, the DJ end disk; wrenches in it are '
                   'rotated into base_frame with the solved end-disk pose'),
-    ParameterSpec('max_force', 'N, wrenches with a larger |force| are rejected',
-                  bounds=(0.0, 1e6)),
-    ParameterSpec('max_moment', 'N m, wrenches with a larger |moment| are rejected',
-                  bounds=(0.0, 1e6)),
+    ParameterSpec('max_force', 'N, wrenches with a larger |force| are rejected, and '
+                  'estimates search no further', bounds=(0.0, 1e6)),
+    ParameterSpec('max_moment', 'N m, wrenches with a larger |moment| are rejected, and '
+                  'estimates search no further', bounds=(0.0, 1e6)),
     ParameterSpec('solve_time_limit_s', 's, a solve running longer gives up (no pose)',
                   bounds=(1e-3, 60.0)),
     ParameterSpec('log_compliance', 'compute and publish the compliance for every solve, '

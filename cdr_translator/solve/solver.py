@@ -296,7 +296,8 @@ class TranslatorSolver:
                         prior_mean: Optional[ArrayLike] = None,
                         prior_covariance: Optional[ArrayLike] = None,
                         target_force_sd: float = estimation.DEFAULT_TARGET_FORCE_SD,
-                        target_moment_sd: float = estimation.DEFAULT_TARGET_MOMENT_SD
+                        target_moment_sd: float = estimation.DEFAULT_TARGET_MOMENT_SD,
+                        max_force: float = math.inf, max_moment: float = math.inf
                         ) -> estimation.WrenchEstimate:
         """
         Estimate the end-disk wrench (N, N m, in {pe}) from a measured end-disk pose.
@@ -311,9 +312,12 @@ class TranslatorSolver:
         accuracy not assessed. ``prior_mean`` (6) and ``prior_covariance`` (6x6, default
         zero mean, 25 N and 2.5 N m standard deviations): the Gaussian prior on the wrench;
         ``target_force_sd`` and ``target_moment_sd``: the posterior standard deviations that
-        meet the accuracy target. A maximum-a-posteriori estimate with the exact compliance,
-        warm-started from the previous estimate (cdr_translator/estimation); an
-        unmatched pose is a flagged result, bad input an InputError (a ValueError).
+        meet the accuracy target; ``max_force`` and ``max_moment`` (N, N m; translator_node
+        passes its own): the largest force and moment magnitudes the search tries, so that
+        a pose only a larger load matches is an unmatched result at once instead of a
+        search among loads the node would reject. A maximum-a-posteriori estimate with the exact
+        compliance, warm-started from the previous estimate (cdr_translator/estimation);
+        an unmatched pose is a flagged result, bad input an InputError (a ValueError).
         """
         return wrench_estimation.estimate_wrench(
             self, self._solve_with_compliance, self.unloaded_reference(),
@@ -321,7 +325,7 @@ class TranslatorSolver:
             position, quaternion_xyzw, pose_covariance=pose_covariance, moment=moment,
             force=force, estimate=estimate, prior_mean=prior_mean,
             prior_covariance=prior_covariance, target_force_sd=target_force_sd,
-            target_moment_sd=target_moment_sd)
+            target_moment_sd=target_moment_sd, max_force=max_force, max_moment=max_moment)
 
     @one_blas_thread
     def solve_many(self, forces: ArrayLike, moments: Optional[ArrayLike] = None, *,

@@ -54,7 +54,9 @@ def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Refere
                     prior_mean: Optional[ArrayLike] = None,
                     prior_covariance: Optional[ArrayLike] = None,
                     target_force_sd: float = DEFAULT_TARGET_FORCE_SD,
-                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD) -> WrenchEstimate:
+                    target_moment_sd: float = DEFAULT_TARGET_MOMENT_SD,
+                    max_force: float = math.inf,
+                    max_moment: float = math.inf) -> WrenchEstimate:
     """
     Return the end-disk wrench matching a measured pose (TranslatorSolver.estimate_wrench).
 
@@ -69,7 +71,8 @@ def estimate_wrench(owner: object, solve: SolveWithCompliance, reference: Refere
                              estimate=estimate, prior_mean=prior_mean,
                              prior_covariance=prior_covariance, target_force_sd=target_force_sd,
                              target_moment_sd=target_moment_sd,
-                             load_limit=LOAD_LIMIT * load_scale(reference))
+                             load_limit=LOAD_LIMIT * load_scale(reference),
+                             max_force=max_force, max_moment=max_moment)
     reach = math.hypot(*target.frame[:3, 3].tolist())
     if reach > REACH * length:
         return estimate_from(

@@ -201,6 +201,25 @@ def test_a_pose_only_a_buckling_load_matches_stops_at_the_buckling_load(params):
     np.testing.assert_array_equal(estimate.force, 0.0)
 
 
+def test_a_search_stays_within_the_largest_force_and_moment(params):
+    """
+    The same pose with the node's limits (|m| <= 10 N m): unmatched at once, within them.
+
+    The match past buckling lies beyond 10 N m: the search tries no load past the limits
+    and ends without a solve past buckling, naming the limit it met.
+    """
+    solved = TranslatorSolver(params).solve([4.0, -3.0, 1.0], [0.05, 0.0, 0.0])
+    covariance = np.diag([0.2e-3 ** 2] * 3 + [math.radians(0.1) ** 2] * 3)
+    estimate = TranslatorSolver(params).estimate_wrench(
+        solved.end_disk_position, solved.end_disk_quaternion_xyzw,
+        pose_covariance=covariance, estimate='moment', max_force=100.0, max_moment=10.0)
+    assert not estimate.converged and not estimate.accuracy_met
+    assert estimate.flags[0] == ('no nearby wrench lowers the pose residual: no equilibrium '
+                                 'matches the measured pose within |m| <= 10 N m (max_moment)')
+    assert estimate.stable and estimate.solves <= 20, estimate.solves
+    assert np.linalg.norm(estimate.moment) <= 10.0
+
+
 def test_a_pose_near_buckling_is_ambiguous(params):
     """An equilibrium close to the axial buckling load is flagged: another branch matches too."""
     near = TranslatorSolver(params, follow_stable_branch=False).solve([0.0, 0.0, -28.0])
@@ -228,6 +247,8 @@ def test_a_pose_near_buckling_is_ambiguous(params):
     (([0.0, 0.0, 0.17], [0, 0, 0, 1]), {'pose_covariance': -np.eye(6)}, 'semidefinite'),
     (([0.0, 0.0, 0.17],), {'pose_covariance': np.triu(np.ones((3, 3)))}, 'symmetric'),
     (([0.0, 0.0, 0.17],), {'pose_covariance': np.full((3, 3), math.nan)}, 'finite'),
+    (([0.0, 0.0, 0.17],), {'max_force': -1.0}, 'max_force must be'),
+    (([0.0, 0.0, 0.17],), {'max_moment': math.nan}, 'max_moment must be'),
 ])
 def test_bad_input_raises_a_value_error_naming_it(estimator, arguments, keywords, named):
     """Malformed positions, quaternions, covariances and given components are named."""
