@@ -3,7 +3,7 @@ translator_node under load: its CPU per wrench at 1 kHz, and what it skips besid
 
 Usage: python -m bench.node_load [--seconds 5] [--markdown FILE]
 
-Two rows, printed against their targets:
+Three rows, printed against their targets:
 
 * **CPU per wrench at 1 kHz, log on**: the node (a child process, MCAP log on, its log
   process counted) receives a smooth 1 kHz wrench sweep (``bench.node_latency.stream``);
@@ -15,6 +15,13 @@ Two rows, printed against their targets:
   share of received wrenches skipped (target: below 1 %) and whether every pose the node
   received was answered or counted (received = estimated + flagged + not converged +
   rejected + skipped).
+* **Warm force estimate in the node**: the client publishes the measured poses of
+  ``msg_tools synth``'s random walk (the replay bench's recording: 0.2 mm / 0.1 deg, each
+  with its covariance) at a tracker's 100 Hz, no wrenches. The row is the estimate's own
+  time that the node reports in each pose's ``estimate_status`` (``estimate_time_ms``;
+  mean, median and 95th percentile over the poses after the first), against the target of
+  0.5 ms on average, with the node's CPU per pose beside it (the message handling, the
+  outputs and the log included).
 
 The counts are the node's own, from its aggregated ``/diagnostics`` (the first array after
 the last input's status). The client shares the machine with the node: on a loaded machine
@@ -38,6 +45,8 @@ from bench.node_latency import cpu_seconds
 from cdr_translator import TranslatorSolver
 from cdr_translator.interface import messages, pose_estimation
 from cdr_translator.ros.client import isolated_ros_env, NodeProcess, TranslatorClient
+from msg_tools import synth
+from msg_tools.synth_poses import measure as measured_poses, MeasuredPose, PoseNoise
 import numpy as np
 
 #: The targets: node CPU per wrench (s) and the share of wrenches skipped.
@@ -48,6 +57,12 @@ RATE_HZ = 1000.0
 BUSY_COMMAND = (sys.executable, '-c', 'while True: pass')
 #: Noise on the measured poses (m).
 POSE_NOISE_M = 1e-5
+#: The warm-estimate row: the tracker's rate, its noise, the walk's length and the target
+#: of the estimate's own time (s, mean).
+ESTIMATE_RATE_HZ = 100.0
+ESTIMATE_NOISE = PoseNoise(0.0002, 0.1)
+ESTIMATE_POSES = 300
+ESTIMATE_TARGET_S = 0.5e-3
 
 
 def _statuses(array) -> Dict[str, Dict[str, str]]:
@@ -135,6 +150,51 @@ def measure(seconds: float, poses: bool, busy: bool) -> dict:
     return {'wrenches': wrenches, 'poses': estimates, 'cpu_s': cpu, 'seconds': seconds}
 
 
+def walk_poses(count: int) -> List[MeasuredPose]:
+    """Return the measured poses of synth's random walk of ``count`` wrenches (seeded)."""
+    poses, _ = measured_poses(synth.generate('random-walk', count=count), ESTIMATE_NOISE)
+    return [pose for pose in poses if pose is not None]
+
+
+def measure_estimates(poses: List[MeasuredPose]) -> Dict[str, float]:
+    """Run the node, publish ``poses`` at ESTIMATE_RATE_HZ; return its estimate times, CPU."""
+    env = isolated_ros_env()
+    os.environ.update(env)
+    with tempfile.TemporaryDirectory() as folder:
+        ros_args = ['-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
+        with NodeProcess(ros_args, env, Path(folder) / 'node.log') as node:
+            topic = pose_estimation.ESTIMATE_STATUS_TOPIC
+            client = TranslatorClient([messages.SOLVE_STATUS_TOPIC, topic], depth=20000)
+            gc.disable()
+            try:
+                if not client.handshake(120.0):
+                    raise SystemExit(f'node did not answer:\n{node.text()}')
+                cpu_before = cpu_seconds(node.process.pid)
+                started = time.monotonic()
+                last = {}
+                for index, pose in enumerate(poses):
+                    delay = started + index / ESTIMATE_RATE_HZ - time.monotonic()
+                    if delay > 0.0:
+                        time.sleep(delay)
+                    last = client.publish_pose(pose.position.tolist(),
+                                               pose.quaternion_xyzw.tolist(),
+                                               covariance=pose.covariance.ravel().tolist())
+                client.wait_for(lambda: bool(client.messages_stamped(topic, last)), 30.0)
+                cpu = cpu_seconds(node.process.pid) - cpu_before
+                statuses = [message.status[0] for message, _ in client.received[topic]]
+                node.stop(signal.SIGINT)
+            finally:
+                client.close()
+                gc.enable()
+    times = [float(values['estimate_time_ms']) for values in
+             ({pair.key: pair.value for pair in status.values} for status in statuses)
+             if 'estimate_time_ms' in values]
+    warm = np.array(times[1:]) * 1e-3   # the first estimate starts cold
+    return {'poses': len(poses), 'answered': len(statuses), 'mean_s': float(np.mean(warm)),
+            'median_s': float(np.median(warm)), 'p95_s': float(np.percentile(warm, 95)),
+            'cpu_per_pose_s': cpu / max(len(statuses), 1)}
+
+
 def rows(seconds: float) -> List[str]:
     """Measure both rows; return them as markdown table lines (printed as they come)."""
     lines = []
@@ -159,6 +219,15 @@ def rows(seconds: float) -> List[str]:
                  f'< {100 * SKIPPED_SHARE_TARGET:.0f} % skipped, all poses answered or counted '
                  f'| {met} |')
     print(lines[-1], flush=True)
+    found = measure_estimates(walk_poses(ESTIMATE_POSES))
+    met = 'met' if found['mean_s'] <= ESTIMATE_TARGET_S else 'missed'
+    lines.append(f'| warm force estimate in the node (0.2 mm / 0.1 deg walk, 100 Hz) | '
+                 f'mean {1e3 * found["mean_s"]:.2f} ms (median {1e3 * found["median_s"]:.2f}, '
+                 f'p95 {1e3 * found["p95_s"]:.2f}; node CPU '
+                 f'{1e3 * found["cpu_per_pose_s"]:.2f} ms per pose; {found["answered"]} of '
+                 f'{found["poses"]} poses answered) | <= {1e3 * ESTIMATE_TARGET_S:.1f} ms | '
+                 f'{met} |')
+    print(lines[-1], flush=True)
     return lines
 
 
@@ -175,7 +244,9 @@ def main() -> None:
         when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
         args.markdown.write_text(
             '# translator_node under load\n\nGenerated by `python -m bench.node_load '
-            f'--markdown FILE` ({when}, {args.seconds:g} s per row, load average {load}). '
+            f'--markdown FILE` ({when}, {args.seconds:g} s per wrench row, '
+            f'{ESTIMATE_POSES} poses at {ESTIMATE_RATE_HZ:g} Hz for the estimate row, load '
+            f'average {load}). '
             'The node as a child process with its MCAP log on; counts are its own, from '
             'its aggregated /diagnostics; CPU includes its log process.\n\n'
             '| measure | measured | target | |\n|---|---|---|---|\n' + '\n'.join(lines) + '\n')
