@@ -59,10 +59,12 @@ class PayloadProcessor(MeasuredPoseProcessor):
         check_pose(measured, self.settings.world_frame, self.robot.params.stack_height)
 
     def estimate(self, measured: MeasuredPose) -> WrenchEstimate:
-        """Estimate the payload at the latest sliders."""
+        """Estimate the payload at the latest sliders, within the node's payload limits."""
         return self.robot.estimate_payload(measured.position, self.sliders(),
                                            measured.quaternion_xyzw,
-                                           covariance=measured.covariance)
+                                           covariance=measured.covariance,
+                                           max_force=self.settings.max_force,
+                                           max_moment=self.settings.max_moment)
 
     def outputs(self, estimate: WrenchEstimate, stamp: Mapping[str, int],
                 counts: Mapping[str, int]) -> List[Tuple[str, str, dict]]:

@@ -298,20 +298,24 @@ class DeltaRobot:
     @one_blas_thread
     def estimate_payload(self, platform_position: ArrayLike, sliders: ArrayLike,
                          platform_quaternion_xyzw: Optional[ArrayLike] = None, *,
-                         covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
+                         covariance: Optional[ArrayLike] = None, max_force: float = math.inf,
+                         max_moment: float = math.inf) -> PayloadEstimate:
         """
         Estimate the payload (N, N m, in {w}) from a measured platform pose at ``sliders``.
 
         Position (m, {w}) only: the force under no moment; with the orientation all six
         components. ``covariance`` (6x6 or, for a position, 3x3) is propagated to the
-        estimate's. Flagged, not raised, when no payload matches; see robot/payload_estimate.py.
+        estimate's. ``max_force`` and ``max_moment`` (N, N m; cdr_node passes its own) bound
+        the payloads the search tries. Flagged, not raised, when no payload matches; see
+        robot/payload_estimate.py.
         """
         return estimate_payload(self, self._solve_with_compliance,
                                 self.leg_solvers[0].unloaded_reference(), len(self.leg_solvers),
                                 self.params.stack_height, self.geometry.slider_stroke,
                                 self.time_limit_s, self.has_warm_start, self.reset,
                                 platform_position, sliders, platform_quaternion_xyzw,
-                                covariance=covariance)
+                                covariance=covariance, max_force=max_force,
+                                max_moment=max_moment)
 
     @property
     def has_warm_start(self) -> bool:

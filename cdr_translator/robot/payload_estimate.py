@@ -15,7 +15,8 @@ the matching equilibrium is not known to be stable (``accuracy_met`` False): the
 verdict covers the platform stiffness and each leg held at both ends (robot/linearization.py).
 """
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
+import math
 import time
 from typing import Any, Callable, Dict, Optional
 
@@ -74,7 +75,8 @@ def estimate_payload(owner: object, solve: SolveWithCompliance, leg_reference: R
                      legs: int, length: float, slider_stroke: float, time_limit_s: float,
                      warm: bool, reset: Callable[[], None], platform_position: ArrayLike,
                      sliders: ArrayLike, platform_quaternion_xyzw: Optional[ArrayLike] = None,
-                     *, covariance: Optional[ArrayLike] = None) -> PayloadEstimate:
+                     *, covariance: Optional[ArrayLike] = None, max_force: float = math.inf,
+                     max_moment: float = math.inf) -> PayloadEstimate:
     """
     Return the payload matching a measured platform pose (DeltaRobot.estimate_payload).
 
@@ -82,15 +84,16 @@ def estimate_payload(owner: object, solve: SolveWithCompliance, leg_reference: R
     ``reset`` (forget the warm start; ``warm``: whether there is one); the unloaded
     ``leg_reference`` of one of its ``legs`` legs, the stack height ``length`` (m) and the
     ``slider_stroke`` (m). ``owner`` keys the last estimate, the next one's warm start
-    (estimation.estimate_along). The whole estimate is limited to ``time_limit_s``.
+    (estimation.estimate_along). The whole estimate is limited to ``time_limit_s``, its
+    search to payloads within ``max_force`` and ``max_moment`` (N, N m).
     """
     started = time.perf_counter()
     sliders = check_sliders(sliders, slider_stroke)
-    target = replace(measured_target(platform_position, platform_quaternion_xyzw, covariance,
-                                     None, None, length, PAYLOAD_LABELS,
-                                     ('platform_position', 'platform_quaternion_xyzw',
-                                      'covariance')),
-                     load_limit=legs * LOAD_LIMIT * load_scale(leg_reference))
+    target = measured_target(platform_position, platform_quaternion_xyzw, covariance, None,
+                             None, length, PAYLOAD_LABELS,
+                             ('platform_position', 'platform_quaternion_xyzw', 'covariance'),
+                             load_limit=legs * LOAD_LIMIT * load_scale(leg_reference),
+                             max_force=max_force, max_moment=max_moment)
     deadline = started + time_limit_s
     found = estimate_along(
         owner, lambda payload: _evaluation(solve, length, sliders, payload, deadline),

@@ -67,3 +67,26 @@ def test_payload_estimate_bad_input_is_a_value_error(robots):
     with pytest.raises(ValueError, match='covariance must be 6x6'):
         estimator.estimate_payload([0.0, 0.0, -0.15], SLIDERS, [0.0, 0.0, 0.0, 1.0],
                                    covariance=np.eye(3))
+    with pytest.raises(ValueError, match='max_force must be'):
+        estimator.estimate_payload([0.0, 0.0, -0.15], SLIDERS, max_force=-1.0)
+
+
+def test_a_pose_only_a_payload_past_the_limits_matches_is_unmatched(robots):
+    """
+    A platform 1 cm off its solved place (a tracker frame off by that much): unmatched.
+
+    Without limits the search matches it with about 500 N; with cdr_node's 100 N it tries
+    no larger payload and says which limit it met.
+    """
+    forward, estimator = robots
+    solved = forward.solve(SLIDERS, [0.0, 0.0, -9.81])
+    position = solved.platform_position + np.array([0.01, 0.0, 0.0])
+    covariance = np.eye(3) * 0.2e-3 ** 2
+    unbounded = DeltaRobot().estimate_payload(position, SLIDERS, covariance=covariance)
+    assert np.linalg.norm(unbounded.force) > 100.0
+    estimate = DeltaRobot().estimate_payload(position, SLIDERS, covariance=covariance,
+                                             max_force=100.0, max_moment=10.0)
+    assert not estimate.converged and not estimate.accuracy_met
+    assert estimate.flags[0] == ('no nearby wrench lowers the pose residual: no equilibrium '
+                                 'matches the measured pose within |f| <= 100 N (max_force)')
+    assert np.linalg.norm(estimate.force) <= 100.0
