@@ -7,9 +7,10 @@ VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.setup-stamp
 # numba kernels compiled into numba's cache (cdr_translator/**/__pycache__/*.nbi|*.nbc)
 KERNELS := $(VENV)/.kernels-stamp
-# every module with a compiled kernel (a decorator from _jit), found rather than listed
-KERNEL_SOURCES := cdr_translator/_jit.py \
-	$(shell grep -rlE --include='*.py' '^@jit' cdr_translator)
+# every module with a compiled kernel (a decorator from _jit) and the modules those import:
+# the sources numba's cache is stamped with (cdr_translator/kernel_sources.py, stdlib only)
+KERNEL_SOURCES := cdr_translator/_jit.py cdr_translator/kernel_sources.py \
+	$(shell $(PYTHON) cdr_translator/kernel_sources.py)
 
 .PHONY: setup test docs demo clean clean-kernels bags hard-cases bench atlas-scale
 

@@ -15,9 +15,7 @@ Kernels cached with other numba options (``JIT_OPTIONS``) or from other kernel s
 kernel module or a module it imports changed) are deleted and compiled anew.
 """
 
-import ast
 import functools
-import hashlib
 import importlib
 import os
 from pathlib import Path
@@ -28,6 +26,8 @@ from types import ModuleType
 from typing import Any, Callable, Dict, List, NamedTuple, Set
 
 import numba
+
+from .kernel_sources import PACKAGE_DIR, sources_digest
 
 _interpreting = False
 #: The modules of the translator's residual and Jacobian (Problem's kernels) and of the
@@ -105,41 +105,17 @@ OPTIONS_STAMP = 'cdr_translator_jit_options.txt'
 _stamped_folders: Set[Path] = set()
 
 
-def _imported_files(path: Path, package_dir: Path) -> Set[Path]:
-    """Return the package's own modules that ``path`` imports by relative imports."""
-    files = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-        if isinstance(node, ast.ImportFrom) and node.level:
-            base = path.parent
-            for _ in range(node.level - 1):
-                base = base.parent
-            parts = node.module.split('.') if node.module else []
-            names = [parts] if parts else [[alias.name] for alias in node.names]
-            for name in names:
-                target = base.joinpath(*name)
-                for candidate in (target.with_suffix('.py'), target / '__init__.py'):
-                    if candidate.is_file() and package_dir in candidate.parents:
-                        files.add(candidate)
-    return files
-
-
 @functools.lru_cache(maxsize=None)
-def kernel_sources_digest(package_dir: Path = Path(__file__).resolve().parent) -> str:
+def kernel_sources_digest(package_dir: Path = PACKAGE_DIR) -> str:
     """
     Return a SHA-256 of every kernel module's source and of the modules it imports.
 
     numba checks a cached kernel against its own file only, so a kernel whose callee or
-    constant lives in another, changed file would load stale machine code; the digest goes
-    into OPTIONS_STAMP, and a changed one clears the cache.
+    constant lives in another, changed file would load stale machine code; the digest
+    (kernel_sources.sources_digest, once per process) goes into OPTIONS_STAMP, and a
+    changed one clears the cache.
     """
-    kernels = {path for path in package_dir.rglob('*.py') if '@jit' in path.read_text('utf-8')}
-    files = set(kernels)
-    for path in kernels:
-        files |= _imported_files(path, package_dir)
-    digest = hashlib.sha256()
-    for path in sorted(files):
-        digest.update(str(path.relative_to(package_dir)).encode() + b'\0' + path.read_bytes())
-    return digest.hexdigest()
+    return sources_digest(package_dir)
 
 
 def options_text() -> str:

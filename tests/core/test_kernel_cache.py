@@ -19,6 +19,7 @@ from typing import Dict, Iterator, List, Optional
 
 import cdr_translator._jit
 from cdr_translator._jit import kernel_sources_digest, OPTIONS_STAMP, options_text
+from cdr_translator.kernel_sources import kernel_source_files
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -150,3 +151,24 @@ def test_a_change_a_kernel_depends_on_clears_the_cache(tmp_path):
     assert '@jit' not in imported.read_text()
     imported.write_text(imported.read_text() + '# changed\n')
     assert kernel_sources_digest.__wrapped__(package) != before
+
+
+def test_make_recompiles_for_every_file_the_digest_covers():
+    """
+    The Makefile's kernel sources are the digest's files: a changed one recompiles at set-up.
+
+    Listed by ``kernel_sources.py`` run as a script with the system interpreter's standard
+    library only (make reads them before the environment exists); a module a kernel module
+    imports (solve/solver.py, no kernel of its own) is among them.
+    """
+    listed = subprocess.run([sys.executable, '-I', 'cdr_translator/kernel_sources.py'],
+                            capture_output=True, text=True, cwd=ROOT, timeout=60, check=True)
+    files = [ROOT / line for line in listed.stdout.split()]
+    assert files == kernel_source_files()
+    assert ROOT / 'cdr_translator' / 'solve' / 'solver.py' in files
+    assert '@jit' not in (ROOT / 'cdr_translator' / 'solve' / 'solver.py').read_text()
+    dry = subprocess.run(['make', '-pn', 'setup'], capture_output=True, text=True, cwd=ROOT,
+                         timeout=120)
+    rule = next(line for line in dry.stdout.splitlines()
+                if line.startswith('.venv/.kernels-stamp:'))
+    assert all(str(path.relative_to(ROOT)) in rule.split() for path in files), rule
