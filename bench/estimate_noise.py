@@ -80,7 +80,8 @@ def estimate_loads(forward: TranslatorSolver, estimator: TranslatorSolver, loads
                    rng: np.random.Generator) -> Dict[str, List]:
     """Estimate each load back from a noisy pose; return errors, verdicts and times."""
     found: Dict[str, List] = {'converged': [], 'flagged': [], 'inside': [], 'errors': [],
-                              'estimates': [], 'truths': [], 'times': [], 'solves': []}
+                              'estimates': [], 'truths': [], 'times': [], 'solves': [],
+                              'free': []}  # the estimated components' indices
     cholesky = np.linalg.cholesky(covariance)
     for load in loads:
         solved = forward.solve(load[:3], load[3:])
@@ -98,6 +99,7 @@ def estimate_loads(forward: TranslatorSolver, estimator: TranslatorSolver, loads
         if not estimate.converged:
             continue
         free = [NAMES.index(name) for name in estimate.components]
+        found['free'] = free
         error = (estimate.wrench - load)[free]
         spread = estimate.covariance[np.ix_(free, free)]
         found['inside'].append(error @ np.linalg.solve(spread, error)
@@ -195,14 +197,20 @@ def draw(figure: Dict[str, dict], path: Path) -> None:
     colours = {'wrench': 'tab:red', 'force': 'tab:orange', 'lateral': 'tab:blue'}
     for axis, (index, title, span) in zip(axes, ((0, 'lateral force x', 10.5),
                                                  (2, 'axial force', 3.2))):
+        held = []
         for choice, found in figure.items():
+            if index not in found['free']:  # held at the truth: no estimate to show
+                held.append(choice)
+                continue
             truths, estimates = np.array(found['truths']), np.array(found['estimates'])
             axis.plot(truths[:, index], estimates[:, index], 'o', ms=3, alpha=0.6,
                       color=colours[choice], label=LEGEND[choice])
         axis.plot([-span, span], [-span, span], 'k-', lw=0.8, label='estimate = truth')
         axis.set_xlabel(f'true {title} (N)')
         axis.set_ylabel(f'estimated {title} (N)')
-        axis.set_title(f'{title}, tracker 0.2 mm / 0.1 deg')
+        axis.set_title(f'{title}, tracker 0.2 mm / 0.1 deg' + (
+            f'\n(held at the truth in {", ".join(repr(choice) for choice in held)}: not shown)'
+            if held else ''))
         axis.grid(alpha=0.3)
     axes[0].legend(title='estimated components', loc='upper left', fontsize=8)
     fig.savefig(path, dpi=110)
