@@ -234,7 +234,7 @@ def search(evaluate: Callable[[np.ndarray], Optional[Evaluation]],
             found.converged = True
             found.message = 'converged (to the rounding of the forward solve)'
             return found
-        if (trial is not None and trial.stable is False
+        if (trial is not None and trial.stable is False and current.stable is not False
                 and float(np.linalg.norm(values * (right @ step))) <= BUCKLING_RESOLUTION):
             found.message = ('no stable equilibrium matches the measured pose: the best '
                              'stable match lies at the buckling load (a step toward the pose '
