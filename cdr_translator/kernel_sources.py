@@ -2,13 +2,13 @@
 The source files the compiled kernels are built from, and their digest (standard library only).
 
 A cached kernel is valid for one set of sources: every module with a kernel (a ``@jit``
-decorator of cdr_translator._jit) and the package modules those import by relative
-imports, whose functions and constants the kernels compile in. ``_jit`` stamps numba's
-cache with their digest and clears the cache when it changes; ``make setup`` compiles anew
-when any of these files is newer than its last compile. Run as a script, it prints them one
-per line relative to the working directory: the Makefile reads them while it reads its
-rules, before any environment exists, so this module imports nothing beyond the standard
-library.
+decorator, the package's compile switch) and the package modules those import by relative
+imports, whose functions and constants the kernels compile in. The compile switch stamps
+numba's cache with their digest and clears the cache when it changes; ``make setup``
+compiles anew when any of these files is newer than its last compile. Run as a script, it
+prints them one per line relative to the working directory: the Makefile reads them while
+it reads its rules, before any environment exists, so this module imports nothing beyond
+the standard library.
 """
 
 import ast
