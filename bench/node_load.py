@@ -29,6 +29,7 @@ both lose time, so compare rows of one run.
 """
 
 import argparse
+from contextlib import contextmanager
 import datetime
 import gc
 import math
@@ -39,7 +40,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from typing import Dict, List, Tuple
+from typing import Dict, Iterator, List, Tuple
 
 from bench.node_latency import cpu_seconds
 from cdr_translator import TranslatorSolver
@@ -103,44 +104,56 @@ def stream(client: TranslatorClient, seconds: float, poses: bool) -> Tuple[dict,
     return last_wrench, last_pose
 
 
-def measure(seconds: float, poses: bool, busy: bool) -> dict:
-    """Run the node, stream, and return its counts and CPU time over the stream."""
+@contextmanager
+def node_and_client(topics: List[str]) -> Iterator[Tuple[NodeProcess, TranslatorClient]]:
+    """
+    Run the node (own domain, MCAP log on) and a client subscribed to ``topics``, handshaken.
+
+    The client's garbage collector is off meanwhile (see bench.node_latency: a collection
+    stalls the client); both end when the block does.
+    """
     env = isolated_ros_env()
     os.environ.update(env)
     with tempfile.TemporaryDirectory() as folder:
         ros_args = ['-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
         with NodeProcess(ros_args, env, Path(folder) / 'node.log') as node:
-            topics = [messages.END_DISK_POSE_TOPIC, messages.SOLVE_STATUS_TOPIC,
-                      messages.DIAGNOSTICS_TOPIC, pose_estimation.ESTIMATE_STATUS_TOPIC]
             client = TranslatorClient(topics, depth=20000)
-            gc.disable()   # see bench.node_latency: a collection stalls the client
-            neighbour = None
+            gc.disable()
             try:
                 if not client.handshake(120.0):
                     raise SystemExit(f'node did not answer:\n{node.text()}')
-                if busy:
-                    neighbour = subprocess.Popen(BUSY_COMMAND)
-                answered = next(stamp for stamp in reversed(client.handshake_stamps)
-                                if client.messages_stamped(messages.SOLVE_STATUS_TOPIC, stamp))
-                before = _counts_after(client, answered, messages.SOLVE_STATUS_TOPIC)
-                cpu_before = cpu_seconds(node.process.pid)
-                last_wrench, last_pose = stream(client, seconds, poses)
-                client.wait_for(lambda: bool(client.messages_stamped(
-                    messages.SOLVE_STATUS_TOPIC, last_wrench)), 10.0)
-                time.sleep(0.2)
-                cpu = cpu_seconds(node.process.pid) - cpu_before
-                if poses:
-                    client.wait_for(lambda: bool(client.messages_stamped(
-                        pose_estimation.ESTIMATE_STATUS_TOPIC, last_pose)), 10.0)
-                    time.sleep(0.5)   # the pose waiting behind the last one
-                after = _counts_after(client, last_wrench, messages.SOLVE_STATUS_TOPIC)
-                node.stop(signal.SIGINT)
+                yield node, client
             finally:
-                if neighbour is not None:
-                    neighbour.kill()
-                    neighbour.wait(10.0)
                 client.close()
                 gc.enable()
+
+
+def measure(seconds: float, poses: bool, busy: bool) -> dict:
+    """Run the node, stream, and return its counts and CPU time over the stream."""
+    topics = [messages.END_DISK_POSE_TOPIC, messages.SOLVE_STATUS_TOPIC,
+              messages.DIAGNOSTICS_TOPIC, pose_estimation.ESTIMATE_STATUS_TOPIC]
+    with node_and_client(topics) as (node, client):
+        neighbour = subprocess.Popen(BUSY_COMMAND) if busy else None
+        try:
+            answered = next(stamp for stamp in reversed(client.handshake_stamps)
+                            if client.messages_stamped(messages.SOLVE_STATUS_TOPIC, stamp))
+            before = _counts_after(client, answered, messages.SOLVE_STATUS_TOPIC)
+            cpu_before = cpu_seconds(node.process.pid)
+            last_wrench, last_pose = stream(client, seconds, poses)
+            client.wait_for(lambda: bool(client.messages_stamped(
+                messages.SOLVE_STATUS_TOPIC, last_wrench)), 10.0)
+            time.sleep(0.2)
+            cpu = cpu_seconds(node.process.pid) - cpu_before
+            if poses:
+                client.wait_for(lambda: bool(client.messages_stamped(
+                    pose_estimation.ESTIMATE_STATUS_TOPIC, last_pose)), 10.0)
+                time.sleep(0.5)   # the pose waiting behind the last one
+            after = _counts_after(client, last_wrench, messages.SOLVE_STATUS_TOPIC)
+            node.stop(signal.SIGINT)
+        finally:
+            if neighbour is not None:
+                neighbour.kill()
+                neighbour.wait(10.0)
     wrenches = {key: int(after[messages.DIAGNOSTIC_NAME][key])
                 - int(before[messages.DIAGNOSTIC_NAME][key])
                 for key in ('received', 'solved', 'not_converged', 'rejected', 'skipped')}
@@ -158,34 +171,21 @@ def walk_poses(count: int) -> List[MeasuredPose]:
 
 def measure_estimates(poses: List[MeasuredPose]) -> Dict[str, float]:
     """Run the node, publish ``poses`` at ESTIMATE_RATE_HZ; return its estimate times, CPU."""
-    env = isolated_ros_env()
-    os.environ.update(env)
-    with tempfile.TemporaryDirectory() as folder:
-        ros_args = ['-p', f'mcap_path:={Path(folder) / "bench.mcap"}']
-        with NodeProcess(ros_args, env, Path(folder) / 'node.log') as node:
-            topic = pose_estimation.ESTIMATE_STATUS_TOPIC
-            client = TranslatorClient([messages.SOLVE_STATUS_TOPIC, topic], depth=20000)
-            gc.disable()
-            try:
-                if not client.handshake(120.0):
-                    raise SystemExit(f'node did not answer:\n{node.text()}')
-                cpu_before = cpu_seconds(node.process.pid)
-                started = time.monotonic()
-                last = {}
-                for index, pose in enumerate(poses):
-                    delay = started + index / ESTIMATE_RATE_HZ - time.monotonic()
-                    if delay > 0.0:
-                        time.sleep(delay)
-                    last = client.publish_pose(pose.position.tolist(),
-                                               pose.quaternion_xyzw.tolist(),
-                                               covariance=pose.covariance.ravel().tolist())
-                client.wait_for(lambda: bool(client.messages_stamped(topic, last)), 30.0)
-                cpu = cpu_seconds(node.process.pid) - cpu_before
-                statuses = [message.status[0] for message, _ in client.received[topic]]
-                node.stop(signal.SIGINT)
-            finally:
-                client.close()
-                gc.enable()
+    topic = pose_estimation.ESTIMATE_STATUS_TOPIC
+    with node_and_client([messages.SOLVE_STATUS_TOPIC, topic]) as (node, client):
+        cpu_before = cpu_seconds(node.process.pid)
+        started = time.monotonic()
+        last = {}
+        for index, pose in enumerate(poses):
+            delay = started + index / ESTIMATE_RATE_HZ - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+            last = client.publish_pose(pose.position.tolist(), pose.quaternion_xyzw.tolist(),
+                                       covariance=pose.covariance.ravel().tolist())
+        client.wait_for(lambda: bool(client.messages_stamped(topic, last)), 30.0)
+        cpu = cpu_seconds(node.process.pid) - cpu_before
+        statuses = [message.status[0] for message, _ in client.received[topic]]
+        node.stop(signal.SIGINT)
     times = [float(values['estimate_time_ms']) for values in
              ({pair.key: pair.value for pair in status.values} for status in statuses)
              if 'estimate_time_ms' in values]
