@@ -194,7 +194,18 @@ def reference(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
 def assess(lu: tuple, pose_jacobian: np.ndarray, rotation: np.ndarray,
            wrench_sensitivity: np.ndarray, origin: Reference) -> Stability:
     """Verdict and margin (see the module docstring) at the factorization ``lu``."""
-    compliance = compliance_from_factorization(lu, pose_jacobian, rotation, wrench_sensitivity)
+    return assess_compliance(
+        compliance_from_factorization(lu, pose_jacobian, rotation, wrench_sensitivity), lu,
+        origin)
+
+
+def assess_compliance(compliance: np.ndarray, lu: tuple, origin: Reference) -> Stability:
+    """
+    ``assess`` at the factorization ``lu`` given the compliance C made from it already.
+
+    compliance.implicit_compliance makes C by ``compliance_from_factorization``, as
+    ``assess`` does: the verdict at its factorization then costs the 6x6 eigenproblem.
+    """
     sign = determinant_sign(lu)
     parity_ok = sign == origin.determinant_sign
     try:

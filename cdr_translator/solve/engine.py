@@ -39,7 +39,8 @@ from .._linalg import residual_norm
 from ..analysis.accuracy import ErrorEstimate, kept_steps, meets
 from ..analysis.compliance import analysis_from_stored, check_tolerance, compliance_analysis
 from ..analysis.compliance import ComplianceAnalysis, EXACT
-from ..analysis.stability import CLOSE_BRANCH_MARGIN, load_scale, Reference, Stability
+from ..analysis.stability import (assess_compliance, CLOSE_BRANCH_MARGIN, load_scale, Reference,
+                                  Stability)
 from ..bvp.problem import Problem
 from ..params.translator_params import Accuracy, TranslatorParams
 
@@ -554,6 +555,15 @@ class Engine:
                                                        started, **options)
         state.pose = (pose, wrench.copy())
         state.exact_at = outcome.xs
+        verdicts = self._verdicts
+        if factorization is None and verdicts.origin is not None:
+            # the verdict at the exact factorization that is now the stored one, from the
+            # compliance just made with it: the next warm solve keeps a verdict made on
+            # its own factorization (and so may be a usual compiled row) instead of
+            # assessing the new factorization again
+            verdicts.verdict_lu = state.lu
+            verdicts.verdict = assess_compliance(analysis.matrix.copy(), state.lu,
+                                                 verdicts.origin)
         return analysis
 
     def result_at(self, xs: np.ndarray, wrench: np.ndarray,

@@ -123,6 +123,32 @@ def test_reused_verdicts_stay_within_half_the_margin_of_fresh_ones(params):
         assert abs(result.stability_margin - truth.margin) <= 0.5 * truth.margin
 
 
+def test_a_solve_after_an_exact_compliance_keeps_the_verdict_made_with_it(params):
+    """
+    The exact compliance's factorization carries its verdict to the warm solves after it.
+
+    Along a sensor-noise walk with compliance=True, each answer whose verdict was kept is
+    judged by the exact compliance of the answer before it (the factorization the solve
+    stepped on), not by a stale one assessed again; answers and compliances are those of
+    the same walk solved with a fresh assessment at every solve.
+    """
+    solver = TranslatorSolver(params)
+    reference = solver.unloaded_reference()
+    rng = np.random.default_rng(11)
+    force = np.array([3.0, -2.0, -1.0])
+    before = solver.solve(force, compliance=True)
+    kept = 0
+    for _ in range(40):
+        force = force + rng.normal(scale=0.02, size=3)
+        after = solver.solve(force, compliance=True)
+        assert after.converged and after.stable
+        previous = stability.margin(before.compliance.matrix, reference)
+        kept += after.stability_margin == previous
+        assert after.stability_margin == pytest.approx(previous, rel=0.05)
+        before = after
+    assert kept >= 30  # a sensor-noise step keeps the verdict: most answers
+
+
 def test_factorize_equals_scipy_lu_factor_and_flags_a_singular_matrix():
     """LAPACK getrf directly gives lu_factor's factors; an exactly singular J has sign 0."""
     rng = np.random.default_rng(5)
