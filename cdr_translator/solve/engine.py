@@ -191,17 +191,20 @@ class Engine:
         """
         Solve at the checked ``wrench``, begun at ``started`` and limited to ``time_limit_s``.
 
-        A usual warm row is one compiled call (``usual_solve``, the batch's row; no BLAS in
-        it, so no thread limit to set); any other goes on from the warm step that call took
-        (``PathState.handed_over``). ``path`` overrides ``options.path`` for this solve.
+        A usual warm row without compliance is one compiled call (``usual_solve``, the
+        batch's row; no BLAS in it, so no thread limit to set); when that call stops, the
+        general solve goes on from the warm step it took (``PathState.handed_over``). A
+        solve with compliance takes the general path, as ``solve_rows`` does: the compiled
+        row is no faster there, and a process that solves with compliance only (an
+        estimate's forward solves) then never loads the row's kernel (60 ms from the
+        cache). ``path`` overrides ``options.path`` for this solve.
         """
         options = {} if compliance_options is None else compliance_options
         path = self.options.path if path is None else path
-        if warm_start and not verify and self._refinements.kept is None and path == 'default':
+        if (warm_start and not verify and not compliance and self._refinements.kept is None
+                and path == 'default'):
             usual, undo = self.usual_solve(wrench, started)
             if usual is not None:
-                if compliance:
-                    self._usual_compliance(usual, wrench, options)
                 return usual
             try:
                 return self._solve(wrench, started, time_limit_s, True, compliance, False,
@@ -319,18 +322,6 @@ class Engine:
             stable=verdict.stable, stability_margin=verdict.margin,
             error_estimate_m=estimate.position_m, error_estimate_deg=estimate.angle_deg,
             accuracy_met=True, steps_per_segment=self.params.steps_per_segment), None
-
-    @one_blas_thread
-    def _usual_compliance(self, result: SolveResult, wrench: np.ndarray,
-                          options: dict) -> None:
-        """Add the compliance to ``result``, the usual warm row just solved (``usual_solve``)."""
-        xs, residual = self._usual_solution
-        outcome = Outcome(xs, residual, result.iterations, True, result.message)
-        try:
-            result.compliance = self.compliance(outcome, wrench, result.frames['de'],
-                                                **options)
-        except ArithmeticError as error:
-            result.message += f'; no compliance: {error}'
 
     def _usual_rows(self, batch: BatchResult, wrenches: np.ndarray,
                     rows: range) -> Tuple[int, Optional[Callable[[], None]]]:
