@@ -114,8 +114,6 @@ class Engine:
         self._state = PathState(self.problem.size)
         self._verdicts = branch.Verdicts()
         self._refinements = Refinements()
-        #: (unknowns, residual) of the last usual warm row ``usual_solve`` answered
-        self._usual_solution: Tuple[np.ndarray, np.ndarray] = (np.empty(0), np.empty(0))
         if method == 'fast':
             continuation.unloaded(self.problem, self._state)  # compiles the kernels now
 
@@ -310,7 +308,6 @@ class Engine:
             return None, None if run is None else run.undo
         problem = self.problem
         iterations, slot, residual, report = run.last_step
-        self._usual_solution = (run.previous[0], residual)
         points, frames = problem.recorded_shape(slot)
         verdict, estimate = self._verdicts.verdict, self._refinements.last_estimate
         assert verdict is not None and estimate is not None  # _usual_run's conditions
@@ -550,8 +547,8 @@ class Engine:
         if factorization is None and verdicts.origin is not None:
             # the verdict at the exact factorization that is now the stored one, from the
             # compliance just made with it: the next warm solve keeps a verdict made on
-            # its own factorization (and so may be a usual compiled row) instead of
-            # assessing the new factorization again
+            # the factorization it steps on (without compliance it may then be a usual
+            # compiled row) instead of assessing that factorization again
             verdicts.verdict_lu = state.lu
             verdicts.verdict = assess_compliance(analysis.matrix.copy(), state.lu,
                                                  verdicts.origin)

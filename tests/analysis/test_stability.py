@@ -129,8 +129,7 @@ def test_a_solve_after_an_exact_compliance_keeps_the_verdict_made_with_it(params
 
     Along a sensor-noise walk with compliance=True, each answer whose verdict was kept is
     judged by the exact compliance of the answer before it (the factorization the solve
-    stepped on), not by a stale one assessed again; answers and compliances are those of
-    the same walk solved with a fresh assessment at every solve.
+    stepped on), not by a stale one assessed again.
     """
     solver = TranslatorSolver(params)
     reference = solver.unloaded_reference()
